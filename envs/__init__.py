@@ -1,0 +1,25 @@
+"""sb3-er environments. Importing this package registers their Gymnasium ids.
+
+The entry points are strings, so registering imports no environment module (and neither dm_control nor MuJoCo):
+
+* ``sb3_er/WindyCliff-v0``: windy cliff grid world (thesis 5.1), :class:`sb3_er_envs.windy_cliff.WindyCliffEnv`
+* ``sb3_er/PendulumSwingup-v0``: pendulum swing-up (thesis 4.2.1), :class:`sb3_er_envs.pendulum.PendulumSwingupEnv`
+* ``sb3_er/SimplestWalker-v0``: simplest walker (thesis 4.2.2), :class:`sb3_er_envs.simplest_walker.SimplestWalkerEnv`
+* ``sb3_er/Leo-v0``: the LEO biped in MuJoCo (thesis 4.2.3, needs the ``dmc`` extra), :class:`sb3_er_envs.leo.LeoEnv`
+
+Every environment ends its own episodes at its time limit and reports it as ``truncated``, so none is registered with
+``max_episode_steps``; change a limit through the environment's keyword arguments in ``gymnasium.make``.
+"""
+
+from gymnasium.envs.registration import register, registry
+
+ENV_IDS = {
+    "sb3_er/WindyCliff-v0": "sb3_er_envs.windy_cliff:WindyCliffEnv",
+    "sb3_er/PendulumSwingup-v0": "sb3_er_envs.pendulum:PendulumSwingupEnv",
+    "sb3_er/SimplestWalker-v0": "sb3_er_envs.simplest_walker:SimplestWalkerEnv",
+    "sb3_er/Leo-v0": "sb3_er_envs.leo:LeoEnv",
+}
+
+for _env_id, _entry_point in ENV_IDS.items():
+    if _env_id not in registry:
+        register(id=_env_id, entry_point=_entry_point)
