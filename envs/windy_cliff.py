@@ -157,24 +157,22 @@ class WindyCliffEnv(gym.Env):
 
     def transition_distribution(self, cell: tuple[int, int], action: int) -> list[Outcome]:
         """All outcomes of ``action`` in the non-terminal ``cell`` with their probabilities (merged, zero ones dropped)."""
-        x, y = cell
-        if not (0 <= x < self.goal_column and 0 <= y < self.height):
-            raise ValueError(
-                f"cell must be a non-goal cell with 0 <= x < {self.goal_column} and 0 <= y < {self.height}, got {cell}"
-            )
+        x, y = self._checked_cell(cell)
         action = self._checked_action(action)
         if not self.is_windy(y):
             return [Outcome(1.0, *self.outcome(cell, action, blown=False))]
         merged: dict[tuple, float] = {}
         for blown, probability in ((False, 1.0 - self.wind_probability), (True, self.wind_probability)):
             if probability > 0.0:
-                key = self.outcome(cell, action, blown)
+                key = self.outcome((x, y), action, blown)
                 merged[key] = merged.get(key, 0.0) + probability
         return [Outcome(probability, *key) for key, probability in merged.items()]
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start at the south-west corner, or at ``options["cell"]`` (any non-goal cell, e.g. for exploring starts)."""
         super().reset(seed=seed)
-        self._x, self._y = self.start_cell
+        cell = self.start_cell if options is None else options.get("cell", self.start_cell)
+        self._x, self._y = self._checked_cell(cell)
         self._steps = 0
         return self._observation(), {"fell": False, "goal_reached": False}
 
@@ -219,6 +217,15 @@ class WindyCliffEnv(gym.Env):
 
     def _observation(self) -> np.ndarray:
         return np.array((self._x, self._y), dtype=np.float64)
+
+    def _checked_cell(self, cell) -> tuple[int, int]:
+        x, y = (int(c) for c in cell) if len(cell) == 2 else (-1, -1)
+        if (x, y) != tuple(cell) or not (0 <= x < self.goal_column and 0 <= y < self.height):
+            raise ValueError(
+                f"cell must be a non-goal cell (x, y) with integer 0 <= x < {self.goal_column} and "
+                f"0 <= y < {self.height}, got {cell!r}"
+            )
+        return x, y
 
     def _checked_action(self, action) -> int:
         index = int(action)
