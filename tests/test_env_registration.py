@@ -7,6 +7,7 @@ import gymnasium
 import numpy as np
 import pytest
 from gymnasium import spaces
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import sb3_er_envs
 
@@ -60,6 +61,7 @@ def test_every_id_makes_an_environment_with_the_shared_interface(env_id):
     observation, reward, terminated, truncated, info = env.step(action_space.sample())
     assert observation_space.contains(observation)
     assert np.isfinite(reward) and isinstance(terminated, bool) and isinstance(truncated, bool)
+    sb3_check_env(base)
     env.close()
 
 
