@@ -1,0 +1,124 @@
+"""The grid-world study of thesis chapter 5: value functions of the ER variants on the same data and the same replays.
+
+A vanilla-ER learning run on the windy cliff grid world is stopped just after it first reaches the goal (Figure 5.2).
+Its trajectory buffer is then given to fresh vanilla-ER, ER-sigma, residual-ER and residual-ER-sigma models, whose
+replay generators get the same seed, and each replays the same trajectories: one phase of 10 x the stored trajectories
+(the situation of Table 5.1 and Figure 5.7) and, separately, many phases without new samples (Table 5.2, the local
+maxima of Figure 5.4). A Sarsa(lambda) run stopped at its first goal gives Figure 5.3. This is done with one tiling of
+width 1 (tabular) and with 16 tilings of width 2 (the thesis's function approximation).
+
+The maps show V(s) = max_a Q(s, a) for every cell outside the goal column; the statistics quantify the thesis's findings:
+positive values in the doomed-to-fall (windy) area and the height of maxima.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from stable_baselines3.common.callbacks import BaseCallback
+
+ENV_ID = "sb3_er/WindyCliff-v0"
+CASES = {"tabular": {"n_tilings": 1, "tile_widths": [1.0, 1.0]}, "tile coding": {"n_tilings": 16}}
+REPLAY_VARIANTS = ("er", "er_sigma", "residual_er", "residual_er_sigma")
+REPLAYS_PER_TRAJECTORY = 10
+
+
+class StopAtFirstGoal(BaseCallback):
+    """Stops learning at the end of the first episode that reaches the goal (or after `max_episodes`)."""
+
+    def __init__(self, max_episodes: int) -> None:
+        super().__init__()
+        self.max_episodes = max_episodes
+        self.episodes = 0
+        self.goal_reached = False
+
+    def _on_step(self) -> bool:
+        for index in np.flatnonzero(self.locals["dones"]):
+            self.episodes += 1
+            self.goal_reached |= bool(self.locals["infos"][index].get("goal_reached", False))
+        return not self.goal_reached and self.episodes < self.max_episodes
+
+
+def value_map(model, env) -> np.ndarray:
+    """V(x, y) = max_a Q((x, y), a) of every non-goal cell, indexed [y, x] (y northwards)."""
+    unwrapped = env.unwrapped
+    xs, ys = np.meshgrid(np.arange(unwrapped.goal_column), np.arange(unwrapped.height))
+    cells = np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
+    return model.policy.q_values(cells).max(axis=1).reshape(ys.shape)
+
+
+def map_statistics(values: np.ndarray, first_windy_row: int) -> dict[str, float]:
+    """Figures behind the thesis's reading of a value map: the windy (doomed-to-fall) area against the calm one."""
+    windy, calm = values[first_windy_row:], values[:first_windy_row]
+    return {
+        "windy_max": float(windy.max()),
+        "windy_mean": float(windy.mean()),
+        "windy_positive_fraction": float((windy > 0).mean()),
+        "calm_max": float(calm.max()),
+        "calm_min": float(calm.min()),
+    }
+
+
+def _new_model(algo: str, env, policy_kwargs: dict, seed: int):
+    from sb3_er.zoo import algorithm_classes, model_kwargs
+
+    kwargs = model_kwargs(algo, ENV_ID)
+    kwargs["policy_kwargs"] = {**kwargs.get("policy_kwargs", {}), **policy_kwargs}
+    return algorithm_classes()[algo]("TileQ", env, seed=seed, **kwargs)
+
+
+def learn_until_goal(algo: str, env, policy_kwargs: dict, seed: int, max_episodes: int = 1000):
+    """A learning run of `algo` stopped after the episode in which it first reaches the goal."""
+    model = _new_model(algo, env, policy_kwargs, seed)
+    stopper = StopAtFirstGoal(max_episodes)
+    model.learn(total_timesteps=max_episodes * env.unwrapped.max_episode_steps, callback=stopper)
+    if not stopper.goal_reached:
+        raise RuntimeError(f"{algo} did not reach the goal within {max_episodes} episodes (seed {seed})")
+    return model, stopper.episodes
+
+
+def same_data_value_maps(
+    seed: int = 0, long_phases: int = 30
+) -> tuple[dict[str, dict[str, dict[str, np.ndarray]]], pd.DataFrame]:
+    """Value maps per (situation, case, algorithm) and their statistics, with the data and replays shared per case.
+
+    Situations: ``"after goal"`` (one replay phase, Table 5.1) and ``"long replay"`` (`long_phases` phases, Table 5.2).
+    """
+    import gymnasium as gym
+
+    import sb3_er_envs  # noqa: F401
+
+    env = gym.make(ENV_ID)
+    first_windy_row = env.unwrapped.first_windy_row
+    maps: dict[str, dict[str, dict[str, np.ndarray]]] = {"after goal": {}, "long replay": {}}
+    rows = []
+    with tempfile.TemporaryDirectory() as scratch:
+        for case, policy_kwargs in CASES.items():
+            collector, episodes = learn_until_goal("er", env, policy_kwargs, seed)
+            buffer_path = Path(scratch) / "buffer.pkl"
+            collector.save_replay_buffer(buffer_path)
+            n_trajectories = collector.replay_buffer.n_trajectories
+            sarsa, sarsa_episodes = learn_until_goal("sarsa_lambda", env, policy_kwargs, seed)
+            for situation, phases in (("after goal", 1), ("long replay", long_phases)):
+                maps[situation][case] = {"sarsa_lambda": value_map(sarsa, env)}
+                rows.append(
+                    {"situation": situation, "case": case, "algorithm": "sarsa_lambda", "episodes": sarsa_episodes,
+                     "replayed_trajectories": 0, **map_statistics(maps[situation][case]["sarsa_lambda"], first_windy_row)}
+                )
+                for algo in REPLAY_VARIANTS:
+                    model = _new_model(algo, env, policy_kwargs, seed)
+                    model.load_replay_buffer(buffer_path)
+                    model.seed_replay(seed)
+                    for _ in range(phases):
+                        model.replay(REPLAYS_PER_TRAJECTORY * n_trajectories)
+                    maps[situation][case][algo] = value_map(model, env)
+                    rows.append(
+                        {"situation": situation, "case": case, "algorithm": algo, "episodes": episodes,
+                         "replayed_trajectories": phases * REPLAYS_PER_TRAJECTORY * n_trajectories,
+                         **map_statistics(maps[situation][case][algo], first_windy_row)}
+                    )
+    env.close()
+    return maps, pd.DataFrame(rows)

@@ -1,0 +1,116 @@
+"""Learning-curve metrics of the thesis (section 6.1): means with 95% confidence intervals, rise time, end performance.
+
+A learning curve is a 1-D array of performance values at increasing abscissae (episodes or seconds of learning time);
+a set of curves from several seeds is a 2-D array with one row per seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+
+def _as_seed_matrix(curves) -> np.ndarray:
+    matrix = np.asarray(curves, dtype=float)
+    if matrix.ndim == 1:
+        matrix = matrix[np.newaxis, :]
+    if matrix.ndim != 2 or matrix.shape[1] == 0:
+        raise ValueError(f"curves must be a non-empty (seeds, points) array, got shape {matrix.shape}")
+    return matrix
+
+
+def mean_confidence_interval(samples, confidence: float = 0.95, axis: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and the half-width of its Student-t confidence interval along `axis` (NaN half-width for one sample)."""
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
+    values = np.asarray(samples, dtype=float)
+    n = values.shape[axis]
+    if n == 0:
+        raise ValueError("cannot average zero samples")
+    mean = values.mean(axis=axis)
+    if n < 2:
+        return mean, np.full_like(mean, np.nan)
+    standard_error = values.std(axis=axis, ddof=1) / np.sqrt(n)
+    return mean, stats.t.ppf(0.5 + confidence / 2.0, df=n - 1) * standard_error
+
+
+def end_performance(mean_curve, success_threshold: float | None = None) -> float:
+    """Highest value of the mean curve, the thesis's "highest performance after a successful gait has been learned".
+
+    With a `success_threshold`, a curve that never reaches it has learned no gait: the result is NaN (thesis "NA").
+    """
+    curve = _as_seed_matrix(mean_curve)[0]
+    best = float(np.max(curve))
+    if success_threshold is not None and best < success_threshold:
+        return float("nan")
+    return best
+
+
+def rise_time(abscissa, mean_curve, end: float | None = None, fraction: float = 0.9) -> float:
+    """First abscissa at which the mean curve has covered `fraction` of its way from its first value to `end`.
+
+    `end` defaults to the curve's maximum (the end performance). For curves starting at zero, such as walked distance,
+    this is the thesis's "time to reach 90% of the end performance"; measuring from the first value also makes it
+    meaningful for negative returns (pendulum). NaN when `end` is NaN (no gait learned) or is never reached.
+    """
+    x = np.asarray(abscissa, dtype=float)
+    curve = _as_seed_matrix(mean_curve)[0]
+    if x.shape != curve.shape:
+        raise ValueError(f"abscissa has shape {x.shape} but the curve has shape {curve.shape}")
+    if not 0.0 < fraction <= 1.0:
+        raise ValueError(f"fraction must lie in (0, 1], got {fraction}")
+    target_end = float(np.max(curve)) if end is None else float(end)
+    if np.isnan(target_end):
+        return float("nan")
+    threshold = curve[0] + fraction * (target_end - curve[0])
+    reached = np.flatnonzero(curve >= threshold)
+    return float(x[reached[0]]) if reached.size else float("nan")
+
+
+def relative_difference(value: float, reference: float) -> float:
+    """Difference with a reference in percent of the reference's magnitude (the thesis tables' last column)."""
+    if reference == 0 or np.isnan(reference):
+        return float("nan")
+    return 100.0 * (value - reference) / abs(reference)
+
+
+@dataclass(frozen=True)
+class CurveSummary:
+    """Thesis-table figures of one algorithm: rise time, end performance (with its CI) and final falls (with CI)."""
+
+    rise_time: float
+    end_performance: float
+    end_performance_ci: float
+    falls: float | None
+    falls_ci: float | None
+    n_seeds: int
+
+
+def summarize_curves(
+    abscissa,
+    performance,
+    cumulative_falls=None,
+    success_threshold: float | None = None,
+    fraction: float = 0.9,
+    confidence: float = 0.95,
+) -> CurveSummary:
+    """Summarise per-seed learning curves (rows: seeds) the way thesis Tables 6.1-6.3 do."""
+    curves = _as_seed_matrix(performance)
+    mean, half_width = mean_confidence_interval(curves, confidence)
+    end = end_performance(mean, success_threshold)
+    end_ci = float("nan") if np.isnan(end) else float(half_width[int(np.argmax(mean))])
+    falls = falls_ci = None
+    if cumulative_falls is not None:
+        final_falls = _as_seed_matrix(cumulative_falls)[:, -1]
+        falls_mean, falls_half = mean_confidence_interval(final_falls, confidence)
+        falls, falls_ci = float(falls_mean), float(falls_half)
+    return CurveSummary(
+        rise_time=rise_time(abscissa, mean, end, fraction),
+        end_performance=end,
+        end_performance_ci=end_ci,
+        falls=falls,
+        falls_ci=falls_ci,
+        n_seeds=curves.shape[0],
+    )

@@ -1,0 +1,67 @@
+"""Figures like the thesis's: mean learning curves with 95% CI bands (Figure 6.1), cumulative falls (Figure 6.2) and
+grid-world value maps (Figures 5.2-5.5, Tables 5.1-5.2)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from sb3_er.experiments.metrics import mean_confidence_interval  # noqa: E402
+from sb3_er.experiments.thesis import ALGORITHM_LABELS  # noqa: E402
+
+
+def plot_mean_with_ci(
+    series: Mapping[str, tuple[np.ndarray, np.ndarray]], x_label: str, y_label: str, title: str, path: Path
+) -> Path:
+    """One line per algorithm (mean over seeds) with a shaded 95% confidence interval of the mean; saved to `path`."""
+    figure, axes = plt.subplots(figsize=(7.0, 4.2))
+    for algo, (x, curves) in series.items():
+        mean, half_width = mean_confidence_interval(curves)
+        (line,) = axes.plot(x, mean, label=f"{ALGORITHM_LABELS.get(algo, algo)} (n={curves.shape[0]})")
+        if np.isfinite(half_width).any():
+            axes.fill_between(x, mean - half_width, mean + half_width, color=line.get_color(), alpha=0.2, linewidth=0)
+    axes.set_xlabel(x_label)
+    axes.set_ylabel(y_label)
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize="small")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def plot_value_maps(
+    maps: Mapping[str, Mapping[str, np.ndarray]], first_windy_row: int, title: str, path: Path
+) -> Path:
+    """Grid of value maps, one row per case (e.g. tabular, tile coding) and one column per algorithm.
+
+    Each map is indexed [y, x] with y growing northwards; the wind starts at `first_windy_row` (dashed line, the
+    thesis's striped line). Colours share one symmetric scale per row so that positive and negative values read alike.
+    """
+    rows = list(maps)
+    columns = list(maps[rows[0]])
+    figure, axes = plt.subplots(len(rows), len(columns), figsize=(2.9 * len(columns), 2.4 * len(rows)), squeeze=False)
+    for row_index, case in enumerate(rows):
+        limit = max(float(np.max(np.abs(value_map))) for value_map in maps[case].values()) or 1.0
+        for column_index, algo in enumerate(columns):
+            axes_cell = axes[row_index][column_index]
+            value_map = maps[case][algo]
+            image = axes_cell.imshow(value_map, origin="lower", cmap="RdBu", vmin=-limit, vmax=limit)
+            axes_cell.axhline(first_windy_row - 0.5, color="black", linestyle="--", linewidth=1)
+            for (y, x), value in np.ndenumerate(value_map):
+                axes_cell.text(x, y, f"{value:.0f}", ha="center", va="center", fontsize=6)
+            axes_cell.set_xticks([])
+            axes_cell.set_yticks([])
+            axes_cell.set_title(f"{ALGORITHM_LABELS.get(algo, algo)}, {case}", fontsize="small")
+        figure.colorbar(image, ax=list(axes[row_index]), shrink=0.8, label="max_a Q(s, a)")
+    figure.suptitle(title)
+    figure.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(figure)
+    return path

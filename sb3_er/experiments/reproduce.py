@@ -1,0 +1,173 @@
+"""`sb3-er reproduce`: one thesis experiment, all (algorithm, seed) pairs, the summary table and the figures."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from sb3_er.experiments.runner import plan_jobs, run_jobs
+from sb3_er.experiments.specs import EXPERIMENTS, Experiment
+from sb3_er.experiments.summary import load_curves, markdown_table, summarize, summary_table
+from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+ALL_ALGORITHMS = tuple(ALGORITHM_LABELS)
+
+
+@dataclass
+class Reproduction:
+    """What a reproduction produced: the output files and the wall times."""
+
+    out_dir: Path
+    table_markdown: Path
+    table_csv: Path
+    figures: list[Path] = field(default_factory=list)
+    runs_done: int = 0
+    runs_skipped: int = 0
+    wall_time_s: float = 0.0
+
+
+def _checked_experiment(name: str) -> Experiment:
+    if name not in EXPERIMENTS:
+        raise ValueError(f"unknown experiment {name!r}; choose one of {', '.join(EXPERIMENTS)}")
+    return EXPERIMENTS[name]
+
+
+def _checked_algorithms(algos: Sequence[str]) -> list[str]:
+    unknown = [algo for algo in algos if algo not in ALL_ALGORITHMS]
+    if unknown or not algos:
+        raise ValueError(f"unknown or no algorithms {unknown}; choose from {', '.join(ALL_ALGORITHMS)}")
+    return list(dict.fromkeys(algos))
+
+
+def _pin_settings(out_dir: Path, experiment: Experiment, budget: float) -> None:
+    """Record the experiment and run length of `out_dir`; refuse to mix runs of different settings in one folder."""
+    settings_path = out_dir / "settings.json"
+    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget}
+    if settings_path.is_file():
+        existing = json.loads(settings_path.read_text())
+        if existing != settings:
+            raise ValueError(
+                f"{out_dir} holds runs made with {existing}, not {settings}; resume with the same settings or choose "
+                "another --out"
+            )
+    else:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        settings_path.write_text(json.dumps(settings, indent=2))
+
+
+def reproduce(
+    experiment_name: str,
+    n_seeds: int = 20,
+    algos: Sequence[str] = ALL_ALGORITHMS,
+    out_dir: str | Path | None = None,
+    budget: float | None = None,
+    n_workers: int | None = None,
+    first_seed: int = 0,
+    show_progress: bool = True,
+) -> Reproduction:
+    """Run (or resume) an experiment and write its per-run CSVs, summary table (markdown and CSV) and figures."""
+    from sb3_er.experiments.plots import plot_mean_with_ci
+
+    start = time.perf_counter()
+    experiment = _checked_experiment(experiment_name)
+    algos = _checked_algorithms(algos)
+    if int(n_seeds) != n_seeds or n_seeds < 1:
+        raise ValueError(f"the number of seeds must be a positive integer, got {n_seeds}")
+    budget = float(experiment.default_budget if budget is None else budget)
+    if budget <= 0:
+        raise ValueError(f"the run length must be positive ({experiment.budget_unit}), got {budget}")
+    out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
+    _pin_settings(out_dir, experiment, budget)
+    seeds = list(range(first_seed, first_seed + n_seeds))
+
+    to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir)
+    run_jobs(to_run, n_workers or os.cpu_count() or 1, show_progress)
+
+    curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
+    summaries = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
+    table = summary_table(experiment, summaries, budget)
+    table_csv = out_dir / "summary.csv"
+    table.to_csv(table_csv, index=False)
+
+    figures = [
+        plot_mean_with_ci(
+            {algo: (curve.x, curve.performance) for algo, curve in curves.items()},
+            experiment.x_label,
+            experiment.performance_label,
+            f"{experiment.title}: mean of {n_seeds} runs, 95% CI",
+            out_dir / "learning_curves.png",
+        )
+    ]
+    if experiment.has_falls:
+        figures.append(
+            plot_mean_with_ci(
+                {algo: (curve.x, curve.cumulative_falls) for algo, curve in curves.items()},
+                experiment.x_label,
+                "cumulative falls while learning",
+                f"{experiment.title}: falls, mean of {n_seeds} runs, 95% CI",
+                out_dir / "cumulative_falls.png",
+            )
+        )
+    sections = [
+        f"# {experiment.title}: {n_seeds} seeds, {budget:g} {experiment.budget_unit} per run",
+        "",
+        markdown_table(experiment, table),
+        "",
+        experiment.thesis_caption,
+        "",
+        "Learning wall time per algorithm (sum over its runs): "
+        + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
+    ]
+    if experiment.name == "gridworld":
+        value_figures, value_section = _gridworld_value_maps(out_dir, first_seed)
+        figures += value_figures
+        sections += ["", value_section]
+    table_markdown = out_dir / "summary.md"
+    table_markdown.write_text("\n".join(sections) + "\n")
+    return Reproduction(
+        out_dir=out_dir,
+        table_markdown=table_markdown,
+        table_csv=table_csv,
+        figures=figures,
+        runs_done=len(to_run),
+        runs_skipped=len(finished),
+        wall_time_s=time.perf_counter() - start,
+    )
+
+
+def _gridworld_value_maps(out_dir: Path, seed: int) -> tuple[list[Path], str]:
+    """The value-map study (thesis 5.2-5.4): figures, statistics CSV and a markdown section."""
+    import gymnasium as gym
+
+    import sb3_er_envs  # noqa: F401
+    from sb3_er.experiments.gridworld import ENV_ID, same_data_value_maps
+    from sb3_er.experiments.plots import plot_value_maps
+
+    maps, statistics = same_data_value_maps(seed)
+    statistics.to_csv(out_dir / "value_maps.csv", index=False)
+    first_windy_row = gym.make(ENV_ID).unwrapped.first_windy_row
+    figures = [
+        plot_value_maps(
+            cases,
+            first_windy_row,
+            f"Windy cliff: V = max_a Q, same data and replays per row ({situation})",
+            out_dir / f"value_maps_{situation.replace(' ', '_')}.png",
+        )
+        for situation, cases in maps.items()
+    ]
+    lines = [
+        "## Value functions on the same data and the same replays (thesis Tables 5.1-5.2, Figures 5.2-5.7)",
+        "",
+        "| Situation | Case | Algorithm | Windy max | Windy mean | Windy cells > 0 | Calm max | Calm min |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in statistics.itertuples():
+        lines.append(
+            f"| {row.situation} | {row.case} | {ALGORITHM_LABELS[row.algorithm]} | {row.windy_max:.1f} | "
+            f"{row.windy_mean:.1f} | {row.windy_positive_fraction:.0%} | {row.calm_max:.1f} | {row.calm_min:.1f} |"
+        )
+    return figures, "\n".join(lines)

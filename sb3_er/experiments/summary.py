@@ -1,0 +1,143 @@
+"""Aggregates per-run CSVs into learning curves and tables in the format of thesis Tables 6.1-6.3."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from sb3_er.experiments.metrics import CurveSummary, relative_difference, summarize_curves
+from sb3_er.experiments.runner import run_csv_path
+from sb3_er.experiments.specs import Experiment
+from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+REFERENCE_ALGORITHM = "sarsa_lambda"
+
+
+@dataclass(frozen=True)
+class Curves:
+    """Per-seed curves of one algorithm, cut to the length of the shortest run (rows: seeds)."""
+
+    x: np.ndarray
+    performance: np.ndarray
+    cumulative_falls: np.ndarray
+    seeds: tuple[int, ...]
+    wall_time_s: float
+
+
+def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curves | None:
+    """The finished runs of `algo` among `seeds`, or None when none has finished."""
+    frames = {seed: pd.read_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
+    if not frames:
+        return None
+    length = min(len(frame) for frame in frames.values())
+    ordered = [frames[seed].iloc[:length] for seed in sorted(frames)]
+    return Curves(
+        x=ordered[0][experiment.x_column].to_numpy(dtype=float),
+        performance=np.stack([frame[experiment.performance_column].to_numpy(dtype=float) for frame in ordered]),
+        cumulative_falls=np.stack([frame["cumulative_falls"].to_numpy(dtype=float) for frame in ordered]),
+        seeds=tuple(sorted(frames)),
+        wall_time_s=float(sum(frame["wall_time_s"].iloc[-1] for frame in frames.values())),
+    )
+
+
+def summarize(experiment: Experiment, curves: Curves) -> CurveSummary:
+    """Rise time (in the table's unit), end performance and falls of one algorithm."""
+    summary = summarize_curves(
+        curves.x / experiment.rise_time_scale,
+        curves.performance,
+        curves.cumulative_falls if experiment.has_falls else None,
+        success_threshold=experiment.success_threshold,
+    )
+    return summary
+
+
+def _format_number(value: float) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "NA"
+    magnitude = abs(value)
+    if magnitude >= 1e4:
+        return f"{value:.3g}"
+    if magnitude >= 100:
+        return f"{value:.0f}"
+    if magnitude >= 10:
+        return f"{value:.1f}"
+    return f"{value:.2f}"
+
+
+def _format_with_ci(value: float, half_width: float | None) -> str:
+    text = _format_number(value)
+    if half_width is None or math.isnan(half_width) or text == "NA":
+        return text
+    return f"{text} ± {_format_number(half_width)}"
+
+
+def _format_difference(value: float, reference: float, algo: str) -> str:
+    if algo == REFERENCE_ALGORITHM:
+        return "-"
+    difference = relative_difference(value, reference)
+    return "NA" if math.isnan(difference) else f"{difference:+.0f} %"
+
+
+def _thesis_cells(experiment: Experiment, algo: str, metric: str) -> tuple[str, str]:
+    entry = experiment.thesis_table.get(algo, {}).get(metric)
+    if entry is None:
+        return "", ""
+    value, difference = entry
+    if value is None:
+        return "NA", difference
+    return (value if isinstance(value, str) else _format_number(float(value))), difference
+
+
+def summary_table(experiment: Experiment, summaries: dict[str, CurveSummary], budget: float) -> pd.DataFrame:
+    """One row per (algorithm, metric), columns as thesis Tables 6.1-6.3 plus the thesis's own figures."""
+    reference = summaries.get(REFERENCE_ALGORITHM)
+    run_end = budget / experiment.rise_time_scale if experiment.protocol == "walking" else budget
+    rows = []
+    for algo, summary in summaries.items():
+        label = ALGORITHM_LABELS.get(algo, algo)
+        rise = summary.rise_time
+        rise_text = f">{_format_number(run_end)}" if math.isnan(rise) else _format_number(rise)
+        metrics = [
+            ("rise_time", f"Rise time [{experiment.rise_time_unit}]", rise, None, rise_text),
+            ("end_performance", "End performance", summary.end_performance, summary.end_performance_ci, None),
+        ]
+        if summary.falls is not None:
+            metrics.append(("falls", "Falls", summary.falls, summary.falls_ci, None))
+        for key, name, value, half_width, text in metrics:
+            reference_value = getattr(reference, key) if reference is not None else float("nan")
+            thesis_value, thesis_difference = _thesis_cells(experiment, algo, key)
+            rows.append(
+                {
+                    "algorithm": label,
+                    "metric": name,
+                    "average": value,
+                    "ci95": half_width,
+                    "average_text": text or _format_with_ci(value, half_width),
+                    "difference_with_sarsa_lambda": _format_difference(value, reference_value, algo),
+                    "thesis_average": thesis_value,
+                    "thesis_difference": thesis_difference,
+                    "seeds": summary.n_seeds,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def markdown_table(experiment: Experiment, table: pd.DataFrame) -> str:
+    """The summary as a markdown table (algorithm named on its first row only, like the thesis's tables)."""
+    lines = [
+        "| Algorithm | Metric | Average (ours, ± 95% CI) | Difference with Sarsa(λ) | Thesis average | Thesis difference |",
+        "|---|---|---|---|---|---|",
+    ]
+    previous = None
+    for row in table.itertuples():
+        name = row.algorithm if row.algorithm != previous else ""
+        previous = row.algorithm
+        lines.append(
+            f"| {name} | {row.metric} | {row.average_text} | {row.difference_with_sarsa_lambda} | "
+            f"{row.thesis_average or '—'} | {row.thesis_difference or '—'} |"
+        )
+    return "\n".join(lines)

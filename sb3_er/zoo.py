@@ -1,0 +1,196 @@
+"""rl-baselines3-zoo integration: our algorithms in rl_zoo3's registries, and `sb3-er train|enjoy|optimize`.
+
+``register_algorithms()`` adds ``sarsa_lambda``, ``er``, ``er_sigma``, ``residual_er`` and ``residual_er_sigma`` to
+``rl_zoo3.ALGOS`` and to its optuna sampler and converter tables. The commands then run rl_zoo3's own ``train`` and
+``enjoy`` with our defaults filled in: the thesis's hyperparameters from ``zoo_configs/<algo>.yml``, the environment
+package ``sb3_er_envs`` and TensorBoard logs under ``<log folder>/tensorboard``. Every other rl_zoo3 option passes
+through unchanged. ``python -m sb3_er.zoo train ...`` is the same as ``sb3-er train ...``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma")
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "zoo_configs"
+ENV_PACKAGE = "sb3_er_envs"
+SIGMA_DEFINITIONS = ("worst", "average_worst", "average", "average_best", "best")
+# rl_zoo3 keys that configure the run rather than the algorithm's constructor.
+ZOO_ONLY_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "env_wrapper", "frame_stack", "callback", "env_kwargs")
+
+
+def algorithm_classes() -> dict[str, type]:
+    """Our algorithm classes under their rl-zoo names."""
+    from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
+
+    return {
+        "sarsa_lambda": SarsaLambda,
+        "er": ER,
+        "er_sigma": ERSigma,
+        "residual_er": ResidualER,
+        "residual_er_sigma": ResidualERSigma,
+    }
+
+
+def config_path(algo: str) -> Path:
+    """The rl-zoo YAML file holding the thesis's hyperparameters of `algo`."""
+    if algo not in ALGORITHM_NAMES:
+        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHM_NAMES)}")
+    path = CONFIG_DIR / f"{algo}.yml"
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: sb3-er's zoo_configs/ ships with the source tree; pass --conf-file explicitly"
+        )
+    return path
+
+
+def load_hyperparameters(algo: str, env_id: str) -> dict[str, Any]:
+    """The YAML entry of `env_id` in `zoo_configs/<algo>.yml`, as rl_zoo3 reads it."""
+    with open(config_path(algo)) as stream:
+        entries = yaml.safe_load(stream)
+    if env_id not in entries:
+        raise KeyError(f"zoo_configs/{algo}.yml has no entry for {env_id!r}; it has {', '.join(entries)}")
+    return dict(entries[env_id])
+
+
+def model_kwargs(algo: str, env_id: str) -> dict[str, Any]:
+    """Constructor keyword arguments of `algo` for `env_id` from its zoo config (the run-level keys removed)."""
+    hyperparameters = load_hyperparameters(algo, env_id)
+    for key in ZOO_ONLY_KEYS:
+        hyperparameters.pop(key, None)
+    return hyperparameters
+
+
+def _sample_common(trial) -> dict[str, Any]:
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 0.02, 0.6, log=True),
+        "gamma": trial.suggest_categorical("gamma", [0.95, 0.98, 0.99, 0.995, 0.999]),
+        "exploration_rate": trial.suggest_float("exploration_rate", 0.01, 0.2, log=True),
+    }
+
+
+def sample_sarsa_lambda_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of Sarsa(lambda): alpha, gamma, epsilon and the trace decay lambda."""
+    return {**_sample_common(trial), "trace_lambda": trial.suggest_float("trace_lambda", 0.5, 0.99)}
+
+
+def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of vanilla ER: alpha, gamma, epsilon and the replay order (thesis Appendix A)."""
+    return {
+        **_sample_common(trial),
+        "replay_order": trial.suggest_categorical("replay_order", ["reversed", "forward", "uniform"]),
+    }
+
+
+def sample_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of ER-sigma: alpha, gamma, epsilon and the definition of sigma (thesis Appendix B)."""
+    return {**_sample_common(trial), "sigma": trial.suggest_categorical("sigma", list(SIGMA_DEFINITIONS))}
+
+
+def sample_residual_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of residual ER: alpha, gamma, epsilon and the residual weight zeta (thesis Eq. 5.9)."""
+    return {**_sample_common(trial), "residual_zeta": trial.suggest_float("residual_zeta", 0.0, 1.0)}
+
+
+def sample_residual_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of residual ER-sigma: both the sigma definition and zeta."""
+    return {
+        **sample_residual_er_params(trial, n_actions, n_envs, additional_args),
+        "sigma": trial.suggest_categorical("sigma", list(SIGMA_DEFINITIONS)),
+    }
+
+
+SAMPLERS: dict[str, Callable[..., dict[str, Any]]] = {
+    "sarsa_lambda": sample_sarsa_lambda_params,
+    "er": sample_er_params,
+    "er_sigma": sample_er_sigma_params,
+    "residual_er": sample_residual_er_params,
+    "residual_er_sigma": sample_residual_er_sigma_params,
+}
+
+
+def _sampled_params_as_kwargs(params: dict[str, Any]) -> dict[str, Any]:
+    """Our samplers name optuna parameters after constructor arguments, so a stored trial needs no conversion."""
+    return dict(params)
+
+
+def register_algorithms() -> None:
+    """Add our algorithms to rl_zoo3's ALGOS, HYPERPARAMS_SAMPLER and HYPERPARAMS_CONVERTER (idempotent)."""
+    from rl_zoo3 import hyperparams_opt, utils
+
+    utils.ALGOS.update(algorithm_classes())
+    hyperparams_opt.HYPERPARAMS_SAMPLER.update(SAMPLERS)
+    hyperparams_opt.HYPERPARAMS_CONVERTER.update({name: _sampled_params_as_kwargs for name in ALGORITHM_NAMES})
+
+
+def _has_option(argv: Sequence[str], *names: str) -> bool:
+    return any(arg == name or arg.startswith(name + "=") for arg in argv for name in names)
+
+
+def _with_defaults(argv: Sequence[str], training: bool) -> list[str]:
+    """rl_zoo3 arguments with our defaults: the env package, and for training the config file and TensorBoard folder."""
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--algo", required=True, choices=ALGORITHM_NAMES)
+    parser.add_argument("-f", "--log-folder", "--folder", dest="folder", default="logs")
+    known, _ = parser.parse_known_args(argv)
+    arguments = list(argv)
+    if training and not _has_option(arguments, "-conf", "--conf-file"):
+        arguments += ["--conf-file", str(config_path(known.algo))]
+    if not _has_option(arguments, "--gym-packages"):
+        arguments += ["--gym-packages", ENV_PACKAGE]
+    if training and not _has_option(arguments, "-tb", "--tensorboard-log"):
+        arguments += ["--tensorboard-log", str(Path(known.folder) / "tensorboard")]
+    return arguments
+
+
+def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str]) -> None:
+    register_algorithms()
+    saved = sys.argv
+    sys.argv = [program, *argv]
+    try:
+        script()
+    finally:
+        sys.argv = saved
+
+
+def train(argv: Sequence[str]) -> None:
+    """`sb3-er train --algo ALGO --env ENV [rl_zoo3 train options]`: rl_zoo3 training with our defaults."""
+    from rl_zoo3.train import train as zoo_train
+
+    _run_zoo_script(zoo_train, "sb3-er train", _with_defaults(argv, training=True))
+
+
+def optimize(argv: Sequence[str]) -> None:
+    """`sb3-er optimize --algo ALGO --env ENV [--n-trials N ...]`: rl_zoo3's optuna search with our samplers."""
+    arguments = list(argv)
+    if not _has_option(arguments, "-optimize", "--optimize-hyperparameters"):
+        arguments.append("--optimize-hyperparameters")
+    train(arguments)
+
+
+def enjoy(argv: Sequence[str]) -> None:
+    """`sb3-er enjoy --algo ALGO --env ENV [-f FOLDER --no-render ...]`: rl_zoo3's enjoy for our trained agents."""
+    from rl_zoo3.enjoy import enjoy as zoo_enjoy
+
+    _run_zoo_script(zoo_enjoy, "sb3-er enjoy", _with_defaults(argv, training=False))
+
+
+COMMANDS = {"train": train, "enjoy": enjoy, "optimize": optimize}
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """`python -m sb3_er.zoo {train,enjoy,optimize} ...`."""
+    arguments = list(sys.argv[1:] if argv is None else argv)
+    if not arguments or arguments[0] not in COMMANDS:
+        raise SystemExit(f"usage: python -m sb3_er.zoo {{{','.join(COMMANDS)}}} --algo ALGO --env ENV [options]")
+    COMMANDS[arguments[0]](arguments[1:])
+
+
+if __name__ == "__main__":
+    main()
