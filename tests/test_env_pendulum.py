@@ -92,6 +92,32 @@ def test_constant_maximum_torque_swings_only_to_the_energy_balance_angle(env):
     assert largest_deflection == pytest.approx(low, abs=1e-3)
 
 
+def nearest_action(env, torque):
+    return int(np.argmin([abs(u - torque) for u in env.torques]))
+
+
+def test_pumping_then_catching_reaches_the_goal_after_swinging_back(env):
+    """Thesis 4.2.1: the torque is too weak to lift the pendulum directly, so it must swing back and forth first.
+
+    A hand-written controller pushes along the motion until the energy suffices to reach upright, and catches the
+    pendulum there with a PD law.
+    """
+    observation, _ = env.reset(seed=0)
+    velocity_signs = []
+    for _ in range(env.max_episode_steps):
+        theta, velocity = observation
+        if abs(theta) < 0.6:
+            torque = -(2.0 * theta + 0.15 * velocity)
+        else:
+            torque = 0.6 * np.sign(velocity) if env.energy() < GRAVITY_TORQUE else 0.0
+        observation, _, terminated, truncated, info = env.step(nearest_action(env, torque))
+        velocity_signs.append(np.sign(observation[1]))
+        if terminated or truncated:
+            break
+    assert terminated and info["goal_reached"]
+    assert np.count_nonzero(np.diff(velocity_signs)) >= 1
+
+
 def test_reward_is_equation_4_1(env):
     assert env.reward(0.2, -1.5, 0.6) == pytest.approx(-0.2 - 0.225 - 0.36)
     env.set_state(0.2, -1.5)
