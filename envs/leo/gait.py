@@ -1,0 +1,67 @@
+"""Erik Schuitema's hand-made LEO gait: the "observing" controller his agent watched before learning (reference 4.5).
+
+The hips follow ``autoActuateHips2``: a spring on the angle between the legs (target 0.680 rad) drives the swing hip,
+and the stance hip gets a fifth of it in reverse plus, while the stance foot is on the floor, a torso-pitch controller
+(target -0.09 rad, leaning slightly forward). The swing knee bends with full negative voltage for 0.184 s after each
+footstep and is then stretched by a proportional controller. A fraction ``explore_rate`` of the steps takes uniformly
+random voltage levels instead, as Erik's observing mode did.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .leo import CONTROL_TIMESTEP, MAX_VOLTAGE, TORQUE_TO_VOLTAGE, VOLTAGE_LEVELS
+
+HIP_SPREAD_TARGET = 0.680
+HIP_SPREAD_GAIN = 4.0
+STANCE_HIP_SHARE = -0.20
+TORSO_TARGET = -0.09
+TORSO_GAIN = -14.0
+EARLY_SWING_VOLTAGE = -14.0
+EARLY_SWING_TIME = 0.184
+SWING_KNEE_GAIN = 65.0
+
+
+class ObservingGait:
+    """Erik's hand-made gait as a policy over LEO's observation (Eq. 4.6 order) and step ``info``.
+
+    Call :meth:`reset` at the start of an episode and :meth:`voltages` (or :meth:`action` for ``LeoEnv``'s voltage
+    levels) every control step with the observation and the ``info`` of the step that produced it.
+    """
+
+    def __init__(self, explore_rate: float = 0.0, seed: int | None = None):
+        if not 0.0 <= explore_rate <= 1.0:
+            raise ValueError(f"explore_rate must be a probability, got {explore_rate}")
+        self.explore_rate = explore_rate
+        self.rng = np.random.default_rng(seed)
+        self.swing_time = 0.0
+
+    def reset(self) -> None:
+        """Start a new episode: the swing phase of the initial swing leg begins now."""
+        self.swing_time = 0.0
+
+    def voltages(self, observation: np.ndarray, info: dict) -> np.ndarray:
+        """Voltages of the stance hip, swing hip and swing knee for this control step.
+
+        ``info`` needs ``stance_contact`` (the stance foot touches the floor) and ``footstep_length`` (the length of
+        the footstep made in the last step, 0 without one); a forward footstep restarts the swing timer.
+        """
+        self.swing_time += CONTROL_TIMESTEP
+        if info["footstep_length"] > 0.0:
+            self.swing_time = 0.0
+        torso, _, stance_hip, _, swing_hip, _, _, _, swing_knee, _ = np.asarray(observation, dtype=np.float64)
+        if self.explore_rate and self.rng.random() < self.explore_rate:
+            return self.rng.choice(VOLTAGE_LEVELS, size=3)
+        spread = HIP_SPREAD_GAIN * (HIP_SPREAD_TARGET - (swing_hip - stance_hip))
+        stance_torque = STANCE_HIP_SHARE * spread
+        if info["stance_contact"]:
+            stance_torque += TORSO_GAIN * (TORSO_TARGET - torso)
+        knee = EARLY_SWING_VOLTAGE if self.swing_time < EARLY_SWING_TIME else SWING_KNEE_GAIN * (0.0 - swing_knee)
+        command = np.array([TORQUE_TO_VOLTAGE * stance_torque, TORQUE_TO_VOLTAGE * spread, knee])
+        return np.clip(command, -MAX_VOLTAGE, MAX_VOLTAGE)
+
+    def action(self, observation: np.ndarray, info: dict) -> np.ndarray:
+        """The same command on Erik's 7 voltage levels: the nearest level index per joint, for ``LeoEnv``."""
+        command = self.voltages(observation, info)
+        return np.abs(command[:, None] - VOLTAGE_LEVELS[None, :]).argmin(axis=1)
