@@ -13,6 +13,18 @@ Every environment ends its own episodes at its time limit and reports it as ``tr
 
 from gymnasium.envs.registration import register, registry
 
+
+def discrete_action_index(action, n_actions: int) -> int:
+    """``action`` as a Python int in ``[0, n_actions)``; a ValueError naming the action for anything else."""
+    try:
+        index = int(action)
+    except (TypeError, ValueError):
+        index = None
+    if index is None or index != action or not 0 <= index < n_actions:
+        raise ValueError(f"action must be an integer in [0, {n_actions - 1}], got {action!r}")
+    return index
+
+
 ENV_IDS = {
     "sb3_er/WindyCliff-v0": "sb3_er_envs.windy_cliff:WindyCliffEnv",
     "sb3_er/PendulumSwingup-v0": "sb3_er_envs.pendulum:PendulumSwingupEnv",

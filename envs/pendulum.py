@@ -34,6 +34,8 @@ import numba
 import numpy as np
 from gymnasium import spaces
 
+from sb3_er_envs import discrete_action_index
+
 _IMAGE_PIXELS = 128
 
 
@@ -197,10 +199,7 @@ class PendulumSwingupEnv(gym.Env):
         return self._observation(), {"goal_reached": False}
 
     def step(self, action):
-        index = int(action)
-        if index != action or not 0 <= index < len(self.torques):
-            raise ValueError(f"action must be an integer in [0, {len(self.torques) - 1}], got {action!r}")
-        torque = self.torques[index]
+        torque = self.torques[discrete_action_index(action, len(self.torques))]
         theta, velocity = pendulum_rk4_step(
             self.theta,
             self.velocity,

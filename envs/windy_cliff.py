@@ -30,6 +30,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from sb3_er_envs import discrete_action_index
+
 #: King's moves as (dx, dy), clockwise from north; the action index is the position in this tuple.
 KING_MOVES = ((0, 1), (1, 1), (1, 0), (1, -1), (0, -1), (-1, -1), (-1, 0), (-1, 1))
 ACTION_NAMES = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
@@ -158,7 +160,7 @@ class WindyCliffEnv(gym.Env):
     def transition_distribution(self, cell: tuple[int, int], action: int) -> list[Outcome]:
         """All outcomes of ``action`` in the non-terminal ``cell`` with their probabilities (merged, zero ones dropped)."""
         x, y = self._checked_cell(cell)
-        action = self._checked_action(action)
+        action = discrete_action_index(action, len(KING_MOVES))
         if not self.is_windy(y):
             return [Outcome(1.0, *self.outcome(cell, action, blown=False))]
         merged: dict[tuple, float] = {}
@@ -177,7 +179,7 @@ class WindyCliffEnv(gym.Env):
         return self._observation(), {"fell": False, "goal_reached": False}
 
     def step(self, action):
-        action = self._checked_action(action)
+        action = discrete_action_index(action, len(KING_MOVES))
         blown = self.is_windy(self._y) and self.np_random.random() < self.wind_probability
         (self._x, self._y), reward, fell, goal_reached = self.outcome((self._x, self._y), action, blown)
         self._steps += 1
@@ -226,9 +228,3 @@ class WindyCliffEnv(gym.Env):
                 f"0 <= y < {self.height}, got {cell!r}"
             )
         return x, y
-
-    def _checked_action(self, action) -> int:
-        index = int(action)
-        if index != action or not 0 <= index < self.action_space.n:
-            raise ValueError(f"action must be an integer in [0, {self.action_space.n - 1}], got {action!r}")
-        return index

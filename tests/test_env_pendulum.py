@@ -229,7 +229,7 @@ def test_bad_parameters_are_named(kwargs, word):
 
 
 def test_bad_actions_and_states_are_named(env):
-    for action in (7, -1, 0.5):
+    for action in (7, -1, 0.5, "3", None, np.array([3])):
         with pytest.raises(ValueError, match="action"):
             env.step(action)
     with pytest.raises(ValueError, match="velocity"):

@@ -249,7 +249,7 @@ def test_bad_parameters_are_named(kwargs, word):
 
 def test_bad_actions_and_cells_are_named(env):
     env.reset(seed=0)
-    for action in (8, -1, 2.5):
+    for action in (8, -1, 2.5, "2", None, np.array([2])):
         with pytest.raises(ValueError, match="action"):
             env.step(action)
     for cell in ((9, 0), (0, 7), (1, 2, 3), (0.5, 1)):
