@@ -1,0 +1,370 @@
+"""Shared SB3 machinery of the tile-coded algorithms: spaces, the learn loop, online Sarsa(lambda), logging."""
+
+import math
+import sys
+import time
+from typing import Any, ClassVar, Optional, TypeVar, Union
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.utils import safe_mean
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sb3_er.common import kernels
+from sb3_er.common.policies import TileQPolicy, action_nvec
+
+DEFAULT_TOTAL_TIMESTEPS = 100_000
+DEFAULT_TILES_PER_DIMENSION = 10
+
+ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths")
+
+SelfTileQAlgorithm = TypeVar("SelfTileQAlgorithm", bound="TileQAlgorithm")
+
+
+def _to_builtin(value: Any) -> Any:
+    """Arrays and tuples (possibly nested) as lists of Python numbers, so settings pickle and print plainly."""
+    if isinstance(value, (np.ndarray, list, tuple)):
+        return [_to_builtin(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+class DivergenceError(ArithmeticError):
+    """The Q-function's weights became non-finite."""
+
+
+class TileQAlgorithm(BaseAlgorithm):
+    """Base of the tile-coded algorithms: epsilon-greedy acting on TileQ and, optionally, online Sarsa(lambda).
+
+    Subclasses react to each transition through ``_after_transition``. Tile coding defaults come from the env: its
+    ``tile_widths``, ``wrap_periods``, ``action_values`` and ``action_tile_widths`` attributes, else finite observation
+    bounds split into ``tiles_per_dimension`` tiles (policy_kwargs).
+
+    :param policy: "TileQ" or a TileQPolicy subclass.
+    :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
+    :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
+        schedule of the remaining progress.
+    :param gamma: discount factor.
+    :param exploration_rate: epsilon of epsilon-greedy acting.
+    :param trace_lambda: lambda of online Sarsa(lambda) learning; None acts without learning online.
+    :param trace_cutoff: traces below this value are dropped.
+    :param policy_kwargs: tile coding (see TileQPolicy), plus ``tiles_per_dimension`` for bounded observations.
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"TileQ": TileQPolicy, "TileQPolicy": TileQPolicy}
+    policy: TileQPolicy
+
+    def __init__(
+        self,
+        policy: Union[str, type[TileQPolicy]],
+        env: Union[GymEnv, str, None],
+        learning_rate: Union[float, Schedule] = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_lambda: Optional[float] = None,
+        trace_cutoff: float = 0.01,
+        policy_kwargs: Optional[dict[str, Any]] = None,
+        stats_window_size: int = 100,
+        tensorboard_log: Optional[str] = None,
+        verbose: int = 0,
+        seed: Optional[int] = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            learning_rate,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            device=device,
+            support_multi_env=False,
+            seed=seed,
+        )
+        self.gamma = gamma
+        self.exploration_rate = exploration_rate
+        self.trace_lambda = trace_lambda
+        self.trace_cutoff = trace_cutoff
+        self._seed_generators(seed)
+        self.falls = 0
+        self._td_error_sum = 0.0
+        self._td_error_count = 0
+        self._check_hyperparameters()
+        if self.env is not None:
+            self._check_spaces(self.observation_space, self.action_space)
+        if _init_setup_model:
+            self._setup_model()
+
+    def _check_hyperparameters(self) -> None:
+        if not 0.0 <= self.gamma <= 1.0:
+            raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
+        if not 0.0 <= self.exploration_rate <= 1.0:
+            raise ValueError(f"exploration_rate must be in [0, 1], got {self.exploration_rate}")
+        if self.trace_lambda is not None and not 0.0 <= self.trace_lambda <= 1.0:
+            raise ValueError(f"the trace decay lambda must be in [0, 1], got {self.trace_lambda}")
+        if not 0.0 < self.trace_cutoff < 1.0:
+            raise ValueError(f"trace_cutoff must be in (0, 1), got {self.trace_cutoff}")
+
+    @staticmethod
+    def _check_spaces(observation_space: spaces.Space, action_space: spaces.Space) -> None:
+        action_nvec(action_space)
+        if isinstance(observation_space, spaces.Dict):
+            raise ValueError("Dict observation spaces are not supported: tile coding needs a flat Box observation")
+        if not isinstance(observation_space, spaces.Box):
+            raise ValueError(f"Tile coding needs a flat Box observation space, got {observation_space}")
+        if len(observation_space.shape) != 1:
+            kind = "image" if len(observation_space.shape) == 3 else "multi-dimensional"
+            raise ValueError(
+                f"Tile coding needs a flat vector observation; got {kind} observations of shape "
+                f"{observation_space.shape}. Extract low-dimensional features first."
+            )
+
+    def _env_attribute(self, name: str) -> Any:
+        if self.env is None:
+            return None
+        try:
+            return self.env.get_attr(name)[0]
+        except AttributeError:
+            return None
+
+    def _resolve_policy_kwargs(self) -> dict[str, Any]:
+        """Explicit tile-coding settings, defaults taken from the env, so that save/load rebuilds the same coder."""
+        kwargs = dict(self.policy_kwargs)
+        tiles_per_dimension = kwargs.pop("tiles_per_dimension", DEFAULT_TILES_PER_DIMENSION)
+        for name in ENV_TILING_ATTRIBUTES:
+            if kwargs.get(name) is None:
+                kwargs[name] = _to_builtin(self._env_attribute(name))
+        if kwargs.get("tile_widths") is None:
+            low, high = self.observation_space.low.astype(np.float64), self.observation_space.high.astype(np.float64)
+            unbounded = np.flatnonzero(~(np.isfinite(low) & np.isfinite(high)))
+            if unbounded.size:
+                raise ValueError(
+                    f"Observation dimensions {unbounded.tolist()} are unbounded and no tile widths were given: pass "
+                    "policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` attribute"
+                )
+            kwargs["tile_widths"] = ((high - low) / tiles_per_dimension).tolist()
+        return {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
+
+    def _setup_model(self) -> None:
+        self._setup_lr_schedule()
+        self.set_random_seed(self.seed)
+        self.policy_kwargs = self._resolve_policy_kwargs()
+        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
+        coder = self.policy.tile_coder
+        self._slots = np.zeros(coder.n_tilings, dtype=np.int64)
+        self._next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
+        self._q_scratch = np.zeros(coder.n_actions, dtype=np.float64)
+        self._next_action = -1
+        if self.trace_lambda is not None:
+            self._setup_trace()
+
+    def _setup_trace(self) -> None:
+        """Sparse replacing trace sized for the longest a trace can live above the cut-off."""
+        coder = self.policy.tile_coder
+        decay = self.gamma * self.trace_lambda
+        if decay <= 0.0:
+            lifetime = 1
+        elif decay >= 1.0:
+            lifetime = coder.n_weights
+        else:
+            lifetime = int(math.ceil(math.log(self.trace_cutoff / coder.n_tilings) / math.log(decay))) + 2
+        capacity = min(coder.n_weights, coder.n_tilings * lifetime)
+        self._trace_index = np.zeros(capacity, dtype=np.int64)
+        self._trace_value = np.zeros(capacity, dtype=np.float64)
+        self._trace_position = np.full(coder.n_weights, -1, dtype=np.int64)
+        self._trace_length = np.zeros(1, dtype=np.int64)
+
+    def _excluded_save_params(self) -> list[str]:
+        return super()._excluded_save_params() + [
+            "_slots",
+            "_next_slots",
+            "_q_scratch",
+            "_trace_index",
+            "_trace_value",
+            "_trace_position",
+            "_trace_length",
+            "_next_action",
+            "_single_env",
+        ]
+
+    def set_random_seed(self, seed: Optional[int] = None) -> None:
+        """Seed SB3's generators, the env, and the generators of exploration and prediction."""
+        super().set_random_seed(seed)
+        if seed is not None:
+            self._seed_generators(seed)
+
+    def _seed_generators(self, seed: Optional[int]) -> None:
+        self.action_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_ACTIONS)
+        self.predict_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(kernels.RNG_STREAM_PREDICT,)))
+
+    @property
+    def current_learning_rate(self) -> float:
+        return float(self.lr_schedule(self._current_progress_remaining))
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Optional[tuple[np.ndarray, ...]] = None,
+        episode_start: Optional[np.ndarray] = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Optional[tuple[np.ndarray, ...]]]:
+        """Greedy actions if deterministic, else epsilon-greedy with the model's exploration rate."""
+        actions, state = self.policy.predict(observation, state, episode_start, deterministic=True)
+        if deterministic or self.exploration_rate == 0.0:
+            return actions, state
+        flat = np.atleast_1d(np.asarray(actions)).reshape(-1, *self.action_space.shape)
+        explore = self.predict_rng.random(len(flat)) < self.exploration_rate
+        if explore.any():
+            random_flat = self.predict_rng.integers(0, self.policy.tile_coder.n_actions, explore.sum())
+            flat[explore] = self.policy.to_env_actions(random_flat)
+        return flat.reshape(np.shape(actions)), state
+
+    def learn(
+        self: SelfTileQAlgorithm,
+        total_timesteps: int = DEFAULT_TOTAL_TIMESTEPS,
+        callback: MaybeCallback = None,
+        log_interval: int = 1,
+        tb_log_name: str = "",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfTileQAlgorithm:
+        """Interact for total_timesteps env steps (default 100,000), learning as the algorithm prescribes.
+
+        :param log_interval: log every this many episodes.
+        """
+        total_timesteps, callback = self._setup_learn(
+            total_timesteps, callback, reset_num_timesteps, tb_log_name or type(self).__name__, progress_bar
+        )
+        if reset_num_timesteps:
+            self.falls = 0
+        self._single_env = self.env.envs[0] if type(self.env) is DummyVecEnv else None
+        self._next_action = -1
+        if self.trace_lambda is not None:
+            kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
+        callback.on_training_start(locals(), globals())
+        callback.on_rollout_start()
+        while self.num_timesteps < total_timesteps:
+            if not self._step_env(callback, log_interval):
+                break
+        callback.on_rollout_end()
+        callback.on_training_end()
+        return self
+
+    def _select_action(self, obs: np.ndarray) -> int:
+        action = kernels.select_action(
+            self.policy.theta_array, obs, *self.policy.tile_coder.kernel_arguments, self.exploration_rate,
+            self.action_rng, self._slots, self._q_scratch,
+        )
+        if action < 0:
+            raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {obs.tolist()}")
+        return action
+
+    def _step_env(self, callback: BaseCallback, log_interval: int) -> bool:
+        """One interaction step; False if a callback asked to stop."""
+        obs = np.asarray(self._last_obs[0], dtype=np.float64)
+        action = self._next_action if self._next_action >= 0 else self._select_action(obs)
+        env_action = self.policy.to_env_actions(np.array([action]))
+        new_obs, rewards, dones, infos = self._vec_env_step(env_action)
+        self.num_timesteps += 1
+        callback.update_locals(locals())
+        if not callback.on_step():
+            return False
+        self._update_info_buffer(infos, dones)
+        info, done, reward = infos[0], bool(dones[0]), float(rewards[0])
+        if not math.isfinite(reward):
+            raise ValueError(f"The environment returned a non-finite reward {reward} at step {self.num_timesteps}")
+        truncated = done and info.get("TimeLimit.truncated", False)
+        terminated = done and not truncated
+        next_obs = np.asarray(info["terminal_observation"] if done else new_obs[0], dtype=np.float64)
+        self._next_action = self._online_update(action, reward, next_obs, terminated) if self.trace_lambda is not None else -1
+        self._after_transition(obs, action, reward, next_obs, terminated, done, info)
+        if done:
+            self._episode_num += 1
+            self.falls += int(terminated)
+            self._next_action = -1
+            if self.trace_lambda is not None:
+                kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
+            if log_interval and self._episode_num % log_interval == 0:
+                self.dump_logs()
+        else:
+            self._slots, self._next_slots = self._next_slots, self._slots
+        self._last_obs = new_obs
+        self._update_current_progress_remaining(self.num_timesteps, self._total_timesteps)
+        return True
+
+    def _vec_env_step(self, env_action: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        """VecEnv.step; for a plain one-env DummyVecEnv the same results without its per-step deep copy of infos."""
+        single = self._single_env
+        if single is None:
+            return self.env.step(env_action)
+        obs, reward, terminated, truncated, info = single.step(env_action[0])
+        done = terminated or truncated
+        info["TimeLimit.truncated"] = truncated and not terminated
+        if done:
+            info["terminal_observation"] = obs
+            obs, self.env.reset_infos[0] = single.reset()
+        return np.asarray(obs)[np.newaxis], np.array([reward], dtype=np.float32), np.array([done]), [info]
+
+    def _online_update(self, action: int, reward: float, next_obs: np.ndarray, terminated: bool) -> int:
+        """Sarsa(lambda) on (s_k, a_k, r_{k+1}, s_{k+1}) (Alg. 2); returns a_{k+1} (-1 if s_{k+1} is terminal)."""
+        coder = self.policy.tile_coder
+        next_action, delta, status = kernels.sarsa_lambda_step(
+            self.policy.theta_array, self._trace_index, self._trace_value, self._trace_position, self._trace_length,
+            self._slots, action, reward, terminated, next_obs, self._next_slots, self._q_scratch,
+            *coder.kernel_arguments, self.current_learning_rate / coder.n_tilings, self.gamma,
+            self.gamma * self.trace_lambda, self.trace_cutoff, self.exploration_rate, self.action_rng,
+        )
+        if status == kernels.STATUS_TRACE_FULL:
+            raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
+        if not math.isfinite(delta):
+            if not np.all(np.isfinite(next_obs)):
+                raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}")
+            self._raise_divergence(delta, "the Sarsa(lambda) update")
+        self._td_error_sum += abs(delta)
+        self._td_error_count += 1
+        return next_action
+
+    def _raise_divergence(self, delta: float, where: str) -> None:
+        raise DivergenceError(
+            f"The Q-function diverged at step {self.num_timesteps} in {where}: TD error {delta}. "
+            f"Lower the learning rate (now {self.current_learning_rate}) or check the rewards' scale."
+        )
+
+    def _after_transition(
+        self, obs: np.ndarray, action: int, reward: float, next_obs: np.ndarray, terminated: bool, done: bool,
+        info: dict[str, Any],
+    ) -> None:
+        """Hook for experience storage and replay; the base class learns online only."""
+
+    def _record_train_metrics(self) -> None:
+        if self._td_error_count:
+            self.logger.record("train/td_error", self._td_error_sum / self._td_error_count)
+            self._td_error_sum, self._td_error_count = 0.0, 0
+        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.theta_array)
+        self.logger.record("train/weights_abs_mean", weights_abs_mean)
+        self.logger.record("train/memory_fill", memory_fill)
+        self.logger.record("train/learning_rate", self.current_learning_rate)
+
+    def dump_logs(self) -> None:
+        """Write the rollout, train and time scalars (skipped when the logger has no output)."""
+        if not self.logger.output_formats:
+            return
+        time_elapsed = max((time.time_ns() - self.start_time) / 1e9, sys.float_info.epsilon)
+        fps = int((self.num_timesteps - self._num_timesteps_at_start) / time_elapsed)
+        self.logger.record("time/episodes", self._episode_num, exclude="tensorboard")
+        if len(self.ep_info_buffer) > 0:
+            self.logger.record("rollout/ep_rew_mean", safe_mean([ep["r"] for ep in self.ep_info_buffer]))
+            self.logger.record("rollout/ep_len_mean", safe_mean([ep["l"] for ep in self.ep_info_buffer]))
+        self.logger.record("rollout/falls", self.falls)
+        self._record_train_metrics()
+        self.logger.record("time/fps", fps)
+        self.logger.record("time/time_elapsed", int(time_elapsed), exclude="tensorboard")
+        self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
+        self.logger.dump(step=self.num_timesteps)

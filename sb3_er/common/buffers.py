@@ -1,0 +1,170 @@
+"""The trajectory replay buffer of experience replay (thesis Alg. 7 lines 10-12, Alg. 9 lines 10-13)."""
+
+from typing import Any
+
+import numpy as np
+
+from sb3_er.common import kernels
+from sb3_er.common.tile_coding import TileCoder
+
+
+class TrajectoryReplayBuffer:
+    """Transitions (s_t, a_t, r_{t+1}) grouped in trajectories, with the tiles of s_t precomputed, and the visit vector w.
+
+    Transitions live in a ring of ``capacity`` rows; consecutive rows of one trajectory are consecutive time steps, so
+    s_{t+1} of a row is s_t of the next row, except for a trajectory's last row, whose s_{t+1} is kept with the
+    trajectory together with whether it was terminal (``terminated``: a fall or the goal, target r) or not (a time
+    limit or a segment end such as a footstep: replay bootstraps from it). When the ring is full, whole trajectories are
+    evicted oldest first. ``visits`` is w of Eq. 5.1-5.2: one byte per weight, set for the features of every stored
+    (s_t, a_t); eviction does not clear it (a feature once visited stays visited).
+
+    :param capacity: maximum number of stored transitions.
+    :param tile_coder: the policy's tile coder; w shares its weight layout.
+    """
+
+    def __init__(self, capacity: int, tile_coder: TileCoder):
+        if capacity < 1:
+            raise ValueError(f"buffer_size must be at least 1, got {capacity}")
+        self.capacity = int(capacity)
+        self.tile_coder = tile_coder
+        n_tilings, n_dims = tile_coder.n_tilings, tile_coder.n_dims
+        self.observations = np.zeros((self.capacity, n_dims), dtype=np.float64)
+        self.slots = np.zeros((self.capacity, n_tilings), dtype=np.int64)
+        self.actions = np.zeros(self.capacity, dtype=np.int64)
+        self.rewards = np.zeros(self.capacity, dtype=np.float64)
+        self.transition_trajectory = np.zeros(self.capacity, dtype=np.int64)
+        self.trajectory_start = np.zeros(self.capacity, dtype=np.int64)
+        self.trajectory_length = np.zeros(self.capacity, dtype=np.int64)
+        self.trajectory_terminated = np.zeros(self.capacity, dtype=np.bool_)
+        self.trajectory_next_obs = np.zeros((self.capacity, n_dims), dtype=np.float64)
+        self.trajectory_next_slots = np.zeros((self.capacity, n_tilings), dtype=np.int64)
+        self.visits = np.zeros(tile_coder.n_weights, dtype=np.uint8)
+        self.oldest_trajectory = 0
+        self.write_row = 0
+        self.n_trajectories = 0
+        self.n_transitions = 0
+        self.open_length = 0
+
+    @property
+    def n_closed_transitions(self) -> int:
+        return self.n_transitions - self.open_length
+
+    @property
+    def open_trajectory(self) -> int:
+        return (self.oldest_trajectory + self.n_trajectories) % self.capacity
+
+    def add(self, obs: np.ndarray, slots: np.ndarray, action: int, reward: float) -> None:
+        """Append (s_t, a_t, r_{t+1}) to the open trajectory and mark phi(s_t, a_t) as visited (Eq. 5.2)."""
+        if self.n_transitions == self.capacity:
+            self._evict_oldest_trajectory()
+        p = (self.write_row + self.open_length) % self.capacity
+        self.observations[p] = obs
+        self.slots[p] = slots
+        self.actions[p] = action
+        self.rewards[p] = reward
+        self.transition_trajectory[p] = self.open_trajectory
+        self.open_length += 1
+        self.n_transitions += 1
+        coder = self.tile_coder
+        kernels.mark_visited(self.visits, slots, coder.stride, coder.action_columns, action)
+
+    def close_trajectory(self, next_obs: np.ndarray, terminated: bool) -> bool:
+        """End the open trajectory at s_{t+1} = next_obs; returns False if it was empty."""
+        if self.open_length == 0:
+            return False
+        j = self.open_trajectory
+        self.trajectory_start[j] = self.write_row
+        self.trajectory_length[j] = self.open_length
+        self.trajectory_terminated[j] = terminated
+        self.trajectory_next_obs[j] = next_obs
+        self.trajectory_next_slots[j] = self.tile_coder.slots(next_obs)
+        self.n_trajectories += 1
+        self.write_row = (self.write_row + self.open_length) % self.capacity
+        self.open_length = 0
+        return True
+
+    def _evict_oldest_trajectory(self) -> None:
+        if self.n_trajectories == 0:
+            raise ValueError(
+                f"A single trajectory is longer than buffer_size={self.capacity}; increase buffer_size or close "
+                "trajectories more often (episode ends, info['segment_end'])"
+            )
+        j = self.oldest_trajectory
+        self.n_transitions -= self.trajectory_length[j]
+        self.oldest_trajectory = (j + 1) % self.capacity
+        self.n_trajectories -= 1
+
+    def replay_arguments(self) -> tuple:
+        """The buffer's arrays and counters in the order of ``kernels.replay_phase``."""
+        return (
+            self.slots,
+            self.actions,
+            self.rewards,
+            self.transition_trajectory,
+            self.trajectory_start,
+            self.trajectory_length,
+            self.trajectory_terminated,
+            self.trajectory_next_slots,
+            self.oldest_trajectory,
+            self.n_trajectories,
+            self.n_closed_transitions,
+        )
+
+    def trajectories(self) -> list[dict[str, Any]]:
+        """The closed trajectories, oldest first, as dicts of arrays (observations, actions, rewards, next_obs, ...)."""
+        result = []
+        for i in range(self.n_trajectories):
+            j = (self.oldest_trajectory + i) % self.capacity
+            rows = (self.trajectory_start[j] + np.arange(self.trajectory_length[j])) % self.capacity
+            result.append(
+                {
+                    "observations": self.observations[rows].copy(),
+                    "actions": self.actions[rows].copy(),
+                    "rewards": self.rewards[rows].copy(),
+                    "next_obs": self.trajectory_next_obs[j].copy(),
+                    "terminated": bool(self.trajectory_terminated[j]),
+                }
+            )
+        return result
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle only the stored rows, oldest first, so a large empty buffer saves small."""
+        rows = (self._oldest_row() + np.arange(self.n_transitions)) % self.capacity
+        trajectories = (self.oldest_trajectory + np.arange(self.n_trajectories)) % self.capacity
+        starts = (self.trajectory_start[trajectories] - self._oldest_row()) % self.capacity
+        return {
+            "capacity": self.capacity,
+            "tile_coder_config": self.tile_coder.config(),
+            "observations": self.observations[rows],
+            "slots": self.slots[rows],
+            "actions": self.actions[rows],
+            "rewards": self.rewards[rows],
+            "trajectory_start": starts,
+            "trajectory_length": self.trajectory_length[trajectories],
+            "trajectory_terminated": self.trajectory_terminated[trajectories],
+            "trajectory_next_obs": self.trajectory_next_obs[trajectories],
+            "trajectory_next_slots": self.trajectory_next_slots[trajectories],
+            "open_length": self.open_length,
+            "visits": self.visits,
+        }
+
+    def _oldest_row(self) -> int:
+        if self.n_trajectories > 0:
+            return int(self.trajectory_start[self.oldest_trajectory])
+        return self.write_row
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["capacity"], TileCoder(**state["tile_coder_config"]))
+        n, m = len(state["actions"]), len(state["trajectory_length"])
+        for name in ("observations", "slots", "actions", "rewards"):
+            getattr(self, name)[:n] = state[name]
+        for name in ("trajectory_start", "trajectory_length", "trajectory_terminated", "trajectory_next_obs",
+                     "trajectory_next_slots"):
+            getattr(self, name)[:m] = state[name]
+        for j in range(m):
+            rows = self.trajectory_start[j] + np.arange(self.trajectory_length[j])
+            self.transition_trajectory[rows] = j
+        self.transition_trajectory[n - state["open_length"] : n] = m
+        self.visits[:] = state["visits"]
+        self.n_trajectories, self.n_transitions, self.open_length = m, n, state["open_length"]
+        self.write_row = (n - state["open_length"]) % self.capacity

@@ -1,0 +1,439 @@
+"""Numba kernels: tile indices, action selection, the Sarsa(lambda) step and a whole replay phase.
+
+Everything that runs per update lives here and reads like the thesis pseudocode (equation and algorithm numbers refer to
+the thesis). Conventions shared by all kernels:
+
+- A tile coder is given by ``inv_widths`` (D,), ``offsets`` (N, D) in tile units, ``wrap_tiles`` (D,) (0 = no wrap),
+  ``slot_mask`` (number of state-tile slots minus one), ``stride`` and ``action_columns`` (N, A). The weight of action a
+  in tiling k at state-tile slot s is ``theta[s * stride + action_columns[k, a]]``: all actions of one (tiling, state
+  tile) are adjacent in memory.
+- Q(s, a) = sum of the N active weights (Eq. 2.8); a learning rate alpha on Q moves each active weight by alpha / N,
+  passed in as ``step_size``.
+- Random numbers come from a xoshiro256** generator whose 4-word state array is passed in (``new_rng_state`` seeds
+  one); a NumPy Generator would cost ~20 us per kernel call to unbox. Kernels allocate nothing.
+"""
+
+import numba as nb
+import numpy as np
+
+ORDER_REVERSED, ORDER_FORWARD, ORDER_UNIFORM = 0, 1, 2
+TARGET_SARSA, TARGET_Q_LEARNING, TARGET_EXPECTED_SARSA = 0, 1, 2
+SIGMA_NONE, SIGMA_WORST, SIGMA_AVERAGE, SIGMA_BEST, SIGMA_AVERAGE_WORST, SIGMA_AVERAGE_BEST = -1, 0, 1, 2, 3, 4
+
+STATUS_OK, STATUS_DIVERGED, STATUS_TRACE_FULL = 0, 1, 2
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+@nb.njit(inline="always", cache=True)
+def _mix64(h):
+    """The splitmix64 finaliser: a bijective 64-bit mix."""
+    h ^= h >> np.uint64(30)
+    h *= _MIX1
+    h ^= h >> np.uint64(27)
+    h *= _MIX2
+    h ^= h >> np.uint64(31)
+    return h
+
+
+RNG_STREAM_ACTIONS, RNG_STREAM_REPLAY, RNG_STREAM_PREDICT = 0, 1, 2
+
+
+def new_rng_state(seed=None, stream: int = RNG_STREAM_ACTIONS) -> np.ndarray:
+    """A seeded xoshiro256** state for the kernels; each stream of one seed is independent (None: fresh entropy)."""
+    return np.random.SeedSequence(seed, spawn_key=(stream,)).generate_state(4, dtype=np.uint64)
+
+
+@nb.njit(inline="always", cache=True)
+def _rotl(x, k):
+    return (x << np.uint64(k)) | (x >> np.uint64(64 - k))
+
+
+@nb.njit(inline="always", cache=True)
+def random_uint64(state):
+    """Next output of xoshiro256** (Blackman and Vigna, 2018); advances state in place."""
+    result = _rotl(state[1] * np.uint64(5), 7) * np.uint64(9)
+    t = state[1] << np.uint64(17)
+    state[2] ^= state[0]
+    state[3] ^= state[1]
+    state[1] ^= state[2]
+    state[0] ^= state[3]
+    state[2] ^= t
+    state[3] = _rotl(state[3], 45)
+    return result
+
+
+@nb.njit(inline="always", cache=True)
+def random_float(state):
+    """Uniform in [0, 1) with 53 random bits."""
+    return np.float64(random_uint64(state) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@nb.njit(inline="always", cache=True)
+def random_integer(state, n):
+    """Uniform in {0, ..., n-1}."""
+    return np.int64(random_float(state) * n)
+
+
+@nb.njit(inline="always", cache=True)
+def tile_coordinate(x, inv_width, offset, wrap_tiles):
+    """Integer tile coordinate of x in a tiling displaced by ``offset`` tile widths (Eq. 2.9), wrapped if periodic."""
+    c = np.int64(np.floor(x * inv_width + offset))
+    if wrap_tiles > 0:
+        c = c % wrap_tiles
+    return c
+
+
+@nb.njit(inline="always", cache=True)
+def hash_tile(tiling, coords_hash):
+    """Final slot hash of one tiling given the running hash of its coordinates."""
+    return _mix64(coords_hash ^ (np.uint64(tiling) * _GOLDEN))
+
+
+@nb.njit(cache=True)
+def state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
+    """Hashed state-tile slot of obs in each tiling; False if obs has a NaN or infinite entry."""
+    n_dims = obs.shape[0]
+    for d in range(n_dims):
+        if not np.isfinite(obs[d]):
+            return False
+    for k in range(offsets.shape[0]):
+        h = _GOLDEN
+        for d in range(n_dims):
+            c = tile_coordinate(obs[d], inv_widths[d], offsets[k, d], wrap_tiles[d])
+            h = _mix64(h ^ (np.uint64(c) + _GOLDEN * np.uint64(d + 1)))
+        out_slots[k] = np.int64(hash_tile(k, h) & np.uint64(slot_mask))
+    return True
+
+
+@nb.njit(inline="always", cache=True)
+def q_value(theta, slots, stride, action_columns, action):
+    """Q(s, a) = theta . phi(s, a) (Eq. 2.8)."""
+    q = 0.0
+    for k in range(slots.shape[0]):
+        q += theta[slots[k] * stride + action_columns[k, action]]
+    return q
+
+
+@nb.njit(inline="always", cache=True)
+def all_q_values(theta, slots, stride, action_columns, out_q):
+    """Q(s, .) over all actions: the state part of each tiling once, then its row of adjacent action weights."""
+    n_actions = out_q.shape[0]
+    for a in range(n_actions):
+        out_q[a] = 0.0
+    for k in range(slots.shape[0]):
+        base = slots[k] * stride
+        for a in range(n_actions):
+            out_q[a] += theta[base + action_columns[k, a]]
+
+
+@nb.njit(inline="always", cache=True)
+def all_visit_counts(visits, slots, stride, action_columns, out_w):
+    """W(s, .) = w . phi(s, .) over all actions (Eq. 5.1-5.2): how many active features of (s, a) were ever visited."""
+    n_actions = out_w.shape[0]
+    for a in range(n_actions):
+        out_w[a] = 0.0
+    for k in range(slots.shape[0]):
+        base = slots[k] * stride
+        for a in range(n_actions):
+            out_w[a] += visits[base + action_columns[k, a]]
+
+
+@nb.njit(inline="always", cache=True)
+def argmax_first(values):
+    best = 0
+    for a in range(1, values.shape[0]):
+        if values[a] > values[best]:
+            best = a
+    return best
+
+
+@nb.njit(inline="always", cache=True)
+def argmax_random_ties(values, rng):
+    """Greedy action, ties broken uniformly at random (reservoir sampling: a draw only when a tie occurs)."""
+    best = 0
+    n_ties = 1
+    for a in range(1, values.shape[0]):
+        if values[a] > values[best]:
+            best = a
+            n_ties = 1
+        elif values[a] == values[best]:
+            n_ties += 1
+            if random_integer(rng, n_ties) == 0:
+                best = a
+    return best
+
+
+@nb.njit(inline="always", cache=True)
+def epsilon_greedy(values, epsilon, rng):
+    """argmax_a values[a] w.p. 1 - epsilon, a uniform random action w.p. epsilon (Alg. 2 line 8, Alg. 8 line 6)."""
+    if epsilon > 0.0 and random_float(rng) < epsilon:
+        return random_integer(rng, values.shape[0])
+    return argmax_random_ties(values, rng)
+
+
+@nb.njit(cache=True)
+def select_action(
+    theta, obs, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, epsilon, rng, out_slots, q_scratch
+):
+    """Epsilon-greedy a_k at s_k (Alg. 7 line 8); fills out_slots with the tiles of s_k. Returns -1 for a bad obs."""
+    if not state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
+        return -1
+    all_q_values(theta, out_slots, stride, action_columns, q_scratch)
+    return epsilon_greedy(q_scratch, epsilon, rng)
+
+
+@nb.njit(cache=True)
+def greedy_actions(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
+                   slots_scratch, q_scratch, out_actions):
+    """Greedy action (lowest index on ties) for each row of observations; False if a row is not finite."""
+    for i in range(observations.shape[0]):
+        if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, slots_scratch):
+            return False
+        all_q_values(theta, slots_scratch, stride, action_columns, q_scratch)
+        out_actions[i] = argmax_first(q_scratch)
+    return True
+
+
+@nb.njit(cache=True)
+def batch_q_values(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
+                   slots_scratch, out_q):
+    """Q(s, .) for each row of observations into out_q (B, A); False if a row is not finite."""
+    for i in range(observations.shape[0]):
+        if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, slots_scratch):
+            return False
+        all_q_values(theta, slots_scratch, stride, action_columns, out_q[i])
+    return True
+
+
+@nb.njit(cache=True)
+def mark_visited(visits, slots, stride, action_columns, action):
+    """w <- w OR phi(s_k, a_k) (Eq. 5.2)."""
+    for k in range(slots.shape[0]):
+        visits[slots[k] * stride + action_columns[k, action]] = 1
+
+
+@nb.njit(cache=True)
+def sarsa_lambda_step(
+    theta, trace_index, trace_value, trace_position, trace_length,
+    slots, action, reward, terminated, next_obs, next_slots, q_scratch,
+    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
+    step_size, gamma, trace_decay, trace_cutoff, epsilon, rng,
+):
+    """One step of Sarsa(lambda) with replacing traces (Alg. 2 lines 8-12, Eq. 2.6).
+
+    The trace is sparse: ``trace_index[:n]`` holds the weights with a non-zero trace, ``trace_value[:n]`` their traces,
+    ``trace_position[i]`` where weight i sits in that list (-1 if absent); ``trace_length[0]`` is n. Traces that decay
+    below ``trace_cutoff`` are dropped. Returns (a_{k+1}, delta, status); a_{k+1} is -1 when s_{k+1} is terminal and
+    status reports a bad observation (delta NaN) or a full trace list.
+    """
+    n_tilings = slots.shape[0]
+    q_sa = q_value(theta, slots, stride, action_columns, action)
+    next_action = -1
+    if terminated:
+        target = reward
+    else:
+        if not state_slots(next_obs, inv_widths, offsets, wrap_tiles, slot_mask, next_slots):
+            return -1, np.nan, STATUS_OK
+        all_q_values(theta, next_slots, stride, action_columns, q_scratch)
+        next_action = epsilon_greedy(q_scratch, epsilon, rng)
+        target = reward + gamma * q_scratch[next_action]
+    delta = target - q_sa
+
+    # e(s_k, a_k) = phi(s_k, a_k): replacing traces; a weight shared by two tilings (hash collision) gets trace 2.
+    n = trace_length[0]
+    capacity = trace_index.shape[0]
+    for k in range(n_tilings):
+        i = slots[k] * stride + action_columns[k, action]
+        p = trace_position[i]
+        if p < 0:
+            if n == capacity:
+                return next_action, delta, STATUS_TRACE_FULL
+            p = n
+            trace_index[n] = i
+            trace_position[i] = n
+            n += 1
+        trace_value[p] = 0.0
+    for k in range(n_tilings):
+        trace_value[trace_position[slots[k] * stride + action_columns[k, action]]] += 1.0
+
+    # theta <- theta + alpha delta e;  e <- gamma lambda e (dropping traces below the cut-off)
+    p = 0
+    while p < n:
+        i = trace_index[p]
+        theta[i] += step_size * delta * trace_value[p]
+        decayed = trace_value[p] * trace_decay
+        if decayed < trace_cutoff:
+            n -= 1
+            trace_position[i] = -1
+            if p < n:
+                moved = trace_index[n]
+                trace_index[p] = moved
+                trace_value[p] = trace_value[n]
+                trace_position[moved] = p
+                continue
+        else:
+            trace_value[p] = decayed
+        p += 1
+    trace_length[0] = n
+    return next_action, delta, STATUS_OK
+
+
+@nb.njit(cache=True)
+def clear_trace(trace_index, trace_position, trace_length):
+    """e <- 0 at the start of an episode (Alg. 2 line 5)."""
+    for p in range(trace_length[0]):
+        trace_position[trace_index[p]] = -1
+    trace_length[0] = 0
+
+
+@nb.njit(inline="always", cache=True)
+def sigma_of_state(q, w, sigma_kind):
+    """sigma(s') from the visited actions at s' (Appendix B; definition 4 is Alg. 10 line 6).
+
+    Actions with W(s', a) = 0 are left out of the per-action ratios. When no action at s' was ever visited (the last
+    state of a truncated episode) there is nothing to judge s' by and sigma falls back to the initial value 0.
+    """
+    sum_q = 0.0
+    sum_w = 0.0
+    worst = np.inf
+    best = -np.inf
+    for a in range(q.shape[0]):
+        sum_q += q[a]
+        sum_w += w[a]
+        if w[a] > 0.0:
+            ratio = q[a] / w[a]
+            worst = min(worst, ratio)
+            best = max(best, ratio)
+    if sum_w == 0.0:
+        return 0.0
+    average = sum_q / sum_w
+    if sigma_kind == SIGMA_WORST:
+        return worst
+    if sigma_kind == SIGMA_AVERAGE:
+        return average
+    if sigma_kind == SIGMA_BEST:
+        return best
+    if sigma_kind == SIGMA_AVERAGE_WORST:
+        return 0.5 * (average + worst)
+    return 0.5 * (average + best)
+
+
+@nb.njit(inline="always", cache=True)
+def next_state_value(theta, visits, next_slots, stride, action_columns, n_tilings, target_kind, sigma_kind, epsilon,
+                     rng, q, w):
+    """The bootstrap value at s': Q(s', a') of the target rule, on sigma-adjusted values for ER-sigma.
+
+    ER-sigma replaces the values of never-visited features by sigma(s') (Eq. 5.4, Alg. 10 lines 6-9):
+    Q~(s', a) = Q(s', a) + u(a) * N * sigma(s') with u(a) N = N - W(s', a) (Eq. 5.3).
+    Sarsa draws a' epsilon-greedily (Alg. 8 line 6); Q-learning takes the max (Eq. 2.5); Expected Sarsa the
+    expectation under the epsilon-greedy policy.
+    """
+    all_q_values(theta, next_slots, stride, action_columns, q)
+    if sigma_kind != SIGMA_NONE:
+        all_visit_counts(visits, next_slots, stride, action_columns, w)
+        sigma = sigma_of_state(q, w, sigma_kind)
+        for a in range(q.shape[0]):
+            q[a] += (n_tilings - w[a]) * sigma
+    if target_kind == TARGET_SARSA:
+        return q[epsilon_greedy(q, epsilon, rng)]
+    best = q[argmax_first(q)]
+    if target_kind == TARGET_Q_LEARNING:
+        return best
+    return (1.0 - epsilon) * best + epsilon * np.mean(q)
+
+
+@nb.njit(inline="always", cache=True)
+def replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
+                  target_kind, sigma_kind, residual_zeta, step_size, gamma, epsilon, rng, q, w):
+    """One replayed update of transition p; returns delta.
+
+    theta <- theta + alpha delta phi(s_t, a_t)                                  (Alg. 8 line 7, Alg. 10 line 9)
+    residual: theta <- theta + alpha delta (phi(s_t, a_t) - zeta gamma phi(s_{t+1}, a_t))   (Eq. 5.7-5.9, Alg. 12/14)
+    """
+    n_tilings = slots.shape[1]
+    a = actions[p]
+    q_sa = 0.0
+    for k in range(n_tilings):
+        q_sa += theta[slots[p, k] * stride + action_columns[k, a]]
+    target = rewards[p]
+    if not terminal:
+        target += gamma * next_state_value(theta, visits, next_slots, stride, action_columns, n_tilings, target_kind,
+                                           sigma_kind, epsilon, rng, q, w)
+    delta = target - q_sa
+    if not np.isfinite(delta):
+        return delta
+    for k in range(n_tilings):
+        theta[slots[p, k] * stride + action_columns[k, a]] += step_size * delta
+    if residual_zeta > 0.0 and not terminal:
+        for k in range(n_tilings):
+            theta[next_slots[k] * stride + action_columns[k, a]] -= step_size * delta * residual_zeta * gamma
+    return delta
+
+
+@nb.njit(cache=True)
+def replay_phase(
+    theta, visits, slots, actions, rewards, transition_trajectory,
+    trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
+    oldest_trajectory, n_closed_trajectories, n_closed_transitions,
+    stride, action_columns, n_replays, order, target_kind, sigma_kind, residual_zeta,
+    step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
+):
+    """Replay n_replays trajectories drawn uniformly from the closed ones (Alg. 8, 10, 12, 14 lines 1-3).
+
+    Reversed order replays each from its last sample to its first (t = k..1, the thesis default); forward replays in
+    temporal order; uniform replays as many transitions drawn uniformly from all closed transitions (Appendix A).
+    Trajectory picks use ``replay_rng`` and exploration ``action_rng``, so variants replay exactly the same trajectories.
+    Returns (updates, sum of |delta|, last delta, status).
+    """
+    capacity = slots.shape[0]
+    trajectory_capacity = trajectory_start.shape[0]
+    updates = 0
+    sum_abs_delta = 0.0
+    delta = 0.0
+    for _ in range(n_replays):
+        j = (oldest_trajectory + random_integer(replay_rng, n_closed_trajectories)) % trajectory_capacity
+        start = trajectory_start[j]
+        length = trajectory_length[j]
+        for step in range(length):
+            if order == ORDER_UNIFORM:
+                first = trajectory_start[oldest_trajectory]
+                p = (first + random_integer(replay_rng, n_closed_transitions)) % capacity
+                jp = transition_trajectory[p]
+                t = (p - trajectory_start[jp]) % capacity
+                last = t == trajectory_length[jp] - 1
+            else:
+                jp = j
+                t = length - 1 - step if order == ORDER_REVERSED else step
+                p = (start + t) % capacity
+                last = t == length - 1
+            if last:
+                next_slots = trajectory_next_slots[jp]
+                terminal = trajectory_terminated[jp]
+            else:
+                next_slots = slots[(p + 1) % capacity]
+                terminal = False
+            delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
+                                  action_columns, target_kind, sigma_kind, residual_zeta, step_size, gamma, epsilon,
+                                  action_rng, q_scratch, w_scratch)
+            updates += 1
+            if not np.isfinite(delta):
+                return updates, sum_abs_delta, delta, STATUS_DIVERGED
+            sum_abs_delta += abs(delta)
+    return updates, sum_abs_delta, delta, STATUS_OK
+
+
+@nb.njit(cache=True)
+def weight_statistics(theta):
+    """(mean |theta| over the non-zero weights, share of non-zero weights) without a temporary array."""
+    total = 0.0
+    nonzero = 0
+    for i in range(theta.shape[0]):
+        if theta[i] != 0.0:
+            total += abs(theta[i])
+            nonzero += 1
+    if nonzero == 0:
+        return 0.0, 0.0
+    return total / nonzero, nonzero / theta.shape[0]

@@ -1,0 +1,144 @@
+"""TileQ: a tile-coded linear action-value function Q(s, a) = theta . phi(s, a) as an SB3 policy."""
+
+from collections.abc import Sequence
+from typing import Optional, Union
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import Schedule
+from stable_baselines3.common.utils import is_vectorized_observation
+
+from sb3_er.common import kernels
+from sb3_er.common.tile_coding import TileCoder
+
+
+def action_nvec(action_space: spaces.Space) -> list[int]:
+    """Choices per action dimension of a Discrete or MultiDiscrete space."""
+    if isinstance(action_space, spaces.Discrete):
+        return [int(action_space.n)]
+    if isinstance(action_space, spaces.MultiDiscrete):
+        if action_space.nvec.ndim != 1:
+            raise ValueError(f"Only flat MultiDiscrete action spaces are supported, got nvec of shape {action_space.nvec.shape}")
+        return [int(n) for n in action_space.nvec]
+    raise ValueError(
+        f"Tile-coded Q-learning needs a Discrete or MultiDiscrete action space, got {action_space}. "
+        "Discretise a Box action space first (e.g. a wrapper mapping a Discrete index to torque levels)."
+    )
+
+
+class TileQPolicy(BasePolicy):
+    """Greedy policy of a binary tile-coded linear Q-function (thesis Eq. 2.8).
+
+    The weights theta are a float64 CPU tensor registered as a buffer, so SB3's save/load and get/set_parameters work
+    unchanged; the numba kernels update its NumPy view in place. MultiDiscrete actions are flattened in C order.
+    Exploration belongs to the algorithm: ``predict`` here is always greedy.
+
+    :param observation_space: a flat Box.
+    :param action_space: Discrete or MultiDiscrete.
+    :param lr_schedule: unused (SB3 interface); the algorithm applies the learning rate.
+    :param tile_widths: tile width per observation dimension.
+    :param n_tilings: number of tilings N.
+    :param memory_size: upper bound on the number of weights.
+    :param wrap_periods: per observation dimension a period or None.
+    :param action_values: per action dimension the value of each choice (for action tiling).
+    :param action_tile_widths: per action dimension a tile width over action_values; None keeps actions apart.
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Box,
+        action_space: Union[spaces.Discrete, spaces.MultiDiscrete],
+        lr_schedule: Optional[Schedule] = None,
+        tile_widths: Optional[Sequence[float]] = None,
+        n_tilings: int = 16,
+        memory_size: int = 2**22,
+        wrap_periods: Optional[Sequence[Optional[float]]] = None,
+        action_values: Optional[Sequence[Sequence[float]]] = None,
+        action_tile_widths: Optional[Sequence[float]] = None,
+    ):
+        super().__init__(observation_space, action_space)
+        if tile_widths is None:
+            raise ValueError("TileQPolicy needs tile_widths (one per observation dimension)")
+        self.tile_coder = TileCoder(
+            tile_widths,
+            action_nvec(action_space),
+            n_tilings=n_tilings,
+            memory_size=memory_size,
+            wrap_periods=wrap_periods,
+            action_values=action_values,
+            action_tile_widths=action_tile_widths,
+        )
+        if self.tile_coder.n_dims != int(np.prod(observation_space.shape)):
+            raise ValueError(
+                f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape {observation_space.shape}"
+            )
+        self.register_buffer("theta", th.zeros(self.tile_coder.n_weights, dtype=th.float64))
+        self.theta_array = self.theta.numpy()
+        self.action_table = np.stack(
+            np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1
+        )
+        self._slots_scratch = np.zeros(self.tile_coder.n_tilings, dtype=np.int64)
+        self._q_scratch = np.zeros(self.tile_coder.n_actions, dtype=np.float64)
+
+    def _apply(self, fn, recurse=True):
+        """Keep theta a CPU float64 tensor whose NumPy view the kernels share (``.to(device)`` must not rebind it)."""
+        result = super()._apply(fn, recurse)
+        if self.theta.device.type != "cpu" or self.theta.dtype != th.float64:
+            raise ValueError("TileQPolicy keeps its weights as float64 on the CPU")
+        self.theta_array = self.theta.numpy()
+        return result
+
+    def _get_constructor_parameters(self) -> dict:
+        data = super()._get_constructor_parameters()
+        config = self.tile_coder.config()
+        del config["action_nvec"]
+        data.update(config)
+        return data
+
+    def _as_batch(self, observation) -> tuple[np.ndarray, bool]:
+        obs = np.asarray(observation, dtype=np.float64)
+        vectorized = is_vectorized_observation(obs, self.observation_space)
+        return np.ascontiguousarray(obs.reshape(-1, self.tile_coder.n_dims)), vectorized
+
+    def flat_greedy_actions(self, observations: np.ndarray) -> np.ndarray:
+        """Greedy flat action index for each row of a (B, D) float64 array; lowest index on ties."""
+        coder = self.tile_coder
+        out = np.empty(observations.shape[0], dtype=np.int64)
+        ok = kernels.greedy_actions(
+            self.theta_array, observations, *coder.kernel_arguments, self._slots_scratch, self._q_scratch, out
+        )
+        if not ok:
+            raise ValueError("Observation contains NaN or infinite values")
+        return out
+
+    def to_env_actions(self, flat_actions: np.ndarray) -> np.ndarray:
+        """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete."""
+        if isinstance(self.action_space, spaces.Discrete):
+            return flat_actions
+        return self.action_table[flat_actions]
+
+    def q_values(self, observations: np.ndarray) -> np.ndarray:
+        """Q(s, .) for each observation: (B, D) -> (B, n_actions), MultiDiscrete actions flattened in C order."""
+        batch, _ = self._as_batch(observations)
+        coder = self.tile_coder
+        out = np.empty((batch.shape[0], coder.n_actions), dtype=np.float64)
+        if not kernels.batch_q_values(self.theta_array, batch, *coder.kernel_arguments, self._slots_scratch, out):
+            raise ValueError("Observation contains NaN or infinite values")
+        return out
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = False):
+        """Greedy actions for one observation or a batch, computed in float64 (no float32 round trip)."""
+        if isinstance(observation, dict):
+            raise ValueError("TileQPolicy needs a flat Box observation, got a dict")
+        batch, vectorized = self._as_batch(observation)
+        actions = self.to_env_actions(self.flat_greedy_actions(batch))
+        actions = actions.reshape((-1, *self.action_space.shape))
+        if not vectorized:
+            actions = actions.squeeze(axis=0)
+        return actions, state
+
+    def _predict(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
+        batch = np.ascontiguousarray(observation.detach().cpu().numpy().astype(np.float64).reshape(-1, self.tile_coder.n_dims))
+        return th.as_tensor(self.to_env_actions(self.flat_greedy_actions(batch)))

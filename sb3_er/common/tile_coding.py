@@ -1,0 +1,188 @@
+"""Binary tile coding of (state, action) pairs into a hashed weight memory (thesis section 2.7.2)."""
+
+from collections.abc import Sequence
+from typing import Any, Optional
+
+import numpy as np
+
+from sb3_er.common import kernels
+
+
+def tiling_offsets(n_tilings: int, n_dims: int) -> np.ndarray:
+    """Displacement of tiling k in dimension d, in tile widths: k (1 + 2d) / N (Eq. 2.9 with 0-based k and d).
+
+    These are the asymmetric offsets of Miller et al. (1990) and Sutton's tiles: tiling k is displaced by
+    (1, 3, 5, ...) * k / N tile widths along dimensions (0, 1, 2, ...).
+    """
+    k = np.arange(n_tilings, dtype=np.float64)[:, None]
+    d = np.arange(n_dims, dtype=np.float64)[None, :]
+    return k * (1.0 + 2.0 * d) / n_tilings
+
+
+class TileCoder:
+    """Tile coding with N displaced tilings, hashed into ``memory_size`` weights.
+
+    phi(s, a) has exactly N ones (Eq. 2.8): one tile per tiling. States are tiled with per-dimension ``tile_widths``
+    (optionally periodic with ``wrap_periods``; the width is then rounded so that a whole number of tiles fills one
+    period). Actions either index the feature (no generalisation across actions, the default) or, given
+    ``action_tile_widths``, are tiled like further state dimensions over their ``action_values`` (LEO's original setup
+    tiled its voltages). The weights of all actions of one (tiling, state tile) are adjacent: weight index =
+    slot * stride + action column, with the slot a hash of (tiling, state-tile coordinates) into a power-of-two table.
+
+    :param tile_widths: tile width per observation dimension, in observation units.
+    :param action_nvec: number of choices per action dimension (``[n]`` for Discrete(n)).
+    :param n_tilings: N, the number of tilings.
+    :param memory_size: upper bound on the number of weights; the table uses the largest power of two of state-tile
+        slots that fits.
+    :param wrap_periods: per dimension a period (e.g. 2 pi for an angle) or None.
+    :param action_values: per action dimension the value of each choice (defaults to the choice index).
+    :param action_tile_widths: per action dimension a tile width over ``action_values``; None keeps actions apart.
+    """
+
+    def __init__(
+        self,
+        tile_widths: Sequence[float],
+        action_nvec: Sequence[int],
+        n_tilings: int = 16,
+        memory_size: int = 2**22,
+        wrap_periods: Optional[Sequence[Optional[float]]] = None,
+        action_values: Optional[Sequence[Sequence[float]]] = None,
+        action_tile_widths: Optional[Sequence[float]] = None,
+    ):
+        self.tile_widths = np.asarray(tile_widths, dtype=np.float64).reshape(-1)
+        self.n_dims = self.tile_widths.shape[0]
+        self.action_nvec = np.asarray(action_nvec, dtype=np.int64).reshape(-1)
+        self.n_tilings = int(n_tilings)
+        self.n_actions = int(np.prod(self.action_nvec))
+        if self.n_tilings < 1:
+            raise ValueError(f"n_tilings must be at least 1, got {n_tilings}")
+        if not np.all(np.isfinite(self.tile_widths)) or np.any(self.tile_widths <= 0):
+            raise ValueError(f"tile_widths must be finite and positive, got {self.tile_widths.tolist()}")
+        self.wrap_periods = self._check_wrap_periods(wrap_periods)
+        self.wrap_tiles = np.zeros(self.n_dims, dtype=np.int64)
+        self.inv_widths = 1.0 / self.tile_widths
+        for d, period in enumerate(self.wrap_periods):
+            if period is not None:
+                self.wrap_tiles[d] = max(1, int(round(period / self.tile_widths[d])))
+                self.inv_widths[d] = self.wrap_tiles[d] / period
+        self.offsets = tiling_offsets(self.n_tilings, self.n_dims)
+        self.action_values = self._check_action_values(action_values)
+        self.action_tile_widths = None if action_tile_widths is None else np.asarray(action_tile_widths, np.float64)
+        self.action_columns = self._action_columns()
+        self.stride = int(self.action_columns.max()) + 1
+        n_slots = 1 << int(np.floor(np.log2(max(memory_size // self.stride, 1))))
+        if n_slots * self.stride > memory_size:
+            raise ValueError(
+                f"memory_size={memory_size} cannot hold even one state tile of {self.stride} action weights"
+            )
+        self.n_slots = n_slots
+        self.slot_mask = n_slots - 1
+        self.memory_size = int(memory_size)
+        self.n_weights = n_slots * self.stride
+        self._slots_scratch = np.zeros(self.n_tilings, dtype=np.int64)
+
+    def _check_wrap_periods(self, wrap_periods) -> list[Optional[float]]:
+        if wrap_periods is None:
+            return [None] * self.n_dims
+        periods = list(wrap_periods)
+        if len(periods) != self.n_dims:
+            raise ValueError(f"wrap_periods has {len(periods)} entries for {self.n_dims} observation dimensions")
+        for period in periods:
+            if period is not None and not (np.isfinite(period) and period > 0):
+                raise ValueError(f"wrap periods must be positive and finite or None, got {periods}")
+        return [None if p is None else float(p) for p in periods]
+
+    def _check_action_values(self, action_values) -> list[np.ndarray]:
+        if action_values is None:
+            return [np.arange(n, dtype=np.float64) for n in self.action_nvec]
+        values = [np.asarray(v, dtype=np.float64).reshape(-1) for v in action_values]
+        if [len(v) for v in values] != self.action_nvec.tolist():
+            raise ValueError(
+                f"action_values sizes {[len(v) for v in values]} do not match the action space {self.action_nvec}"
+            )
+        return values
+
+    def _action_columns(self) -> np.ndarray:
+        """Column of each action within a state tile's row, per tiling: (N, A)."""
+        flat = np.arange(self.n_actions)
+        if self.action_tile_widths is None:
+            return np.tile(flat, (self.n_tilings, 1)).astype(np.int64)
+        if self.action_tile_widths.shape != (len(self.action_nvec),):
+            raise ValueError(
+                f"action_tile_widths needs one width per action dimension ({len(self.action_nvec)}), "
+                f"got {self.action_tile_widths.tolist()}"
+            )
+        if np.any(self.action_tile_widths <= 0):
+            raise ValueError(f"action_tile_widths must be positive, got {self.action_tile_widths.tolist()}")
+        choice = np.stack(np.unravel_index(flat, self.action_nvec), axis=1)
+        values = np.stack([self.action_values[j][choice[:, j]] for j in range(len(self.action_nvec))], axis=1)
+        offsets = tiling_offsets(self.n_tilings, self.n_dims + len(self.action_nvec))[:, self.n_dims :]
+        columns = np.empty((self.n_tilings, self.n_actions), dtype=np.int64)
+        for k in range(self.n_tilings):
+            coords = np.floor(values / self.action_tile_widths + offsets[k]).astype(np.int64)
+            _, columns[k] = np.unique(coords, axis=0, return_inverse=True)
+        return columns
+
+    @property
+    def kernel_arguments(self) -> tuple:
+        """(inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns) in kernel order."""
+        return self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, self.stride, self.action_columns
+
+    def config(self) -> dict[str, Any]:
+        """Constructor arguments that rebuild this exact coder."""
+        return {
+            "tile_widths": self.tile_widths.tolist(),
+            "action_nvec": self.action_nvec.tolist(),
+            "n_tilings": self.n_tilings,
+            "memory_size": self.memory_size,
+            "wrap_periods": list(self.wrap_periods),
+            "action_values": [v.tolist() for v in self.action_values],
+            "action_tile_widths": None if self.action_tile_widths is None else self.action_tile_widths.tolist(),
+        }
+
+    def coordinates(self, obs: np.ndarray) -> np.ndarray:
+        """Integer tile coordinates (N, D) of one observation, before hashing."""
+        obs = np.asarray(obs, dtype=np.float64).reshape(self.n_dims)
+        coords = np.floor(obs * self.inv_widths + self.offsets).astype(np.int64)
+        wrapped = self.wrap_tiles > 0
+        coords[:, wrapped] %= self.wrap_tiles[wrapped]
+        return coords
+
+    def slots(self, obs: np.ndarray) -> np.ndarray:
+        """Hashed state-tile slot (N,) of one observation."""
+        out = np.empty(self.n_tilings, dtype=np.int64)
+        obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(self.n_dims)
+        if not kernels.state_slots(obs, self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, out):
+            raise ValueError(f"Observation contains NaN or infinite values: {obs.tolist()}")
+        return out
+
+    def feature_indices(self, obs: np.ndarray, action: int) -> np.ndarray:
+        """Weight indices (N,) of the active features of phi(s, a); repeated indices mean a hash collision."""
+        return self.slots(obs) * self.stride + self.action_columns[:, int(action)]
+
+    def memory_report(self, observations: np.ndarray) -> dict[str, float]:
+        """How well the hashed memory holds the state tiles of these observations.
+
+        distinct_tiles: distinct (tiling, state tile) pairs; slots_used: distinct slots they occupy; collision_rate:
+        share of distinct tiles sharing a slot with another tile; fill: slots_used / slots in the table.
+        """
+        observations = np.asarray(observations, dtype=np.float64).reshape(-1, self.n_dims)
+        keys = set()
+        slots = set()
+        for obs in observations:
+            coords = self.coordinates(obs)
+            keys.update((k, *coords[k].tolist()) for k in range(self.n_tilings))
+            slots.update(self.slots(obs).tolist())
+        distinct = len(keys)
+        return {
+            "distinct_tiles": float(distinct),
+            "slots_used": float(len(slots)),
+            "collision_rate": 0.0 if distinct == 0 else 1.0 - len(slots) / distinct,
+            "fill": len(slots) / self.n_slots,
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"TileCoder(n_tilings={self.n_tilings}, tile_widths={self.tile_widths.tolist()}, "
+            f"actions={self.n_actions}, stride={self.stride}, slots={self.n_slots}, weights={self.n_weights})"
+        )

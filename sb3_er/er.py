@@ -1,0 +1,234 @@
+"""Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
+
+import pathlib
+from typing import Any, ClassVar, Literal, Optional, Union
+
+import numpy as np
+from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+
+from sb3_er.common import kernels
+from sb3_er.common.base_class import TileQAlgorithm
+from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.policies import TileQPolicy
+
+REPLAY_ORDERS = {"reversed": kernels.ORDER_REVERSED, "forward": kernels.ORDER_FORWARD, "uniform": kernels.ORDER_UNIFORM}
+TARGETS = {
+    "sarsa": kernels.TARGET_SARSA,
+    "q_learning": kernels.TARGET_Q_LEARNING,
+    "expected_sarsa": kernels.TARGET_EXPECTED_SARSA,
+}
+SIGMAS = {
+    None: kernels.SIGMA_NONE,
+    "worst": kernels.SIGMA_WORST,
+    "average": kernels.SIGMA_AVERAGE,
+    "best": kernels.SIGMA_BEST,
+    "average_worst": kernels.SIGMA_AVERAGE_WORST,
+    "average_best": kernels.SIGMA_AVERAGE_BEST,
+}
+REPLAY_TRIGGERS = ("episode", "segment")
+
+
+def _check_choice(name: str, value: Any, options) -> None:
+    if value not in options:
+        raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
+
+
+class ER(TileQAlgorithm):
+    """Experience replay with the Sarsa update (thesis Alg. 7-8) and its variants (Alg. 9-14).
+
+    Every transition is stored in trajectories; a trajectory closes at the end of an episode and wherever the env sets
+    ``info["segment_end"]`` (the simplest walker's footsteps). At each replay trigger, ``n_replays`` trajectories (or
+    ``replays_per_stored_trajectory`` times the number stored) are drawn uniformly and replayed from their last sample to
+    their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'.
+
+    Between replays the agent acts epsilon-greedily on the current Q, or learns online with Sarsa(lambda) if
+    ``online_lambda`` is given (the thesis's LEO setup).
+
+    :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
+    :param replay_trigger: "episode" replays every ``replay_every`` episodes; "segment" at every closed trajectory
+        (each footstep and each fall for the walker).
+    :param replay_every: episodes between replay phases for the "episode" trigger.
+    :param n_replays: trajectories replayed per phase.
+    :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead.
+    :param replay_order: "reversed" (thesis default), "forward" or "uniform" samples (Appendix A).
+    :param target: "sarsa" (thesis), "q_learning" or "expected_sarsa" (thesis 7.2, future work).
+    :param sigma: ER-sigma's sigma(s') (Appendix B): "worst", "average", "best", "average_worst" (definition 4, the
+        thesis's choice), "average_best"; None is vanilla ER.
+    :param residual_zeta: residual-gradient ER with direction phi(s, a) - zeta gamma phi(s', a) (Eq. 5.7-5.9);
+        1 is the residual gradient of Alg. 12, None plain ER.
+    :param online_lambda: lambda of Sarsa(lambda) between replays, or None to act without online learning.
+    Other parameters as in TileQAlgorithm.
+    """
+
+    def __init__(
+        self,
+        policy: Union[str, type[TileQPolicy]] = "TileQ",
+        env: Union[GymEnv, str, None] = None,
+        learning_rate: Union[float, Schedule] = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int = 100,
+        replays_per_stored_trajectory: Optional[float] = None,
+        replay_order: Literal["reversed", "forward", "uniform"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        sigma: Optional[str] = None,
+        residual_zeta: Optional[float] = None,
+        online_lambda: Optional[float] = None,
+        trace_cutoff: float = 0.01,
+        policy_kwargs: Optional[dict[str, Any]] = None,
+        stats_window_size: int = 100,
+        tensorboard_log: Optional[str] = None,
+        verbose: int = 0,
+        seed: Optional[int] = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        self.buffer_size = buffer_size
+        _check_choice("replay_trigger", replay_trigger, REPLAY_TRIGGERS)
+        _check_choice("replay_order", replay_order, REPLAY_ORDERS)
+        _check_choice("target", target, TARGETS)
+        _check_choice("sigma", sigma, SIGMAS)
+        self.replay_trigger = replay_trigger
+        self.replay_order = replay_order
+        self.target = target
+        self.sigma = sigma
+        if replay_every < 1:
+            raise ValueError(f"replay_every must be at least 1 episode, got {replay_every}")
+        if n_replays < 0 or (replays_per_stored_trajectory is not None and replays_per_stored_trajectory < 0):
+            raise ValueError("the number of replays cannot be negative")
+        if residual_zeta is not None and not 0.0 <= residual_zeta <= 1.0:
+            raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9), got {residual_zeta}")
+        self.replay_every = replay_every
+        self.n_replays = n_replays
+        self.replays_per_stored_trajectory = replays_per_stored_trajectory
+        self.residual_zeta = residual_zeta
+        self.replay_updates = 0
+        self.replay_phases = 0
+        self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_lambda=online_lambda,
+            trace_cutoff=trace_cutoff,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
+    @property
+    def online_lambda(self) -> Optional[float]:
+        return self.trace_lambda
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
+        self._w_scratch = np.zeros(self.policy.tile_coder.n_actions, dtype=np.float64)
+
+    def _excluded_save_params(self) -> list[str]:
+        return super()._excluded_save_params() + ["_w_scratch"]
+
+    def _seed_generators(self, seed: Optional[int]) -> None:
+        super()._seed_generators(seed)
+        self.seed_replay(seed)
+
+    def seed_replay(self, seed: Optional[int]) -> None:
+        """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones."""
+        self.replay_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_REPLAY)
+
+    def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
+        self.replay_buffer.add(obs, self._slots, action, reward)
+        if not (done or info.get("segment_end", False)):
+            return
+        self.replay_buffer.close_trajectory(next_obs, terminated)
+        episode_trigger = done and (self._episode_num + 1) % self.replay_every == 0
+        if self.replay_trigger == "segment" or episode_trigger:
+            self.replay(self._replays_per_phase())
+
+    def _replays_per_phase(self) -> int:
+        if self.replays_per_stored_trajectory is not None:
+            return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_trajectories))
+        return self.n_replays
+
+    def replay(self, n_trajectories: int) -> dict[str, float]:
+        """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean |delta|."""
+        buffer = self.replay_buffer
+        if buffer.n_trajectories == 0 or n_trajectories <= 0:
+            return {"updates": 0, "td_error": 0.0}
+        coder = self.policy.tile_coder
+        updates, sum_abs_delta, last_delta, status = kernels.replay_phase(
+            self.policy.theta_array,
+            buffer.visits,
+            *buffer.replay_arguments(),
+            coder.stride,
+            coder.action_columns,
+            int(n_trajectories),
+            REPLAY_ORDERS[self.replay_order],
+            TARGETS[self.target],
+            SIGMAS[self.sigma],
+            0.0 if self.residual_zeta is None else float(self.residual_zeta),
+            self.current_learning_rate / coder.n_tilings,
+            self.gamma,
+            self.exploration_rate,
+            self.replay_rng,
+            self.action_rng,
+            self._q_scratch,
+            self._w_scratch,
+        )
+        self.replay_updates += updates
+        self.replay_phases += 1
+        if status == kernels.STATUS_DIVERGED:
+            self._raise_divergence(last_delta, f"replayed update {updates} of a replay phase")
+        self._td_error_sum += sum_abs_delta
+        self._td_error_count += updates
+        return {"updates": updates, "td_error": sum_abs_delta / max(updates, 1)}
+
+    def _record_train_metrics(self) -> None:
+        super()._record_train_metrics()
+        self.logger.record("train/replay_updates", self.replay_updates)
+        self.logger.record("train/trajectories", self.replay_buffer.n_trajectories)
+
+    def save_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
+        """Save the trajectories and the visit vector w."""
+        save_to_pkl(path, self.replay_buffer, self.verbose)
+
+    def load_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
+        """Load a buffer saved by save_replay_buffer; its tile coding must match this model's."""
+        buffer = load_from_pkl(path, self.verbose)
+        if not isinstance(buffer, TrajectoryReplayBuffer):
+            raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
+        if buffer.tile_coder.config() != self.policy.tile_coder.config():
+            raise ValueError("The replay buffer was stored with a different tile coding than this model's")
+        buffer.tile_coder = self.policy.tile_coder
+        self.replay_buffer = buffer
+
+
+class ERSigma(ER):
+    """ER-sigma (thesis Alg. 9-10): never-visited features take the state-dependent value sigma(s')."""
+
+    def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", **kwargs):
+        super().__init__(policy, env, sigma=sigma, **kwargs)
+
+
+class ResidualER(ER):
+    """Residual-gradient ER (thesis Alg. 11-12, Eq. 5.7-5.9)."""
+
+    def __init__(self, policy="TileQ", env=None, residual_zeta: float = 1.0, **kwargs):
+        super().__init__(policy, env, residual_zeta=residual_zeta, **kwargs)
+
+
+class ResidualERSigma(ER):
+    """Residual ER-sigma (thesis Alg. 13-14): both."""
+
+    def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", residual_zeta: float = 1.0, **kwargs):
+        super().__init__(policy, env, sigma=sigma, residual_zeta=residual_zeta, **kwargs)
