@@ -18,19 +18,26 @@ from __future__ import annotations
 
 import collections
 import math
+import os
+import sys
 from pathlib import Path
 
 import numpy as np
-from dm_control import mujoco
-from dm_control.rl import control
-from dm_control.suite import base
-from dm_env import specs
+
+if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    # Headless: render on the CPU with OSMesa unless the user chose a backend (MuJoCo reads this at import).
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+
+from dm_control import mujoco  # noqa: E402
+from dm_control.rl import control  # noqa: E402
+from dm_control.suite import base  # noqa: E402
+from dm_env import specs  # noqa: E402
 
 MODEL_PATH = Path(__file__).with_name("leo.xml")
 
 CONTROL_TIMESTEP = 1.0 / 30.0
 #: Physics substeps per control step; the model's timestep is set to exactly CONTROL_TIMESTEP / PHYSICS_SUBSTEPS.
-PHYSICS_SUBSTEPS = 40
+PHYSICS_SUBSTEPS = 30
 TIME_LIMIT = 25.0
 
 #: RX-28 voltage limit LEO_MAX_DXL_VOLTAGE [V]; every voltage is clipped to +-this.

@@ -1,0 +1,117 @@
+"""Gymnasium face of the LEO walking task: ``sb3_er/Leo-v0``."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .leo import CONTROL_TIMESTEP, PHYSICS_SUBSTEPS, TIME_LIMIT, VOLTAGE_LEVELS, LeoWalk, load_physics
+
+#: Tile widths of Table 4.3 in observation order (angle, rate per joint).
+TILE_WIDTHS = (0.14, 5.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0)
+#: LEO's original setup also tiled its voltages, 6.67 V wide (about two adjacent levels).
+ACTION_TILE_WIDTHS = (6.67, 6.67, 6.67)
+#: Declared observation bounds: +-pi for angles, +-10 pi rad/s for rates (Erik's state ranges).
+OBSERVATION_BOUND = np.array([math.pi, 10.0 * math.pi] * 5)
+
+
+class LeoEnv(gym.Env):
+    """LEO walking on its boom (thesis 4.2.3), simulated in MuJoCo through dm_control.
+
+    Observation (Eq. 4.6): torso angle and rate, then angle and rate of the stance hip, swing hip, stance knee and swing
+    knee [rad, rad/s]; angles about -y, so hip > 0 is the thigh forward, knee < 0 a bent knee and a positive torso
+    angle leans backward. Joint rates are low-pass filtered like Erik's (``filter_rates``). The observation is clipped to
+    the declared bounds.
+
+    Action: ``MultiDiscrete([7, 7, 7])``, the voltage level of the stance hip, swing hip and swing knee; level ``k``
+    applies ``action_values[joint][k]`` volts (Erik's levels {0, +-3.564, +-7.128, +-10.692} V, level 3 is 0 V).
+
+    Reward per 1/30 s step: -1, -3 per joule of the hip and knee motors' electrical energy, +300 per metre the swing
+    ankle gains on the stance ankle, -125 at a fall. A fall (``|torso| > 1`` or ``|torso + stance hip| > 0.36 pi``)
+    terminates; after ``time_limit`` seconds (25) the episode is truncated.
+
+    ``info``: ``footstep`` (a change of stance leg happened in this step), ``footstep_length`` [m], ``footsteps`` (net
+    count, a backward step counts -1), ``distance`` (hip travel since the start [m]), ``fell``, ``energy`` (J of this
+    step), ``stance_leg`` and ``stance_contact``.
+
+    Parameters
+    ----------
+    render_mode:
+        ``None`` or ``"rgb_array"`` (headless rendering needs a GL backend, e.g. ``MUJOCO_GL=osmesa``).
+    start_noise:
+        Half-width [rad] of the uniform start-pose variation (torso, hips, swing knee); 0 gives Erik's exact pose.
+    filter_rates:
+        Observe Erik's 10 Hz Butterworth-filtered joint rates (default) or the raw ones.
+    floor_parallel_ankles:
+        Keep the feet parallel to the floor (the thesis's description) instead of Erik's fixed ankle angle.
+    time_limit:
+        Episode length in seconds before truncation (25).
+    render_size:
+        ``(height, width)`` of rendered frames.
+    camera:
+        Name of the model camera to render from (``"side"`` or ``"back"``).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": round(1.0 / CONTROL_TIMESTEP)}
+
+    def __init__(self, render_mode: str | None = None, start_noise: float = 0.05, filter_rates: bool = True,
+                 floor_parallel_ankles: bool = False, time_limit: float = TIME_LIMIT,
+                 render_size: tuple[int, int] = (480, 640), camera: str = "side"):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if not time_limit > 0.0:
+            raise ValueError(f"time_limit must be positive, got {time_limit}")
+        self.render_mode = render_mode
+        self.physics = load_physics()
+        if camera not in [self.physics.model.id2name(i, "camera") for i in range(self.physics.model.ncam)]:
+            raise ValueError(f"unknown camera {camera!r}; LEO's model has 'side' and 'back'")
+        self.task = LeoWalk(random=np.random.RandomState(), start_noise=start_noise, filter_rates=filter_rates,
+                            floor_parallel_ankles=floor_parallel_ankles)
+        self.max_episode_steps = int(round(time_limit / CONTROL_TIMESTEP))
+        self.render_size = tuple(render_size)
+        self.camera = camera
+        self.dt = CONTROL_TIMESTEP
+        self.observation_space = spaces.Box(-OBSERVATION_BOUND, OBSERVATION_BOUND, dtype=np.float64)
+        self.action_space = spaces.MultiDiscrete([len(VOLTAGE_LEVELS)] * 3)
+        self.tile_widths = np.array(TILE_WIDTHS)
+        self.action_values = [VOLTAGE_LEVELS.copy() for _ in range(3)]
+        self.action_tile_widths = np.array(ACTION_TILE_WIDTHS)
+        self._steps = 0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        if seed is not None:
+            self.task.random.seed(int(self.np_random.integers(2**32)))
+        with self.physics.reset_context():
+            self.task.initialize_episode(self.physics)
+        self._steps = 0
+        return self._observation(), self.task.info(self.physics)
+
+    def step(self, action):
+        levels = np.asarray(action)
+        if levels.shape != (3,) or not self.action_space.contains(levels.astype(np.int64)):
+            raise ValueError(f"LEO's action is 3 voltage levels in 0..6 (stance hip, swing hip, swing knee), "
+                             f"got {action!r}")
+        self.task.before_step(VOLTAGE_LEVELS[levels.astype(np.int64)], self.physics)
+        self.physics.step(PHYSICS_SUBSTEPS)
+        self.task.after_step(self.physics)
+        self._steps += 1
+        terminated = self.task.fell
+        truncated = not terminated and self._steps >= self.max_episode_steps
+        return self._observation(), self.task.reward, terminated, truncated, self.task.info(self.physics)
+
+    def _observation(self) -> np.ndarray:
+        return np.clip(self.task.stance_observation(), -OBSERVATION_BOUND, OBSERVATION_BOUND)
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        height, width = self.render_size
+        return self.physics.render(height=height, width=width, camera_id=self.camera)
+
+    def close(self):
+        self.physics.free()
