@@ -154,7 +154,7 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def _setup_model(self) -> None:
         self._setup_lr_schedule()
-        self.set_random_seed(self.seed)
+        BaseAlgorithm.set_random_seed(self, self.seed)  # not ours: load() has just restored their states
         self.policy_kwargs = self._resolve_policy_kwargs()
         self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
         coder = self.policy.tile_coder

@@ -1,0 +1,89 @@
+"""Saving and loading lose nothing: weights, tile coding, hyperparameters, generators, the replay buffer and w."""
+
+import numpy as np
+import pytest
+
+from conftest import LineWalkEnv
+from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
+
+ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma]
+KWARGS = dict(policy_kwargs=dict(n_tilings=8, memory_size=2**15, tile_widths=[0.7]), exploration_rate=0.1)
+PROBES = np.linspace(0.0, 10.0, 41)[:, None]
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_save_load_predict_and_continue(algo, tmp_path):
+    model = algo("TileQ", LineWalkEnv(), gamma=0.95, seed=3, **KWARGS).learn(800)
+    path = tmp_path / "model.zip"
+    model.save(path)
+
+    loaded = algo.load(path, env=LineWalkEnv())
+    np.testing.assert_array_equal(loaded.policy.theta_array, model.policy.theta_array)
+    np.testing.assert_array_equal(loaded.policy.q_values(PROBES), model.policy.q_values(PROBES))
+    np.testing.assert_array_equal(loaded.predict(PROBES, deterministic=True)[0], model.predict(PROBES, deterministic=True)[0])
+    assert loaded.policy.tile_coder.config() == model.policy.tile_coder.config()
+    assert (loaded.gamma, loaded.exploration_rate, loaded.num_timesteps) == (0.95, 0.1, 800)
+    np.testing.assert_array_equal(loaded.action_rng, model.action_rng)
+    for name in ("sigma", "residual_zeta", "replay_order", "n_replays", "trace_lambda"):
+        assert getattr(loaded, name, None) == getattr(model, name, None)
+
+    params = model.get_parameters()
+    assert set(params) == {"policy"} and params["policy"]["theta"].dtype.is_floating_point
+    loaded.learn(300, reset_num_timesteps=False)
+    assert loaded.num_timesteps == 1100
+    assert np.shares_memory(loaded.policy.theta_array, loaded.policy.theta.numpy())
+    assert not np.array_equal(loaded.policy.theta_array, model.policy.theta_array)
+
+
+def test_load_without_env_predicts(tmp_path):
+    model = SarsaLambda("TileQ", LineWalkEnv(), seed=0, **KWARGS).learn(300)
+    model.save(tmp_path / "m")
+    loaded = SarsaLambda.load(tmp_path / "m")
+    np.testing.assert_array_equal(loaded.predict(PROBES)[0], model.predict(PROBES)[0])
+
+
+def test_set_parameters_writes_into_the_shared_weights():
+    source = ER("TileQ", LineWalkEnv(), seed=0, **KWARGS).learn(300)
+    target = ER("TileQ", LineWalkEnv(), seed=1, **KWARGS)
+    view = target.policy.theta_array
+    target.set_parameters(source.get_parameters())
+    assert np.shares_memory(view, target.policy.theta.numpy())
+    np.testing.assert_array_equal(view, source.policy.theta_array)
+
+
+def test_replay_buffer_round_trip_with_visits(tmp_path):
+    model = ERSigma("TileQ", LineWalkEnv(segment_every=7), seed=0, **KWARGS).learn(500)
+    model.save_replay_buffer(tmp_path / "buffer")
+    fresh = ERSigma("TileQ", LineWalkEnv(), seed=0, **KWARGS)
+    fresh.load_replay_buffer(tmp_path / "buffer.pkl")
+    assert fresh.replay_buffer.n_trajectories == model.replay_buffer.n_trajectories
+    np.testing.assert_array_equal(fresh.replay_buffer.visits, model.replay_buffer.visits)
+    assert fresh.replay_buffer.visits.any()
+
+    fresh.policy.theta_array[:] = model.policy.theta_array
+    model.seed_replay(5)
+    fresh.seed_replay(5)
+    fresh.action_rng[:] = model.action_rng
+    assert fresh.replay(20) == model.replay(20)
+    np.testing.assert_array_equal(fresh.policy.theta_array, model.policy.theta_array)
+
+
+def test_replay_buffer_of_another_tile_coding_is_refused(tmp_path):
+    model = ER("TileQ", LineWalkEnv(), seed=0, **KWARGS).learn(100)
+    model.save_replay_buffer(tmp_path / "buffer")
+    other = ER("TileQ", LineWalkEnv(), policy_kwargs=dict(n_tilings=4, tile_widths=[0.7]))
+    with pytest.raises(ValueError, match="different tile coding"):
+        other.load_replay_buffer(tmp_path / "buffer.pkl")
+
+
+def test_same_data_same_replays_across_variants():
+    """Thesis 5.2-5.4: variants given one buffer and one replay seed replay exactly the same trajectories."""
+    source = ER("TileQ", LineWalkEnv(), seed=0, **KWARGS).learn(600)
+    touched = []
+    for algo in (ER, ERSigma, ResidualER, ResidualERSigma):
+        model = algo("TileQ", LineWalkEnv(), seed=0, **KWARGS)
+        model.replay_buffer = source.replay_buffer
+        model.seed_replay(11)
+        result = model.replay(25)
+        touched.append(result["updates"])
+    assert len(set(touched)) == 1 and touched[0] > 0
