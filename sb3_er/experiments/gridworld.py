@@ -1,6 +1,7 @@
 """The grid-world study of thesis chapter 5: value functions of the ER variants on the same data and the same replays.
 
-A vanilla-ER learning run on the windy cliff grid world is stopped just after it first reaches the goal (Figure 5.2).
+A vanilla-ER learning run on the windy cliff grid world is stopped just after it first collects a positive goal payout
+(Figure 5.2).
 Its trajectory buffer is then given to fresh vanilla-ER, ER-sigma, residual-ER and residual-ER-sigma models, whose
 replay generators get the same seed, and each replays the same trajectories: one phase of 10 x the stored trajectories
 (the situation of Table 5.1 and Figure 5.7) and, separately, many phases without new samples (Table 5.2, the local
@@ -27,19 +28,29 @@ REPLAYS_PER_TRAJECTORY = 10
 
 
 class StopAtFirstGoal(BaseCallback):
-    """Stops learning at the end of the first episode that reaches the goal (or after `max_episodes`)."""
+    """Stops learning one step after the first episode that reaches the goal with a positive payout (or `max_episodes`).
+
+    A goal entered at the southern cell pays 0 and teaches nothing about the goal's reward, so it does not count.
+    Stopping one step later lets the algorithm close and store the goal trajectory (and finish its end-of-episode
+    replay) before learning ends.
+    """
 
     def __init__(self, max_episodes: int) -> None:
         super().__init__()
         self.max_episodes = max_episodes
         self.episodes = 0
         self.goal_reached = False
+        self._stop_next_step = False
 
     def _on_step(self) -> bool:
+        if self._stop_next_step:
+            return False
         for index in np.flatnonzero(self.locals["dones"]):
             self.episodes += 1
-            self.goal_reached |= bool(self.locals["infos"][index].get("goal_reached", False))
-        return not self.goal_reached and self.episodes < self.max_episodes
+            paid = bool(self.locals["infos"][index].get("goal_reached", False)) and self.locals["rewards"][index] > 0
+            self.goal_reached |= paid
+        self._stop_next_step = self.goal_reached or self.episodes >= self.max_episodes
+        return True
 
 
 def value_map(model, env) -> np.ndarray:
@@ -74,7 +85,7 @@ def learn_until_goal(algo: str, env, policy_kwargs: dict, seed: int, max_episode
     """A learning run of `algo` stopped after the episode in which it first reaches the goal."""
     model = _new_model(algo, env, policy_kwargs, seed)
     stopper = StopAtFirstGoal(max_episodes)
-    model.learn(total_timesteps=max_episodes * env.unwrapped.max_episode_steps, callback=stopper)
+    model.learn(total_timesteps=max_episodes * env.unwrapped.max_episode_steps + 1, callback=stopper)
     if not stopper.goal_reached:
         raise RuntimeError(f"{algo} did not reach the goal within {max_episodes} episodes (seed {seed})")
     return model, stopper.episodes

@@ -37,30 +37,34 @@ def plot_mean_with_ci(
     return path
 
 
+def _cell_label(value: float) -> str:
+    return f"{value:.0f}" if abs(value) < 1000 else f"{value:.0e}"
+
+
 def plot_value_maps(
     maps: Mapping[str, Mapping[str, np.ndarray]], first_windy_row: int, title: str, path: Path
 ) -> Path:
     """Grid of value maps, one row per case (e.g. tabular, tile coding) and one column per algorithm.
 
     Each map is indexed [y, x] with y growing northwards; the wind starts at `first_windy_row` (dashed line, the
-    thesis's striped line). Colours share one symmetric scale per row so that positive and negative values read alike.
+    thesis's striped line). Every cell is annotated with its value; each map has its own symmetric colour scale (red
+    negative, blue positive) so that a diverged map does not wash out the others.
     """
     rows = list(maps)
     columns = list(maps[rows[0]])
     figure, axes = plt.subplots(len(rows), len(columns), figsize=(2.9 * len(columns), 2.4 * len(rows)), squeeze=False)
     for row_index, case in enumerate(rows):
-        limit = max(float(np.max(np.abs(value_map))) for value_map in maps[case].values()) or 1.0
         for column_index, algo in enumerate(columns):
             axes_cell = axes[row_index][column_index]
             value_map = maps[case][algo]
-            image = axes_cell.imshow(value_map, origin="lower", cmap="RdBu", vmin=-limit, vmax=limit)
+            limit = float(np.max(np.abs(value_map))) or 1.0
+            axes_cell.imshow(value_map, origin="lower", cmap="RdBu", vmin=-limit, vmax=limit)
             axes_cell.axhline(first_windy_row - 0.5, color="black", linestyle="--", linewidth=1)
             for (y, x), value in np.ndenumerate(value_map):
-                axes_cell.text(x, y, f"{value:.0f}", ha="center", va="center", fontsize=6)
+                axes_cell.text(x, y, _cell_label(value), ha="center", va="center", fontsize=5.5)
             axes_cell.set_xticks([])
             axes_cell.set_yticks([])
             axes_cell.set_title(f"{ALGORITHM_LABELS.get(algo, algo)}, {case}", fontsize="small")
-        figure.colorbar(image, ax=list(axes[row_index]), shrink=0.8, label="max_a Q(s, a)")
     figure.suptitle(title)
     figure.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(figure)

@@ -1,8 +1,8 @@
 """Runs every (algorithm, seed) pair of an experiment in worker processes, with one progress bar and resumption.
 
 Each finished run is one CSV, ``<out>/runs/<algo>/seed_<seed>.csv``, written atomically when the run ends; a run whose
-CSV exists is skipped, so an interrupted reproduction resumes where it stopped. Heavy modules (torch, numba, the
-environments) are imported inside the workers only, after the thread limits are set.
+CSV exists is skipped, so an interrupted reproduction resumes where it stopped. Workers are spawned with one BLAS/OpenMP
+thread each, so that N workers use N cores.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
     return Path(out_dir) / "runs" / algo / f"seed_{seed}.csv"
 
 
-def _limit_threads() -> None:
+def _limit_threads_of_children() -> None:
     for variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ.setdefault(variable, "1")
 
@@ -70,7 +70,6 @@ def build_protocol(experiment: Experiment, env, budget: float, seed: int, progre
 
 def run_single(job: RunJob, progress_queue=None) -> float:
     """Learn one run, write its CSV atomically and return its wall time in seconds."""
-    _limit_threads()
     import gymnasium as gym
     import torch
 
@@ -139,10 +138,9 @@ def run_jobs(jobs: list[RunJob], n_workers: int, show_progress: bool = True) -> 
                 fractions[key] = fraction
             refresh()
     else:
+        _limit_threads_of_children()
         context = multiprocessing.get_context("spawn")
-        with context.Manager() as manager, ProcessPoolExecutor(
-            max_workers=n_workers, mp_context=context, initializer=_limit_threads
-        ) as pool:
+        with context.Manager() as manager, ProcessPoolExecutor(max_workers=n_workers, mp_context=context) as pool:
             progress_queue = manager.Queue()
             futures: dict[Future, RunJob] = {pool.submit(run_single, job, progress_queue): job for job in jobs}
             pending = set(futures)

@@ -89,7 +89,7 @@ def _thesis_cells(experiment: Experiment, algo: str, metric: str) -> tuple[str, 
     value, difference = entry
     if value is None:
         return "NA", difference
-    return (value if isinstance(value, str) else _format_number(float(value))), difference
+    return (value if isinstance(value, str) else f"{value:g}"), difference
 
 
 def summary_table(experiment: Experiment, summaries: dict[str, CurveSummary], budget: float) -> pd.DataFrame:

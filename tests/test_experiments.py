@@ -1,0 +1,151 @@
+"""Short reproductions of each thesis experiment (tiny budgets, 2 seeds), resumption, protocols and the CLI."""
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+import pytest
+from gymnasium.wrappers import RecordEpisodeStatistics
+
+import sb3_er_envs  # noqa: F401
+from sb3_er import ER, SarsaLambda
+from sb3_er.cli import main
+from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
+from sb3_er.experiments.reproduce import reproduce
+from sb3_er.experiments.runner import run_csv_path
+
+PNG_SIGNATURE = b"\x89PNG"
+
+
+def _assert_well_formed(result, algos, seeds, columns, n_records):
+    for algo in algos:
+        for seed in seeds:
+            frame = pd.read_csv(run_csv_path(result.out_dir, algo, seed))
+            assert set(columns) <= set(frame.columns)
+            assert len(frame) == n_records
+            assert frame["cumulative_falls"].is_monotonic_increasing
+    table = pd.read_csv(result.table_csv)
+    assert set(table["seeds"]) == {len(seeds)}
+    markdown = result.table_markdown.read_text()
+    assert markdown.count("| Rise time") == len(algos)
+    for figure in result.figures:
+        assert figure.read_bytes()[:4] == PNG_SIGNATURE
+    return table, markdown
+
+
+def test_gridworld_reproduction_with_value_maps(tmp_path):
+    algos = ["sarsa_lambda", "er_sigma"]
+    result = reproduce("gridworld", n_seeds=2, algos=algos, out_dir=tmp_path, budget=15, n_workers=1,
+                       show_progress=False)
+    table, markdown = _assert_well_formed(result, algos, [0, 1], ["episode", "return", "length"], 15)
+    assert set(table["metric"]) == {"Rise time [episodes]", "End performance", "Falls"}
+    assert {path.name for path in result.figures} >= {"value_maps_after_goal.png", "value_maps_long_replay.png"}
+    statistics = pd.read_csv(tmp_path / "value_maps.csv")
+    # two situations x two cases x (Sarsa(lambda) + four replay variants), each variant replaying the same count
+    assert len(statistics) == 2 * 2 * 5
+    replayed = statistics[statistics.algorithm != "sarsa_lambda"].groupby(["situation", "case"])
+    assert (replayed["replayed_trajectories"].nunique() == 1).all()
+    assert "Tables 5.1-5.2" in markdown
+
+
+def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
+    algos = ["er", "residual_er_sigma"]
+    result = reproduce("pendulum", n_seeds=2, algos=algos, out_dir=tmp_path, budget=2, n_workers=2,
+                       show_progress=False)
+    table, markdown = _assert_well_formed(result, algos, [0, 1], ["episode", "return", "goal_reached"], 2)
+    assert result.runs_done == 4
+    assert "-4065" in markdown and "Table 6.1" in markdown  # the thesis's vanilla-ER end performance beside ours
+    returns = pd.read_csv(run_csv_path(tmp_path, "er", 0))["return"]
+    assert (returns < 0).all()  # the pendulum's reward -5 theta^2 - 0.1 theta'^2 - u^2 is never positive
+
+
+def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
+    algos = ["sarsa_lambda", "er_sigma"]
+    first = reproduce("walker", n_seeds=2, algos=algos, out_dir=tmp_path, budget=200, n_workers=1,
+                      show_progress=False)
+    _, markdown = _assert_well_formed(
+        first, algos, [0, 1], ["learning_time_s", "distance", "episodes"], 3  # evaluations at 0, 100 and 200 s
+    )
+    assert "11.7" in markdown  # Table 6.2's Sarsa(lambda) end performance
+    frame = pd.read_csv(run_csv_path(tmp_path, "er_sigma", 1))
+    assert list(frame["learning_time_s"]) == [0.0, 100.0, 200.0]
+    finished = {path: path.stat().st_mtime_ns for path in (tmp_path / "runs").rglob("*.csv")}
+
+    run_csv_path(tmp_path, "er_sigma", 1).unlink()  # as if interrupted before this run finished
+    resumed = reproduce("walker", n_seeds=2, algos=algos, out_dir=tmp_path, budget=200, n_workers=1,
+                        show_progress=False)
+    assert (resumed.runs_done, resumed.runs_skipped) == (1, 3)
+    for path, mtime in finished.items():
+        if path != run_csv_path(tmp_path, "er_sigma", 1):
+            assert path.stat().st_mtime_ns == mtime
+    pd.testing.assert_frame_equal(pd.read_csv(run_csv_path(tmp_path, "er_sigma", 1)).drop(columns="wall_time_s"),
+                                  frame.drop(columns="wall_time_s"))  # a seeded run repeats itself exactly
+
+    with pytest.raises(ValueError, match="resume with the same settings"):
+        reproduce("walker", n_seeds=2, algos=algos, out_dir=tmp_path, budget=300, n_workers=1, show_progress=False)
+
+
+def test_leo_reproduction(tmp_path):
+    pytest.importorskip("dm_control")
+    algos = ["sarsa_lambda", "residual_er_sigma"]
+    result = reproduce("leo", n_seeds=2, algos=algos, out_dir=tmp_path, budget=4, n_workers=1, show_progress=False)
+    table, markdown = _assert_well_formed(result, algos, [0, 1], ["learning_time_s", "distance"], 2)
+    assert "3792" in markdown  # Table 6.3's Sarsa(lambda) falls
+    assert "Rise time [min]" in set(table["metric"])
+
+
+def test_episode_protocol_agrees_with_gymnasium_episode_statistics():
+    env = RecordEpisodeStatistics(gym.make("sb3_er/WindyCliff-v0"))
+    protocol = EpisodeReturnProtocol(n_episodes=12)
+    model = ER("TileQ", env, learning_rate=0.25, gamma=0.98, seed=3)
+    model.learn(total_timesteps=12 * 100, callback=protocol)
+    records = pd.DataFrame(protocol.records)
+    assert list(records["episode"]) == list(range(1, 13))
+    np.testing.assert_allclose(records["return"], list(env.return_queue)[-12:])
+    np.testing.assert_array_equal(records["length"], list(env.length_queue)[-12:])
+    assert records["timesteps"].iloc[-1] == records["length"].sum() == model.num_timesteps
+
+
+def test_walking_protocol_schedule_and_fall_count():
+    env = gym.make("sb3_er/SimplestWalker-v0")
+    eval_envs = [gym.make("sb3_er/SimplestWalker-v0") for _ in range(3)]
+    protocol = GreedyDistanceProtocol(eval_envs, dt=0.2, eval_interval=40.0, learning_time=120.0, eval_seed=1)
+    falls = []
+
+    class CountFalls(gym.Wrapper):
+        def step(self, action):
+            observation, reward, terminated, truncated, info = self.env.step(action)
+            falls.append(bool(info["fell"]))
+            return observation, reward, terminated, truncated, info
+
+    model = SarsaLambda("TileQ", CountFalls(env), seed=0)
+    model.learn(total_timesteps=10_000, callback=protocol)
+    assert model.num_timesteps == 600  # 120 s of learning at 0.2 s per step
+    assert [record["learning_time_s"] for record in protocol.records] == [0.0, 40.0, 80.0, 120.0]
+    assert protocol.records[-1]["cumulative_falls"] == sum(falls)
+    assert all(record["distance"] >= 0.0 for record in protocol.records)
+
+
+def test_bad_requests_are_refused_with_a_clear_message(tmp_path):
+    with pytest.raises(ValueError, match="unknown experiment 'walkr'"):
+        reproduce("walkr", out_dir=tmp_path)
+    with pytest.raises(ValueError, match="unknown or no algorithms"):
+        reproduce("walker", algos=["dqn"], out_dir=tmp_path)
+    with pytest.raises(ValueError, match="positive integer"):
+        reproduce("walker", n_seeds=0, out_dir=tmp_path)
+    with pytest.raises(ValueError, match="eval_envs"):
+        GreedyDistanceProtocol([], dt=0.2, eval_interval=100.0, learning_time=200.0)
+    with pytest.raises(ValueError, match="n_episodes"):
+        EpisodeReturnProtocol(0)
+
+
+def test_cli_usage_and_errors(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "--help"])
+    assert exit_info.value.code == 0
+    assert "--seeds" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="unknown command 'reproduse'"):
+        main(["reproduse", "walker"])
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "walkr"])
+    assert exit_info.value.code == 2
+    assert "invalid choice: 'walkr'" in capsys.readouterr().err

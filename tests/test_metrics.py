@@ -1,0 +1,129 @@
+"""Metrics of thesis section 6.1 against hand-computed values and the thesis's own table arithmetic."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sb3_er.experiments.metrics import (
+    end_performance,
+    mean_confidence_interval,
+    relative_difference,
+    rise_time,
+    summarize_curves,
+)
+from sb3_er.experiments.specs import EXPERIMENTS
+from sb3_er.experiments.summary import markdown_table, summary_table
+
+
+def test_confidence_interval_matches_hand_computed_student_t():
+    # mean 2.5, sample sd sqrt(5/3), se = sd / 2, t(0.975, df=3) = 3.182446
+    mean, half_width = mean_confidence_interval([1.0, 2.0, 3.0, 4.0])
+    assert mean == pytest.approx(2.5)
+    assert half_width == pytest.approx(3.182446 * math.sqrt(5.0 / 3.0) / 2.0, rel=1e-5)
+
+
+def test_confidence_interval_per_point_of_curves():
+    curves = np.array([[0.0, 10.0], [2.0, 10.0]])
+    mean, half_width = mean_confidence_interval(curves)
+    # two seeds: sd of (0, 2) is sqrt(2), se = 1, t(0.975, df=1) = 12.7062
+    np.testing.assert_allclose(mean, [1.0, 10.0])
+    np.testing.assert_allclose(half_width, [12.7062, 0.0], rtol=1e-4)
+
+
+def test_single_seed_has_no_interval_and_bad_confidence_is_refused():
+    _, half_width = mean_confidence_interval([[3.0, 4.0]])
+    assert np.isnan(half_width).all()
+    with pytest.raises(ValueError, match="confidence"):
+        mean_confidence_interval([1.0, 2.0], confidence=1.5)
+
+
+def test_rise_time_of_a_distance_curve():
+    # end performance 10, 90% of it is 9: first reached at x = 200 (9.5), not at 100 (2)
+    x = [0, 100, 200, 300, 400]
+    assert rise_time(x, [0.0, 2.0, 9.5, 10.0, 8.0]) == 200
+
+
+def test_rise_time_of_negative_returns_measures_from_the_first_value():
+    # from -100 up to the best -10: 90% of the way is -19; -20 is short of it, -10 at episode 4 reaches it
+    assert rise_time([1, 2, 3, 4, 5], [-100.0, -50.0, -20.0, -10.0, -12.0]) == 4
+
+
+def test_rise_time_against_a_given_end_never_reached_is_nan():
+    assert math.isnan(rise_time([0, 1, 2], [0.0, 1.0, 2.0], end=100.0))
+    assert math.isnan(rise_time([0, 1, 2], [0.0, 1.0, 2.0], end=float("nan")))
+    with pytest.raises(ValueError, match="shape"):
+        rise_time([0, 1], [0.0, 1.0, 2.0])
+
+
+def test_end_performance_is_the_best_mean_or_na_without_a_gait():
+    assert end_performance([1.0, 7.0, 5.0]) == 7.0
+    assert end_performance([1.0, 7.0, 5.0], success_threshold=6.0) == 7.0
+    assert math.isnan(end_performance([0.1, 0.3, 0.2], success_threshold=1.0))
+
+
+def test_relative_difference_reproduces_the_thesis_tables():
+    # Table 6.1: vanilla-ER end performance -4065 against Sarsa(lambda) -1.673e4 is printed as +76 %
+    assert round(relative_difference(-4065, -1.673e4)) == 76
+    # Table 6.2: ER-sigma falls 44 against 74 is printed as -41 %, rise time 3400 against 1500 as +126 %
+    assert round(relative_difference(44, 74)) == -41
+    assert round(relative_difference(3400, 1500)) == 127  # the thesis truncates 126.7 to 126
+    assert math.isnan(relative_difference(1.0, 0.0))
+
+
+def test_summary_of_hand_made_walker_curves():
+    x = np.array([0.0, 100.0, 200.0, 300.0])
+    distance = np.array([[0.0, 4.0, 10.0, 11.0], [0.0, 2.0, 8.0, 13.0]])  # mean 0, 3, 9, 12
+    falls = np.array([[0, 5, 7, 8], [0, 3, 4, 4]])
+    summary = summarize_curves(x, distance, falls, success_threshold=1.0)
+    assert summary.end_performance == pytest.approx(12.0)
+    assert summary.rise_time == 300.0  # 90% of 12 is 10.8; the mean 9 at 200 s falls short
+    assert summary.end_performance_ci == pytest.approx(12.7062 * 1.0, rel=1e-4)  # sd of (11, 13) = sqrt 2, se = 1
+    assert summary.falls == pytest.approx(6.0)
+    assert summary.n_seeds == 2
+
+
+def test_summary_table_puts_the_thesis_numbers_beside_ours():
+    walker = EXPERIMENTS["walker"]
+    x = np.array([0.0, 100.0, 200.0])
+    summaries = {
+        "sarsa_lambda": summarize_curves(x, [[0.0, 5.0, 10.0], [0.0, 5.0, 10.0]], [[0, 4, 8], [0, 4, 8]], 1.0),
+        "er_sigma": summarize_curves(x, [[0.0, 10.0, 10.0], [0.0, 10.0, 10.0]], [[0, 2, 4], [0, 2, 4]], 1.0),
+    }
+    table = summary_table(walker, summaries, budget=200.0)
+    er_sigma_falls = table[(table.algorithm == "ER-σ") & (table.metric == "Falls")].iloc[0]
+    assert er_sigma_falls.difference_with_sarsa_lambda == "-50 %"
+    assert er_sigma_falls.thesis_average == "44"
+    assert er_sigma_falls.thesis_difference == "-41 %"
+    text = markdown_table(walker, table)
+    assert "| ER-σ | Rise time [s] | 100 | -50 % | 500 | -67 % |" in text
+    assert text.count("\n") == 1 + 3 * 2  # header, rule, three metrics for each of two algorithms
+
+
+def test_no_gait_shows_na_and_a_rise_time_beyond_the_run():
+    leo = EXPERIMENTS["leo"]
+    summaries = {"er": summarize_curves([0.0, 6000.0, 12000.0], [[0.0, 0.1, 0.2]], [[0, 50, 90]], 0.5)}
+    row = summary_table(leo, summaries, budget=12000.0).set_index("metric")
+    assert row.loc["Rise time [min]", "average_text"] == ">200"
+    assert row.loc["End performance", "average_text"] == "NA"
+    assert row.loc["End performance", "thesis_average"] == "NA"
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    curve=st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=2, max_size=30),
+    scale=st.floats(0.01, 100.0),
+    shift=st.floats(-1e3, 1e3),
+)
+def test_rise_time_is_invariant_to_positive_affine_rescaling(curve, scale, shift):
+    curve = np.array(curve)
+    x = np.arange(len(curve)) * 10.0
+    original = rise_time(x, curve)
+    assert original <= x[np.argmax(curve)]
+    rescaled = rise_time(x, scale * curve + shift)
+    # rescaling may move values that sit exactly on the threshold by rounding; compare away from ties
+    threshold = curve[0] + 0.9 * (curve.max() - curve[0])
+    if np.min(np.abs(curve - threshold)) > 1e-6 * (1 + np.abs(curve).max()):
+        assert rescaled == original

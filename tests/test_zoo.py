@@ -1,0 +1,84 @@
+"""rl-zoo integration: registration, the thesis hyperparameters in zoo_configs, train -> enjoy, and an optuna study."""
+
+import pandas as pd
+import pytest
+import rl_zoo3
+from rl_zoo3 import hyperparams_opt
+
+from sb3_er import ER, ERSigma, SarsaLambda
+from sb3_er import zoo
+from sb3_er.experiments.specs import EXPERIMENTS
+
+ENV_IDS = ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0", "sb3_er/SimplestWalker-v0", "sb3_er/Leo-v0"]
+# (alpha, gamma, epsilon) of thesis sections 5.1 and 4.2.1-4.2.3
+THESIS_SETTINGS = {
+    "sb3_er/WindyCliff-v0": (0.25, 0.98, 0.05),
+    "sb3_er/PendulumSwingup-v0": (0.2, 0.98, 0.1),
+    "sb3_er/SimplestWalker-v0": (0.2, 0.99, 0.05),
+    "sb3_er/Leo-v0": (0.2, 0.996, 0.05),
+}
+
+
+def test_registration_adds_every_algorithm_to_rl_zoo():
+    zoo.register_algorithms()
+    assert rl_zoo3.ALGOS["er_sigma"] is ERSigma
+    assert rl_zoo3.ALGOS["sarsa_lambda"] is SarsaLambda
+    for name in zoo.ALGORITHM_NAMES:
+        assert name in hyperparams_opt.HYPERPARAMS_SAMPLER
+        assert hyperparams_opt.HYPERPARAMS_CONVERTER[name]({"sigma": "worst"}) == {"sigma": "worst"}
+
+
+@pytest.mark.parametrize("algo", zoo.ALGORITHM_NAMES)
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_zoo_configs_hold_the_thesis_hyperparameters(algo, env_id):
+    kwargs = zoo.model_kwargs(algo, env_id)
+    assert (kwargs["learning_rate"], kwargs["gamma"], kwargs["exploration_rate"]) == THESIS_SETTINGS[env_id]
+    assert kwargs["policy_kwargs"]["n_tilings"] == 16
+    assert "n_timesteps" not in kwargs and "policy" not in kwargs
+    assert zoo.load_hyperparameters(algo, env_id)["policy"] == "TileQ"
+
+
+def test_replay_schedules_of_thesis_section_4_2():
+    assert zoo.model_kwargs("sarsa_lambda", "sb3_er/Leo-v0")["trace_lambda"] == 0.859
+    assert zoo.model_kwargs("sarsa_lambda", "sb3_er/SimplestWalker-v0")["trace_lambda"] == 0.92
+    walker = zoo.model_kwargs("er_sigma", "sb3_er/SimplestWalker-v0")
+    assert (walker["replay_trigger"], walker["n_replays"]) == ("segment", 100)
+    pendulum = zoo.model_kwargs("residual_er", "sb3_er/PendulumSwingup-v0")
+    assert (pendulum["replay_trigger"], pendulum["replays_per_stored_trajectory"]) == ("episode", 10.0)
+    leo = zoo.model_kwargs("er", "sb3_er/Leo-v0")
+    assert (leo["replay_every"], leo["n_replays"], leo["online_lambda"]) == (100, 1500, 0.859)
+    # the walker's run length: 5000 s of learning at 0.2 s per step
+    assert zoo.load_hyperparameters("er", "sb3_er/SimplestWalker-v0")["n_timesteps"] * 0.2 == (
+        EXPERIMENTS["walker"].default_budget
+    )
+
+
+def test_unknown_algorithm_or_env_is_named():
+    with pytest.raises(ValueError, match="unknown algorithm 'ppo'"):
+        zoo.config_path("ppo")
+    with pytest.raises(KeyError, match="no entry for 'CartPole-v1'"):
+        zoo.load_hyperparameters("er", "CartPole-v1")
+
+
+def test_train_then_enjoy_round_trip(tmp_path, capsys):
+    folder = str(tmp_path)
+    zoo.train(["--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-n", "1500", "-f", folder, "--seed", "1",
+               "--eval-freq", "-1", "--verbose", "0"])
+    run_dir = tmp_path / "er" / "sb3_er-WindyCliff-v0_1"
+    model = ER.load(run_dir / "sb3_er-WindyCliff-v0.zip")
+    assert model.num_timesteps == 1500 and model.learning_rate(1.0) == 0.25  # rl-zoo passes a constant schedule
+    assert any((tmp_path / "tensorboard").rglob("events.out.tfevents.*"))
+    capsys.readouterr()
+    zoo.enjoy(["--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-f", folder, "--no-render", "-n", "300"])
+    assert "Mean reward" in capsys.readouterr().out
+
+
+def test_optuna_study_with_two_trials(tmp_path):
+    zoo.optimize(["--algo", "er_sigma", "--env", "sb3_er/WindyCliff-v0", "-n", "300", "--n-trials", "2",
+                  "--n-evaluations", "1", "--eval-episodes", "2", "-f", str(tmp_path), "--no-optim-plots",
+                  "--sampler", "random", "--pruner", "none", "--seed", "0", "--verbose", "0"])
+    (report,) = (tmp_path / "er_sigma").glob("report_*.csv")
+    trials = pd.read_csv(report)
+    assert len(trials) == 2
+    assert set(trials["params_sigma"]) <= set(zoo.SIGMA_DEFINITIONS)
+    assert trials["params_learning_rate"].between(0.02, 0.6).all()
