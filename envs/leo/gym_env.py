@@ -17,6 +17,7 @@ TILE_WIDTHS = (0.14, 5.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0)
 ACTION_TILE_WIDTHS = (6.67, 6.67, 6.67)
 #: Declared observation bounds: +-pi for angles, +-10 pi rad/s for rates (Erik's state ranges).
 OBSERVATION_BOUND = np.array([math.pi, 10.0 * math.pi] * 5)
+_LEVEL_INDICES = np.arange(len(VOLTAGE_LEVELS))
 
 
 class LeoEnv(gym.Env):
@@ -81,6 +82,7 @@ class LeoEnv(gym.Env):
         self.action_values = [VOLTAGE_LEVELS.copy() for _ in range(3)]
         self.action_tile_widths = np.array(ACTION_TILE_WIDTHS)
         self._steps = 0
+        self._closed = False
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -93,7 +95,7 @@ class LeoEnv(gym.Env):
 
     def step(self, action):
         levels = np.asarray(action)
-        if levels.shape != (3,) or not self.action_space.contains(levels.astype(np.int64)):
+        if levels.shape != (3,) or not np.all(np.isin(levels, _LEVEL_INDICES)):
             raise ValueError(f"LEO's action is 3 voltage levels in 0..6 (stance hip, swing hip, swing knee), "
                              f"got {action!r}")
         self.task.before_step(VOLTAGE_LEVELS[levels.astype(np.int64)], self.physics)
@@ -114,4 +116,6 @@ class LeoEnv(gym.Env):
         return self.physics.render(height=height, width=width, camera_id=self.camera)
 
     def close(self):
-        self.physics.free()
+        if not self._closed:
+            self.physics.free()
+            self._closed = True

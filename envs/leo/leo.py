@@ -247,12 +247,13 @@ class LeoWalk(base.Task):
         self.footsteps = 0
         self.footstep = False
         self.footstep_length = 0.0
-        self.stance_contact = physics.foot_contacts()[LEFT]
+        self.stance_contact = True  # set_pose put the left foot's lowest point on the floor
         self.energy = 0.0
         self.reward = 0.0
         self.fell = False
         self.distance = 0.0
-        super().initialize_episode(physics)
+        # No delegation to base.Task.initialize_episode: it only calls after_step (to recolour geoms by reward),
+        # which here would count a control step at the reset.
 
     def auto_voltages(self) -> dict[str, float]:
         """Erik's controllers for the joints the agent does not drive (reference 4.5), from the current state."""
