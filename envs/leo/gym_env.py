@@ -17,7 +17,6 @@ TILE_WIDTHS = (0.14, 5.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0)
 ACTION_TILE_WIDTHS = (6.67, 6.67, 6.67)
 #: Declared observation bounds: +-pi for angles, +-10 pi rad/s for rates (Erik's state ranges).
 OBSERVATION_BOUND = np.array([math.pi, 10.0 * math.pi] * 5)
-_LEVEL_INDICES = np.arange(len(VOLTAGE_LEVELS))
 
 
 class LeoEnv(gym.Env):
@@ -95,10 +94,11 @@ class LeoEnv(gym.Env):
 
     def step(self, action):
         levels = np.asarray(action)
-        if levels.shape != (3,) or not np.all(np.isin(levels, _LEVEL_INDICES)):
+        indices = levels.astype(np.int64, copy=False)
+        if levels.shape != (3,) or not (np.all(indices == levels) and 0 <= indices.min() and indices.max() < 7):
             raise ValueError(f"LEO's action is 3 voltage levels in 0..6 (stance hip, swing hip, swing knee), "
                              f"got {action!r}")
-        self.task.before_step(VOLTAGE_LEVELS[levels.astype(np.int64)], self.physics)
+        self.task.before_step(VOLTAGE_LEVELS[indices], self.physics)
         self.physics.step(PHYSICS_SUBSTEPS)
         self.task.after_step(self.physics)
         self._steps += 1

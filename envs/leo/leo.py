@@ -100,6 +100,10 @@ def butterworth_coefficients(cutoff: float, sample_rate: float) -> tuple[float, 
     return k / (1.0 + k), (k - 1.0) / (k + 1.0)
 
 
+def _clip(value: float, bound: float) -> float:
+    return bound if value > bound else -bound if value < -bound else value
+
+
 def ankle_x_from_hip(torso: float, hip: float, knee: float) -> float:
     """Horizontal position of the ankle relative to the hip from joint angles only (Erik's footstep measure) [m]."""
     thigh = torso + hip
@@ -125,7 +129,7 @@ class Physics(mujoco.Physics):
                             for side in _SIDES]
         self._contact_geoms = np.flatnonzero(model.geom_contype)
         self._left_heel = model.name2id("heel_left", "geom")
-        self._hip_joint = model.name2id("hip_left", "joint")
+        self.hip_joint = model.name2id("hip_left", "joint")
         self._torso_body = model.name2id("torso", "body")
 
     def joint_angle(self, name: str) -> float:
@@ -171,7 +175,7 @@ class Physics(mujoco.Physics):
 
     def hip_position(self) -> np.ndarray:
         """World (x, z) of the hip axle [m]."""
-        anchor = self.data.xanchor[self._hip_joint]
+        anchor = self.data.xanchor[self.hip_joint]
         return np.array([anchor[0], anchor[2]])
 
     def total_mass(self) -> float:
@@ -278,7 +282,7 @@ class LeoWalk(base.Task):
         stance, swing = _SIDES[self.stance], _SIDES[1 - self.stance]
         voltages = self.auto_voltages()
         voltages[f"hip_{stance}"], voltages[f"hip_{swing}"], voltages[f"knee_{swing}"] = action.tolist()
-        self.voltages = np.clip([voltages[name] for name in _MOTOR_JOINTS], -MAX_VOLTAGE, MAX_VOLTAGE)
+        self.voltages = np.array([_clip(voltages[name], MAX_VOLTAGE) for name in _MOTOR_JOINTS])
         physics.set_voltages(self.voltages)
 
     def after_step(self, physics) -> None:
@@ -290,11 +294,11 @@ class LeoWalk(base.Task):
         self._update_stance(*physics.foot_contacts())
         self.fell = (abs(self._angles["torso"]) > MAX_TORSO_ANGLE
                      or abs(self._angles["torso"] + self._angles[f"hip_{_SIDES[self.stance]}"]) > MAX_STANCE_LEG_ANGLE)
-        clipped = np.clip([progress, self._progress], -MAX_FOOTSTEP_LENGTH, MAX_FOOTSTEP_LENGTH)
-        self.reward = (REWARD_TIME + REWARD_ENERGY * self.energy + REWARD_PROGRESS * float(clipped[0] - clipped[1])
+        gained = _clip(progress, MAX_FOOTSTEP_LENGTH) - _clip(self._progress, MAX_FOOTSTEP_LENGTH)
+        self.reward = (REWARD_TIME + REWARD_ENERGY * self.energy + REWARD_PROGRESS * gained
                        + (REWARD_FALL if self.fell else 0.0))
         self._progress = -progress if self.footstep else progress
-        self.distance = float(physics.hip_position()[0]) - self._start_x
+        self.distance = float(physics.data.xanchor[physics.hip_joint, 0]) - self._start_x
 
     def info(self, physics) -> dict:
         """Per-step facts: whether a footstep was made (and its length), the net footstep count, the hip's walked
