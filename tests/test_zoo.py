@@ -82,3 +82,16 @@ def test_optuna_study_with_two_trials(tmp_path):
     assert len(trials) == 2
     assert set(trials["params_sigma"]) <= set(zoo.SIGMA_DEFINITIONS)
     assert trials["params_learning_rate"].between(0.02, 0.6).all()
+
+
+def test_plain_rl_zoo_trains_its_own_dqn_on_our_environments(tmp_path, monkeypatch):
+    from rl_zoo3.train import train as zoo_train
+
+    monkeypatch.setattr(
+        "sys.argv",
+        ["rl_zoo3.train", "--algo", "dqn", "--env", "sb3_er/SimplestWalker-v0", "--gym-packages", "sb3_er_envs",
+         "-conf", str(zoo.CONFIG_DIR / "dqn.yml"), "-n", "300", "-f", str(tmp_path), "--eval-freq", "-1",
+         "--seed", "0", "--verbose", "0"],
+    )
+    zoo_train()
+    assert (tmp_path / "dqn" / "sb3_er-SimplestWalker-v0_1" / "sb3_er-SimplestWalker-v0.zip").is_file()
