@@ -40,10 +40,15 @@ def test_importing_the_package_imports_no_environment_or_physics_engine():
 
 @pytest.mark.parametrize("env_id", ALL_IDS)
 def test_every_id_makes_an_environment_with_the_shared_interface(env_id):
+    """Box observations with finite bounds, Discrete (or flat MultiDiscrete, LEO's voltage levels per joint) actions,
+    tile widths and wrap periods per observation dimension, a control period, seeded resets and SB3 compatibility."""
     env = make(env_id)
     base = env.unwrapped
     observation_space, action_space = env.observation_space, env.action_space
-    assert isinstance(observation_space, spaces.Box) and isinstance(action_space, spaces.Discrete)
+    assert isinstance(observation_space, spaces.Box)
+    assert isinstance(action_space, spaces.Discrete) or (
+        isinstance(action_space, spaces.MultiDiscrete) and action_space.nvec.ndim == 1
+    )
     assert np.all(np.isfinite(observation_space.low)) and np.all(np.isfinite(observation_space.high))
     dimensions = observation_space.shape[0]
     assert observation_space.shape == (dimensions,)
