@@ -222,6 +222,30 @@ def test_positive_hip_voltage_swings_the_thigh_forward(held_arm_physics):
     assert knee[0] > hip[0]  # the knee moved ahead of the hip: +x is forward
 
 
+@pytest.mark.parametrize("floor_parallel", [False, True])
+def test_ankle_controller_holds_the_foot_at_3_72_degrees_to_the_shank_or_to_the_floor(floor_parallel):
+    """Erik's default holds the ankle joint at 3.72 deg; the floor-parallel option holds the foot at 3.72 deg to the
+    floor. The leg is tilted 0.4 rad, so the two differ by 0.4 rad; dry friction (0.2 N m against about 6-7 N m/rad
+    of controller stiffness) leaves up to 0.035 rad of error. The stance knee's controller straightens the left knee
+    meanwhile, so the leg angles are read back."""
+    physics = held_torso_physics()
+    task = leo_domain.LeoWalk(random=0, start_noise=0.0, floor_parallel_ankles=floor_parallel)
+    with physics.reset_context():
+        task.initialize_episode(physics)
+        physics.set_pose({"hip_left": 0.6, "knee_left": -0.2, "hip_right": 0.6, "knee_right": -0.2})
+    task.after_step(physics)
+    for _ in range(30):
+        task.before_step(np.zeros(3), physics)
+        physics.step(leo_domain.PHYSICS_SUBSTEPS)
+        task.after_step(physics)
+    target = 3.72 * math.pi / 180.0
+    for side in ("left", "right"):
+        ankle = physics.joint_angle(f"ankle_{side}")
+        foot_to_floor = sum(physics.joint_angle(name) for name in ("torso", f"hip_{side}", f"knee_{side}")) + ankle
+        held = foot_to_floor if floor_parallel else ankle
+        assert held == pytest.approx(target, abs=0.04)
+
+
 # --- standing and walking -------------------------------------------------------------------------------------------
 
 def test_zero_learned_voltages_for_25_s_stay_finite_and_feet_do_not_sink():

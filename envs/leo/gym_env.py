@@ -47,7 +47,8 @@ class LeoEnv(gym.Env):
     filter_rates:
         Observe Erik's 10 Hz Butterworth-filtered joint rates (default) or the raw ones.
     floor_parallel_ankles:
-        Keep the feet parallel to the floor (the thesis's description) instead of Erik's fixed ankle angle.
+        Hold the feet at 3.72 degrees to the floor (about parallel, as the thesis describes) instead of Erik's
+        default 3.72 degrees between foot and shank.
     time_limit:
         Episode length in seconds before truncation (25).
     render_size:

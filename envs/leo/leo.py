@@ -201,8 +201,9 @@ class LeoWalk(base.Task):
         Low-pass the joint rates with Erik's first-order 10 Hz Butterworth filter (default) or observe them raw.
         The torso rate is never filtered: Erik's torso filter in GRL passes it through almost unchanged.
     floor_parallel_ankles:
-        Keep the feet parallel to the floor as the thesis describes, instead of Erik's default controller that holds
-        each ankle at 3.72 degrees relative to its shank.
+        Hold each foot at 3.72 degrees to the floor (Erik's ``autoActuateAnkles``, gain 8 N m/rad: the feet stay about
+        parallel to the floor as the thesis describes) instead of Erik's default, which holds each ankle joint at
+        3.72 degrees relative to its shank.
     """
 
     def __init__(self, random=None, start_noise: float = 0.05, filter_rates: bool = True,
@@ -270,7 +271,7 @@ class LeoWalk(base.Task):
         for side in (stance, swing):
             if self.floor_parallel_ankles:
                 foot = angles["torso"] + angles[f"hip_{side}"] + angles[f"knee_{side}"] + angles[f"ankle_{side}"]
-                voltages[f"ankle_{side}"] = -FLOOR_PARALLEL_ANKLE_GAIN * foot
+                voltages[f"ankle_{side}"] = FLOOR_PARALLEL_ANKLE_GAIN * (ANKLE_TARGET - foot)
             else:
                 voltages[f"ankle_{side}"] = ANKLE_GAIN * (ANKLE_TARGET - angles[f"ankle_{side}"])
         return voltages
