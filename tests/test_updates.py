@@ -223,7 +223,7 @@ def test_sarsa_lambda_terminal_step(coder):
 
 def test_colliding_tilings_update_like_the_gradient():
     """With one slot, both tilings share every weight: phi has a 2 there, and the update follows that gradient."""
-    coder = TileCoder([1.0], [2], n_tilings=2, memory_size=2)
+    coder = TileCoder([1.0], [2], n_tilings=2, memory_size=8)
     assert coder.n_slots == 1
     i = coder.feature_indices(np.array([0.3]), 1)
     assert i[0] == i[1]

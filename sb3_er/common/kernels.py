@@ -130,15 +130,19 @@ def all_q_values(theta, slots, stride, action_columns, out_q):
 
 
 @nb.njit(inline="always", cache=True)
-def all_visit_counts(visits, slots, stride, action_columns, out_w):
-    """W(s, .) = w . phi(s, .) over all actions (Eq. 5.1-5.2): how many active features of (s, a) were ever visited."""
-    n_actions = out_w.shape[0]
+def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, out_q, out_w):
+    """Q(s, .) and W(s, .) = w . phi(s, .) (Eq. 5.1-5.2, how many active features of (s, a) were ever visited) in one
+    pass over the same rows."""
+    n_actions = out_q.shape[0]
     for a in range(n_actions):
+        out_q[a] = 0.0
         out_w[a] = 0.0
     for k in range(slots.shape[0]):
         base = slots[k] * stride
         for a in range(n_actions):
-            out_w[a] += visits[base + action_columns[k, a]]
+            i = base + action_columns[k, a]
+            out_q[a] += theta[i]
+            out_w[a] += visits[i]
 
 
 @nb.njit(inline="always", cache=True)
@@ -331,9 +335,10 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, n_tiling
     Sarsa draws a' epsilon-greedily (Alg. 8 line 6); Q-learning takes the max (Eq. 2.5); Expected Sarsa the
     expectation under the epsilon-greedy policy.
     """
-    all_q_values(theta, next_slots, stride, action_columns, q)
-    if sigma_kind != SIGMA_NONE:
-        all_visit_counts(visits, next_slots, stride, action_columns, w)
+    if sigma_kind == SIGMA_NONE:
+        all_q_values(theta, next_slots, stride, action_columns, q)
+    else:
+        all_q_values_and_visit_counts(theta, visits, next_slots, stride, action_columns, q, w)
         sigma = sigma_of_state(q, w, sigma_kind)
         for a in range(q.shape[0]):
             q[a] += (n_tilings - w[a]) * sigma

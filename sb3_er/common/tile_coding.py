@@ -7,6 +7,8 @@ import numpy as np
 
 from sb3_er.common import kernels
 
+WEIGHTS_PER_CACHE_LINE = 8  # float64 weights in a 64-byte cache line: a state tile's row starts on a line boundary
+
 
 def tiling_offsets(n_tilings: int, n_dims: int) -> np.ndarray:
     """Displacement of tiling k in dimension d, in tile widths: k (1 + 2d) / N (Eq. 2.9 with 0-based k and d).
@@ -27,7 +29,8 @@ class TileCoder:
     period). Actions either index the feature (no generalisation across actions, the default) or, given
     ``action_tile_widths``, are tiled like further state dimensions over their ``action_values`` (LEO's original setup
     tiled its voltages). The weights of all actions of one (tiling, state tile) are adjacent: weight index =
-    slot * stride + action column, with the slot a hash of (tiling, state-tile coordinates) into a power-of-two table.
+    slot * stride + action column, with the slot a hash of (tiling, state-tile coordinates) into a power-of-two table
+    and the stride the row length rounded up to whole cache lines, so that Q(s, .) reads as few lines as possible.
 
     :param tile_widths: tile width per observation dimension, in observation units.
     :param action_nvec: number of choices per action dimension (``[n]`` for Discrete(n)).
@@ -69,7 +72,7 @@ class TileCoder:
         self.action_values = self._check_action_values(action_values)
         self.action_tile_widths = None if action_tile_widths is None else np.asarray(action_tile_widths, np.float64)
         self.action_columns = self._action_columns()
-        self.stride = int(self.action_columns.max()) + 1
+        self.stride = -(-(int(self.action_columns.max()) + 1) // WEIGHTS_PER_CACHE_LINE) * WEIGHTS_PER_CACHE_LINE
         n_slots = 1 << int(np.floor(np.log2(max(memory_size // self.stride, 1))))
         if n_slots * self.stride > memory_size:
             raise ValueError(

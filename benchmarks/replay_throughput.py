@@ -1,0 +1,189 @@
+"""Replay, Sarsa(lambda) and learn() throughput; prints the figures recorded in the README.
+
+    python benchmarks/replay_throughput.py [--quick]
+
+(a) the walker setup: 4-D state, 15 actions, 16 tilings; (b) the LEO setup: 10-D state, 343 actions (voltages tiled),
+16 tilings. Each ER variant replays a buffer of random-action trajectories recorded in the real env (sb3_er_envs; LEO
+needs the dmc extra) with one kernel call per phase; the reference is a plain-NumPy implementation of the same update
+called once per update.
+"""
+
+import argparse
+import time
+
+import gymnasium as gym
+import numba as nb
+import numpy as np
+
+from sb3_er import SarsaLambda
+from sb3_er.common import kernels
+from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.tile_coding import TileCoder
+
+SETUPS = {
+    "(a) walker: 4-D, 15 actions": dict(env_id="sb3_er/SimplestWalker-v0", transitions=20_000, memory_size=2**22),
+    "(b) LEO: 10-D, 343 actions": dict(env_id="sb3_er/Leo-v0", transitions=5_000, memory_size=2**24),
+}
+VARIANTS = {
+    "ER": (kernels.SIGMA_NONE, 0.0),
+    "ER-sigma": (kernels.SIGMA_AVERAGE_WORST, 0.0),
+    "residual ER": (kernels.SIGMA_NONE, 1.0),
+    "residual ER-sigma": (kernels.SIGMA_AVERAGE_WORST, 1.0),
+}
+GAMMA, ALPHA, EPSILON = 0.99, 0.2, 0.05
+
+
+def env_coder(env: gym.Env, memory_size: int) -> TileCoder:
+    """The env's own tile coding (thesis Tables 4.2 and 4.3; LEO tiles its voltages too), 16 tilings."""
+    env = env.unwrapped
+    nvec = [env.action_space.n] if hasattr(env.action_space, "n") else list(env.action_space.nvec)
+    return TileCoder(env.tile_widths, nvec, n_tilings=16, memory_size=memory_size,
+                     action_values=getattr(env, "action_values", None),
+                     action_tile_widths=getattr(env, "action_tile_widths", None))
+
+
+def recorded_buffer(env: gym.Env, coder: TileCoder, n_transitions: int) -> TrajectoryReplayBuffer:
+    """Trajectories of random actions in the real env (falls and time limits end them, footsteps split them)."""
+    buffer = TrajectoryReplayBuffer(n_transitions, coder)
+    obs, _ = env.reset(seed=0)
+    env.action_space.seed(0)
+    flat_index = np.arange(coder.n_actions).reshape(coder.action_nvec)
+    for _ in range(n_transitions - 1):
+        action = env.action_space.sample()
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        buffer.add(obs, coder.slots(obs), int(flat_index[tuple(np.atleast_1d(action))]), reward)
+        if terminated or truncated or info.get("segment_end", False):
+            buffer.close_trajectory(next_obs, terminated)
+        obs = env.reset()[0] if terminated or truncated else next_obs
+    buffer.close_trajectory(obs, False)
+    return buffer
+
+
+def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays) -> float:
+    theta = np.zeros(coder.n_weights)
+    q_scratch, w_scratch = np.zeros(coder.n_actions), np.zeros(coder.n_actions)
+
+    def phase(n):
+        return kernels.replay_phase(
+            theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns, n,
+            kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, ALPHA / coder.n_tilings, GAMMA, EPSILON,
+            kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch,
+        )
+
+    phase(1)
+    start = time.perf_counter()
+    updates = phase(n_replays)[0]
+    return updates / (time.perf_counter() - start)
+
+
+def numpy_updates_per_second(coder, buffer, sigma_on, zeta, n_updates) -> float:
+    """The same reversed-trajectory update in plain NumPy, one call per update."""
+    theta = np.zeros(coder.n_weights)
+    rng = np.random.default_rng(1)
+    columns, stride, n = coder.action_columns, coder.stride, coder.n_tilings
+    tilings = np.arange(n)
+
+    def update(p, next_slots, terminal):
+        a = buffer.actions[p]
+        active = buffer.slots[p] * stride + columns[:, a]
+        target = buffer.rewards[p]
+        if not terminal:
+            rows = next_slots[:, None] * stride + columns
+            q = theta[rows].sum(axis=0)
+            if sigma_on:
+                w = buffer.visits[rows].sum(axis=0).astype(float)
+                visited = w > 0
+                if visited.any():
+                    sigma = 0.5 * (q.sum() / w.sum() + np.min(q[visited] / w[visited]))
+                    q = q + (n - w) * sigma
+            a_next = rng.integers(len(q)) if rng.random() < EPSILON else int(np.argmax(q))
+            target += GAMMA * q[a_next]
+        delta = target - theta[active].sum()
+        np.add.at(theta, active, ALPHA / n * delta)
+        if zeta and not terminal:
+            np.add.at(theta, next_slots[tilings] * stride + columns[:, a], -ALPHA / n * delta * zeta * GAMMA)
+
+    start = time.perf_counter()
+    done = 0
+    while done < n_updates:
+        j = (buffer.oldest_trajectory + rng.integers(buffer.n_trajectories)) % buffer.capacity
+        first, length = buffer.trajectory_start[j], buffer.trajectory_length[j]
+        for t in range(length - 1, -1, -1):
+            p = (first + t) % buffer.capacity
+            last = t == length - 1
+            next_slots = buffer.trajectory_next_slots[j] if last else buffer.slots[(p + 1) % buffer.capacity]
+            update(p, next_slots, last and buffer.trajectory_terminated[j])
+            done += 1
+    return done / (time.perf_counter() - start)
+
+
+@nb.njit
+def _sarsa_lambda_episode(theta, trace, states, coder_args, n_steps, rng):
+    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns = coder_args
+    n_tilings = offsets.shape[0]
+    slots = np.zeros(n_tilings, np.int64)
+    next_slots = np.zeros(n_tilings, np.int64)
+    q = np.zeros(action_columns.shape[1])
+    action = kernels.select_action(theta, states[0], inv_widths, offsets, wrap_tiles, slot_mask, stride,
+                                   action_columns, EPSILON, rng, slots, q)
+    for k in range(n_steps):
+        action, _, _ = kernels.sarsa_lambda_step(
+            theta, trace[0], trace[1], trace[2], trace[3], slots, action, -1.0, False, states[k + 1], next_slots, q,
+            inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, ALPHA / n_tilings, GAMMA,
+            GAMMA * 0.92, 0.01, EPSILON, rng,
+        )
+        slots, next_slots = next_slots, slots
+
+
+def sarsa_lambda_steps_per_second(coder, n_steps) -> float:
+    rng = np.random.default_rng(0)
+    states = np.cumsum(rng.normal(0.0, 1.0 / 3.0, (n_steps + 1, coder.n_dims)) * coder.tile_widths, axis=0)
+    theta = np.zeros(coder.n_weights)
+    capacity = coder.n_tilings * 120
+    trace = (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int64),
+             np.zeros(1, np.int64))
+    _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, 10, kernels.new_rng_state(0))
+    start = time.perf_counter()
+    _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, n_steps, kernels.new_rng_state(0))
+    return n_steps / (time.perf_counter() - start)
+
+
+def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
+    model = SarsaLambda("TileQ", gym.make(env_id), gamma=1.0, exploration_rate=0.0, trace_lambda=0.9,
+                        policy_kwargs=policy_kwargs, seed=0)
+    model.learn(2000)
+    start = time.perf_counter()
+    model.learn(n_steps)
+    return n_steps / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="smaller runs, for a smoke test")
+    args = parser.parse_args()
+    scale = 0.1 if args.quick else 1.0
+
+    import sb3_er_envs  # noqa: F401  (registers the env ids)
+
+    print(f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s}")
+    for name, setup in SETUPS.items():
+        env = gym.make(setup["env_id"])
+        coder = env_coder(env, setup["memory_size"])
+        buffer = recorded_buffer(env, coder, int(setup["transitions"] * max(scale, 0.2)))
+        for variant, (sigma, zeta) in VARIANTS.items():
+            fast = kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays=max(20, int(5000 * scale)))
+            slow = numpy_updates_per_second(coder, buffer, sigma != kernels.SIGMA_NONE, zeta, int(3000 * scale) + 100)
+            print(f"{name:32s} {variant:18s} {fast:14,.0f} {slow:12,.0f} {fast / slow:8.0f}x", flush=True)
+
+    walker = TileCoder([0.1, 0.1, 0.11, 0.21], [15], n_tilings=16)
+    print(f"\nSarsa(lambda) kernel, walker setup: {sarsa_lambda_steps_per_second(walker, int(1_000_000 * scale)):,.0f} steps/s")
+    for env_id, policy_kwargs in (
+        ("MountainCar-v0", dict(n_tilings=8, tiles_per_dimension=8)),
+        ("CartPole-v1", dict(n_tilings=8, tile_widths=[0.5, 0.5, 0.05, 0.5])),
+    ):
+        rate = learn_steps_per_second(env_id, policy_kwargs, int(100_000 * scale))
+        print(f"SarsaLambda.learn end to end on {env_id}: {rate:,.0f} steps/s")
+
+
+if __name__ == "__main__":
+    main()
