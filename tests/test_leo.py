@@ -142,7 +142,7 @@ def test_start_pose_is_erik_pose_on_a_flat_left_foot():
     heel, toe = (physics.data.geom_xpos[physics.model.name2id(n, "geom")] for n in ("heel_left", "toe_left"))
     assert heel[[0, 2]] == pytest.approx([0.0, 0.0035], abs=1e-12)
     assert toe[2] == pytest.approx(0.0035, abs=1e-12)
-    assert info["stance_leg"] == "left" and info["stance_contact"]
+    assert info["stance_leg"] == "left" and not info["stance_contact"]  # touching, not yet pressed into the floor
     assert physics.hip_position() == pytest.approx([0.02745, 0.26909], abs=2e-5)  # reference section 2, placement
     env.close()
 

@@ -252,7 +252,9 @@ class LeoWalk(base.Task):
         self.footsteps = 0
         self.footstep = False
         self.footstep_length = 0.0
-        self.stance_contact = True  # set_pose put the left foot's lowest point on the floor
+        # The contact sensors read the simulator's contacts. The left foot rests exactly on the floor, without
+        # penetration, so none is reported yet; in Erik's ODE model, too, contacts exist only after a first step.
+        self.stance_contact = physics.foot_contacts()[LEFT]
         self.energy = 0.0
         self.reward = 0.0
         self.fell = False
