@@ -79,6 +79,7 @@ class LeoEnv(gym.Env):
         self.observation_space = spaces.Box(-OBSERVATION_BOUND, OBSERVATION_BOUND, dtype=np.float64)
         self.action_space = spaces.MultiDiscrete([len(VOLTAGE_LEVELS)] * 3)
         self.tile_widths = np.array(TILE_WIDTHS)
+        self.wrap_periods = None  # no periodic dimension: a fall ends the episode long before an angle wraps
         self.action_values = [VOLTAGE_LEVELS.copy() for _ in range(3)]
         self.action_tile_widths = np.array(ACTION_TILE_WIDTHS)
         self._steps = 0
