@@ -15,7 +15,13 @@ from sb3_er.experiments.metrics import (
     summarize_curves,
 )
 from sb3_er.experiments.specs import EXPERIMENTS
-from sb3_er.experiments.summary import markdown_table, summary_table
+from sb3_er.experiments.summary import Curves, markdown_table, summary_table
+
+
+def _curves(x, performance, falls, diverged=()):
+    performance = np.array(performance, dtype=float)
+    seeds = tuple(range(len(performance)))
+    return Curves(np.array(x, dtype=float), performance, np.array(falls, dtype=float), seeds, tuple(diverged), 1.0)
 
 
 def test_confidence_interval_matches_hand_computed_student_t():
@@ -88,11 +94,11 @@ def test_summary_of_hand_made_walker_curves():
 def test_summary_table_puts_the_thesis_numbers_beside_ours():
     walker = EXPERIMENTS["walker"]
     x = np.array([0.0, 100.0, 200.0])
-    summaries = {
-        "sarsa_lambda": summarize_curves(x, [[0.0, 5.0, 10.0], [0.0, 5.0, 10.0]], [[0, 4, 8], [0, 4, 8]], 1.0),
-        "er_sigma": summarize_curves(x, [[0.0, 10.0, 10.0], [0.0, 10.0, 10.0]], [[0, 2, 4], [0, 2, 4]], 1.0),
+    curves = {
+        "sarsa_lambda": _curves(x, [[0.0, 5.0, 10.0], [0.0, 5.0, 10.0]], [[0, 4, 8], [0, 4, 8]]),
+        "er_sigma": _curves(x, [[0.0, 10.0, 10.0], [0.0, 10.0, 10.0]], [[0, 2, 4], [0, 2, 4]]),
     }
-    table = summary_table(walker, summaries, budget=200.0)
+    table = summary_table(walker, curves, budget=200.0)
     er_sigma_falls = table[(table.algorithm == "ER-σ") & (table.metric == "Falls")].iloc[0]
     assert er_sigma_falls.difference_with_sarsa_lambda == "-50 %"
     assert er_sigma_falls.thesis_average == "44"
@@ -104,11 +110,25 @@ def test_summary_table_puts_the_thesis_numbers_beside_ours():
 
 def test_no_gait_shows_na_and_a_rise_time_beyond_the_run():
     leo = EXPERIMENTS["leo"]
-    summaries = {"er": summarize_curves([0.0, 6000.0, 12000.0], [[0.0, 0.1, 0.2]], [[0, 50, 90]], 0.5)}
-    row = summary_table(leo, summaries, budget=12000.0).set_index("metric")
+    curves = {"er": _curves([0.0, 6000.0, 12000.0], [[0.0, 0.1, 0.2]], [[0, 50, 90]])}
+    row = summary_table(leo, curves, budget=12000.0).set_index("metric")
     assert row.loc["Rise time [min]", "average_text"] == ">200"
     assert row.loc["End performance", "average_text"] == "NA"
     assert row.loc["End performance", "thesis_average"] == "NA"
+
+
+def test_diverged_runs_are_counted_and_left_out_of_the_averages():
+    pendulum = EXPERIMENTS["pendulum"]
+    curves = {
+        "residual_er": _curves([1, 2], [[-100.0, -10.0]], [[0, 0]], diverged=(1, 2)),
+        "er": Curves(np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)), (), (0,), 1.0),
+    }
+    table = summary_table(pendulum, curves, budget=2).set_index(["algorithm", "metric"])
+    assert table.loc[("residual ER", "End performance"), "average"] == -10.0
+    assert table.loc[("residual ER", "End performance"), "seeds"] == 1
+    assert table.loc[("residual ER", "Diverged runs"), "average_text"] == "2 of 3"
+    assert table.loc[("vanilla-ER", "Diverged runs"), "average_text"] == "1 of 1"
+    assert table.loc[("vanilla-ER", "End performance"), "average_text"] == "NA"
 
 
 @settings(max_examples=50, deadline=None)

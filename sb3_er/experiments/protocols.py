@@ -24,6 +24,8 @@ class EpisodeReturnProtocol(BaseCallback):
     ``cumulative_falls``, ``goal_reached`` and ``wall_time_s``.
     """
 
+    COLUMNS = ("episode", "timesteps", "return", "length", "cumulative_falls", "goal_reached", "wall_time_s")
+
     def __init__(self, n_episodes: int, progress: ProgressHook | None = None, verbose: int = 0) -> None:
         super().__init__(verbose)
         if int(n_episodes) != n_episodes or n_episodes < 1:
@@ -78,6 +80,10 @@ class GreedyDistanceProtocol(BaseCallback):
     ``cumulative_falls`` (falls while learning), ``episodes`` and ``wall_time_s``. Learning stops after
     ``learning_time`` seconds, with a final evaluation.
     """
+
+    COLUMNS = (
+        "learning_time_s", "timesteps", "distance", "distance_std", "cumulative_falls", "episodes", "wall_time_s"
+    )
 
     def __init__(
         self,

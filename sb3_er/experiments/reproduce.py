@@ -11,7 +11,7 @@ from pathlib import Path
 
 from sb3_er.experiments.runner import plan_jobs, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
-from sb3_er.experiments.summary import load_curves, markdown_table, summarize, summary_table
+from sb3_er.experiments.summary import load_curves, markdown_table, summary_table
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 ALL_ALGORITHMS = tuple(ALGORITHM_LABELS)
@@ -88,14 +88,14 @@ def reproduce(
     run_jobs(to_run, n_workers or os.cpu_count() or 1, show_progress)
 
     curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
-    summaries = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
-    table = summary_table(experiment, summaries, budget)
+    table = summary_table(experiment, curves, budget)
+    plotted = {algo: curve for algo, curve in curves.items() if curve.seeds}
     table_csv = out_dir / "summary.csv"
     table.to_csv(table_csv, index=False)
 
     figures = [
         plot_mean_with_ci(
-            {algo: (curve.x, curve.performance) for algo, curve in curves.items()},
+            {algo: (curve.x, curve.performance) for algo, curve in plotted.items()},
             experiment.x_label,
             experiment.performance_label,
             f"{experiment.title}: mean of {n_seeds} runs, 95% CI",
@@ -105,7 +105,7 @@ def reproduce(
     if experiment.has_falls:
         figures.append(
             plot_mean_with_ci(
-                {algo: (curve.x, curve.cumulative_falls) for algo, curve in curves.items()},
+                {algo: (curve.x, curve.cumulative_falls) for algo, curve in plotted.items()},
                 experiment.x_label,
                 "cumulative falls while learning",
                 f"{experiment.title}: falls, mean of {n_seeds} runs, 95% CI",
@@ -118,6 +118,7 @@ def reproduce(
         markdown_table(experiment, table),
         "",
         experiment.thesis_caption,
+        "Averages leave out diverged runs (counted in their own row); rise time is measured on the mean curve.",
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),

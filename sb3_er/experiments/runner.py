@@ -47,6 +47,14 @@ def _limit_threads_of_children() -> None:
         os.environ.setdefault(variable, "1")
 
 
+def protocol_columns(experiment: Experiment) -> list[str]:
+    """The CSV columns of the experiment's protocol records."""
+    from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
+
+    protocol = EpisodeReturnProtocol if experiment.protocol == "episodes" else GreedyDistanceProtocol
+    return list(protocol.COLUMNS)
+
+
 def build_protocol(experiment: Experiment, env, budget: float, seed: int, progress=None):
     """The experiment's protocol callback and the number of timesteps to give `learn` (the callback stops earlier)."""
     import gymnasium as gym
@@ -69,11 +77,16 @@ def build_protocol(experiment: Experiment, env, budget: float, seed: int, progre
 
 
 def run_single(job: RunJob, progress_queue=None) -> float:
-    """Learn one run, write its CSV atomically and return its wall time in seconds."""
+    """Learn one run, write its CSV atomically and return its wall time in seconds.
+
+    A run whose Q-function diverges is finished too: its CSV holds the records up to the divergence and every row has
+    ``diverged`` set, so that the summary can count it instead of averaging a truncated curve.
+    """
     import gymnasium as gym
     import torch
 
     import sb3_er_envs  # noqa: F401  (registers the environment ids)
+    from sb3_er import DivergenceError
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
     torch.set_num_threads(1)
@@ -89,11 +102,17 @@ def run_single(job: RunJob, progress_queue=None) -> float:
     env = gym.make(experiment.env_id)
     model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **model_kwargs(job.algo, experiment.env_id))
     callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report)
-    model.learn(total_timesteps=total_timesteps, callback=callback)
+    try:
+        model.learn(total_timesteps=total_timesteps, callback=callback)
+        diverged = False
+    except DivergenceError:
+        diverged = True
     env.close()
     job.csv_path.parent.mkdir(parents=True, exist_ok=True)
     partial = job.csv_path.with_suffix(".csv.partial")
-    pd.DataFrame(callback.records).to_csv(partial, index=False)
+    frame = pd.DataFrame(callback.records, columns=protocol_columns(experiment))
+    frame["diverged"] = diverged
+    frame.to_csv(partial, index=False)
     os.replace(partial, job.csv_path)
     if progress_queue is not None:
         progress_queue.put((job.key, 1.0))

@@ -69,7 +69,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         name="gridworld",
         env_id="sb3_er/WindyCliff-v0",
         title="Windy cliff grid world",
-        default_budget=300,
+        default_budget=100,
         has_falls=True,
         thesis_caption="The thesis gives no table for the grid world (section 5.1 shows value functions only).",
     ),

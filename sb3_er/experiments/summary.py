@@ -19,13 +19,18 @@ REFERENCE_ALGORITHM = "sarsa_lambda"
 
 @dataclass(frozen=True)
 class Curves:
-    """Per-seed curves of one algorithm, cut to the length of the shortest run (rows: seeds)."""
+    """Per-seed curves of one algorithm's complete runs, cut to the shortest (rows: seeds), and its diverged runs."""
 
     x: np.ndarray
     performance: np.ndarray
     cumulative_falls: np.ndarray
     seeds: tuple[int, ...]
+    diverged_seeds: tuple[int, ...]
     wall_time_s: float
+
+    @property
+    def n_runs(self) -> int:
+        return len(self.seeds) + len(self.diverged_seeds)
 
 
 def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curves | None:
@@ -33,26 +38,34 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curv
     frames = {seed: pd.read_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
     if not frames:
         return None
-    length = min(len(frame) for frame in frames.values())
-    ordered = [frames[seed].iloc[:length] for seed in sorted(frames)]
+    diverged = tuple(seed for seed, frame in sorted(frames.items()) if frame.empty or frame["diverged"].any())
+    complete = [frame for seed, frame in sorted(frames.items()) if seed not in diverged]
+    length = min((len(frame) for frame in complete), default=0)
+    complete = [frame.iloc[:length] for frame in complete]
+
+    def stacked(column: str) -> np.ndarray:
+        return np.stack([frame[column].to_numpy(dtype=float) for frame in complete]) if complete else np.zeros((0, 0))
+
     return Curves(
-        x=ordered[0][experiment.x_column].to_numpy(dtype=float),
-        performance=np.stack([frame[experiment.performance_column].to_numpy(dtype=float) for frame in ordered]),
-        cumulative_falls=np.stack([frame["cumulative_falls"].to_numpy(dtype=float) for frame in ordered]),
-        seeds=tuple(sorted(frames)),
-        wall_time_s=float(sum(frame["wall_time_s"].iloc[-1] for frame in frames.values())),
+        x=complete[0][experiment.x_column].to_numpy(dtype=float) if complete else np.zeros(0),
+        performance=stacked(experiment.performance_column),
+        cumulative_falls=stacked("cumulative_falls"),
+        seeds=tuple(seed for seed in sorted(frames) if seed not in diverged),
+        diverged_seeds=diverged,
+        wall_time_s=float(sum(frame["wall_time_s"].iloc[-1] for frame in frames.values() if not frame.empty)),
     )
 
 
-def summarize(experiment: Experiment, curves: Curves) -> CurveSummary:
-    """Rise time (in the table's unit), end performance and falls of one algorithm."""
-    summary = summarize_curves(
+def summarize(experiment: Experiment, curves: Curves) -> CurveSummary | None:
+    """Rise time (in the table's unit), end performance and falls of one algorithm; None without a complete run."""
+    if not curves.seeds:
+        return None
+    return summarize_curves(
         curves.x / experiment.rise_time_scale,
         curves.performance,
         curves.cumulative_falls if experiment.has_falls else None,
         success_threshold=experiment.success_threshold,
     )
-    return summary
 
 
 def _format_number(value: float) -> str:
@@ -92,23 +105,33 @@ def _thesis_cells(experiment: Experiment, algo: str, metric: str) -> tuple[str, 
     return (value if isinstance(value, str) else f"{value:g}"), difference
 
 
-def summary_table(experiment: Experiment, summaries: dict[str, CurveSummary], budget: float) -> pd.DataFrame:
-    """One row per (algorithm, metric), columns as thesis Tables 6.1-6.3 plus the thesis's own figures."""
+def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: float) -> pd.DataFrame:
+    """One row per (algorithm, metric), columns as thesis Tables 6.1-6.3 plus the thesis's own figures.
+
+    Diverged runs are left out of the averages and counted in a "Diverged runs" row of their algorithm.
+    """
+    summaries = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
     reference = summaries.get(REFERENCE_ALGORITHM)
     run_end = budget / experiment.rise_time_scale if experiment.protocol == "walking" else budget
+    no_run = CurveSummary(float("nan"), float("nan"), float("nan"), None, None, 0)
     rows = []
-    for algo, summary in summaries.items():
+    for algo, curve in curves.items():
+        summary = summaries[algo] or no_run
         label = ALGORITHM_LABELS.get(algo, algo)
         rise = summary.rise_time
-        rise_text = f">{_format_number(run_end)}" if math.isnan(rise) else _format_number(rise)
+        rise_text = f">{_format_number(run_end)}" if math.isnan(rise) and summary.n_seeds else None
         metrics = [
             ("rise_time", f"Rise time [{experiment.rise_time_unit}]", rise, None, rise_text),
             ("end_performance", "End performance", summary.end_performance, summary.end_performance_ci, None),
         ]
-        if summary.falls is not None:
-            metrics.append(("falls", "Falls", summary.falls, summary.falls_ci, None))
+        if experiment.has_falls:
+            falls = float("nan") if summary.falls is None else summary.falls
+            metrics.append(("falls", "Falls", falls, summary.falls_ci, None))
+        if curve.diverged_seeds:
+            share = len(curve.diverged_seeds)
+            metrics.append(("diverged", "Diverged runs", share, None, f"{share} of {curve.n_runs}"))
         for key, name, value, half_width, text in metrics:
-            reference_value = getattr(reference, key) if reference is not None else float("nan")
+            reference_value = getattr(reference, key, float("nan")) if reference is not None else float("nan")
             thesis_value, thesis_difference = _thesis_cells(experiment, algo, key)
             rows.append(
                 {
@@ -117,7 +140,9 @@ def summary_table(experiment: Experiment, summaries: dict[str, CurveSummary], bu
                     "average": value,
                     "ci95": half_width,
                     "average_text": text or _format_with_ci(value, half_width),
-                    "difference_with_sarsa_lambda": _format_difference(value, reference_value, algo),
+                    "difference_with_sarsa_lambda": "" if key == "diverged" else _format_difference(
+                        value, reference_value, algo
+                    ),
                     "thesis_average": thesis_value,
                     "thesis_difference": thesis_difference,
                     "seeds": summary.n_seeds,
@@ -137,7 +162,7 @@ def markdown_table(experiment: Experiment, table: pd.DataFrame) -> str:
         name = row.algorithm if row.algorithm != previous else ""
         previous = row.algorithm
         lines.append(
-            f"| {name} | {row.metric} | {row.average_text} | {row.difference_with_sarsa_lambda} | "
+            f"| {name} | {row.metric} | {row.average_text} | {row.difference_with_sarsa_lambda or '—'} | "
             f"{row.thesis_average or '—'} | {row.thesis_difference or '—'} |"
         )
     return "\n".join(lines)
