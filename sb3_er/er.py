@@ -172,6 +172,7 @@ class ER(TileQAlgorithm):
             *buffer.replay_arguments(),
             coder.stride,
             coder.action_columns,
+            coder.columns_are_actions,
             int(n_trajectories),
             REPLAY_ORDERS[self.replay_order],
             TARGETS[self.target],

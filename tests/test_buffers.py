@@ -93,7 +93,8 @@ def replay_once(buffer, order):
     coder = buffer.tile_coder
     theta = np.zeros(coder.n_weights)
     kernels.replay_phase(
-        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns, 1, order,
+        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
+        coder.columns_are_actions, 1, order,
         kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
         kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions),
     )

@@ -39,7 +39,8 @@ def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGM
     q_scratch = np.zeros(coder.n_actions)
     w_scratch = np.zeros(coder.n_actions)
     return kernels.replay_phase(
-        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns, 1,
+        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
+        coder.columns_are_actions, 1,
         kernels.ORDER_REVERSED, target, sigma, zeta, ALPHA / coder.n_tilings, GAMMA, epsilon,
         kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch,
     )

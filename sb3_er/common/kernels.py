@@ -4,9 +4,10 @@ Everything that runs per update lives here and reads like the thesis pseudocode 
 the thesis). Conventions shared by all kernels:
 
 - A tile coder is given by ``inv_widths`` (D,), ``offsets`` (N, D) in tile units, ``wrap_tiles`` (D,) (0 = no wrap),
-  ``slot_mask`` (number of state-tile slots minus one), ``stride`` and ``action_columns`` (N, A). The weight of action a
-  in tiling k at state-tile slot s is ``theta[s * stride + action_columns[k, a]]``: all actions of one (tiling, state
-  tile) are adjacent in memory.
+  ``slot_mask`` (number of state-tile slots minus one), ``stride``, ``action_columns`` (N, A) and
+  ``columns_are_actions`` (True when actions are not tiled, so column a is action a). The weight of action a in tiling
+  k at state-tile slot s is ``theta[s * stride + action_columns[k, a]]``: all actions of one (tiling, state tile) are
+  adjacent in memory.
 - Q(s, a) = sum of the N active weights (Eq. 2.8); a learning rate alpha on Q moves each active weight by alpha / N,
   passed in as ``step_size``.
 - Random numbers come from a xoshiro256** generator whose 4-word state array is passed in (``new_rng_state`` seeds
@@ -118,31 +119,44 @@ def q_value(theta, slots, stride, action_columns, action):
 
 
 @nb.njit(inline="always", cache=True)
-def all_q_values(theta, slots, stride, action_columns, out_q):
-    """Q(s, .) over all actions: the state part of each tiling once, then its row of adjacent action weights."""
-    n_actions = out_q.shape[0]
+def all_q_values(theta, slots, stride, action_columns, columns_are_actions, out_q):
+    """Q(s, .) over all actions: the state part of each tiling once, then its row of adjacent action weights.
+
+    Without action tiling (``columns_are_actions``) a row is read contiguously, which the compiler vectorises.
+    """
+    n_actions = np.uint64(out_q.shape[0])
     for a in range(n_actions):
         out_q[a] = 0.0
     for k in range(slots.shape[0]):
-        base = slots[k] * stride
-        for a in range(n_actions):
-            out_q[a] += theta[base + action_columns[k, a]]
+        row = theta[slots[k] * stride : (slots[k] + 1) * stride]
+        if columns_are_actions:
+            for a in range(n_actions):
+                out_q[a] += row[a]
+        else:
+            for a in range(n_actions):
+                out_q[a] += row[np.uint64(action_columns[k, a])]
 
 
 @nb.njit(inline="always", cache=True)
-def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, out_q, out_w):
+def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, columns_are_actions, out_q, out_w):
     """Q(s, .) and W(s, .) = w . phi(s, .) (Eq. 5.1-5.2, how many active features of (s, a) were ever visited) in one
     pass over the same rows."""
-    n_actions = out_q.shape[0]
+    n_actions = np.uint64(out_q.shape[0])
     for a in range(n_actions):
         out_q[a] = 0.0
         out_w[a] = 0.0
     for k in range(slots.shape[0]):
-        base = slots[k] * stride
-        for a in range(n_actions):
-            i = base + action_columns[k, a]
-            out_q[a] += theta[i]
-            out_w[a] += visits[i]
+        row = theta[slots[k] * stride : (slots[k] + 1) * stride]
+        visited = visits[slots[k] * stride : (slots[k] + 1) * stride]
+        if columns_are_actions:
+            for a in range(n_actions):
+                out_q[a] += row[a]
+                out_w[a] += visited[a]
+        else:
+            for a in range(n_actions):
+                column = np.uint64(action_columns[k, a])
+                out_q[a] += row[column]
+                out_w[a] += visited[column]
 
 
 @nb.njit(inline="always", cache=True)
@@ -156,18 +170,24 @@ def argmax_first(values):
 
 @nb.njit(inline="always", cache=True)
 def argmax_random_ties(values, rng):
-    """Greedy action, ties broken uniformly at random (reservoir sampling: a draw only when a tie occurs)."""
-    best = 0
-    n_ties = 1
-    for a in range(1, values.shape[0]):
-        if values[a] > values[best]:
-            best = a
-            n_ties = 1
-        elif values[a] == values[best]:
-            n_ties += 1
-            if random_integer(rng, n_ties) == 0:
-                best = a
-    return best
+    """Greedy action, ties broken uniformly at random; a random draw only when there is a tie.
+
+    Three branch-free passes (max, count of maxima, pick) beat one pass with data-dependent branches.
+    """
+    n = np.uint64(values.shape[0])
+    best_value = values[0]
+    for a in range(n):
+        best_value = max(best_value, values[a])
+    n_ties = 0
+    for a in range(n):
+        n_ties += values[a] == best_value
+    pick = 0 if n_ties == 1 else random_integer(rng, n_ties)
+    for a in range(n):
+        if values[a] == best_value:
+            if pick == 0:
+                return np.int64(a)
+            pick -= 1
+    return np.int64(0)
 
 
 @nb.njit(inline="always", cache=True)
@@ -180,35 +200,36 @@ def epsilon_greedy(values, epsilon, rng):
 
 @nb.njit(cache=True)
 def select_action(
-    theta, obs, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, epsilon, rng, out_slots, q_scratch
+    theta, obs, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions, epsilon, rng,
+    out_slots, q_scratch,
 ):
     """Epsilon-greedy a_k at s_k (Alg. 7 line 8); fills out_slots with the tiles of s_k. Returns -1 for a bad obs."""
     if not state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
         return -1
-    all_q_values(theta, out_slots, stride, action_columns, q_scratch)
+    all_q_values(theta, out_slots, stride, action_columns, columns_are_actions, q_scratch)
     return epsilon_greedy(q_scratch, epsilon, rng)
 
 
 @nb.njit(cache=True)
 def greedy_actions(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
-                   slots_scratch, q_scratch, out_actions):
+                   columns_are_actions, slots_scratch, q_scratch, out_actions):
     """Greedy action (lowest index on ties) for each row of observations; False if a row is not finite."""
     for i in range(observations.shape[0]):
         if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, slots_scratch):
             return False
-        all_q_values(theta, slots_scratch, stride, action_columns, q_scratch)
+        all_q_values(theta, slots_scratch, stride, action_columns, columns_are_actions, q_scratch)
         out_actions[i] = argmax_first(q_scratch)
     return True
 
 
 @nb.njit(cache=True)
 def batch_q_values(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
-                   slots_scratch, out_q):
+                   columns_are_actions, slots_scratch, out_q):
     """Q(s, .) for each row of observations into out_q (B, A); False if a row is not finite."""
     for i in range(observations.shape[0]):
         if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, slots_scratch):
             return False
-        all_q_values(theta, slots_scratch, stride, action_columns, out_q[i])
+        all_q_values(theta, slots_scratch, stride, action_columns, columns_are_actions, out_q[i])
     return True
 
 
@@ -223,7 +244,7 @@ def mark_visited(visits, slots, stride, action_columns, action):
 def sarsa_lambda_step(
     theta, trace_index, trace_value, trace_position, trace_length,
     slots, action, reward, terminated, next_obs, next_slots, q_scratch,
-    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
+    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions,
     step_size, gamma, trace_decay, trace_cutoff, epsilon, rng,
 ):
     """One step of Sarsa(lambda) with replacing traces (Alg. 2 lines 8-12, Eq. 2.6).
@@ -241,7 +262,7 @@ def sarsa_lambda_step(
     else:
         if not state_slots(next_obs, inv_widths, offsets, wrap_tiles, slot_mask, next_slots):
             return -1, np.nan, STATUS_OK
-        all_q_values(theta, next_slots, stride, action_columns, q_scratch)
+        all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q_scratch)
         next_action = epsilon_greedy(q_scratch, epsilon, rng)
         target = reward + gamma * q_scratch[next_action]
     delta = target - q_sa
@@ -326,8 +347,8 @@ def sigma_of_state(q, w, sigma_kind):
 
 
 @nb.njit(inline="always", cache=True)
-def next_state_value(theta, visits, next_slots, stride, action_columns, n_tilings, target_kind, sigma_kind, epsilon,
-                     rng, q, w):
+def next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
+                     sigma_kind, epsilon, rng, q, w):
     """The bootstrap value at s': Q(s', a') of the target rule, on sigma-adjusted values for ER-sigma.
 
     ER-sigma replaces the values of never-visited features by sigma(s') (Eq. 5.4, Alg. 10 lines 6-9):
@@ -336,9 +357,9 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, n_tiling
     expectation under the epsilon-greedy policy.
     """
     if sigma_kind == SIGMA_NONE:
-        all_q_values(theta, next_slots, stride, action_columns, q)
+        all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
     else:
-        all_q_values_and_visit_counts(theta, visits, next_slots, stride, action_columns, q, w)
+        all_q_values_and_visit_counts(theta, visits, next_slots, stride, action_columns, columns_are_actions, q, w)
         sigma = sigma_of_state(q, w, sigma_kind)
         for a in range(q.shape[0]):
             q[a] += (n_tilings - w[a]) * sigma
@@ -352,7 +373,7 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, n_tiling
 
 @nb.njit(inline="always", cache=True)
 def replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
-                  target_kind, sigma_kind, residual_zeta, step_size, gamma, epsilon, rng, q, w):
+                  columns_are_actions, target_kind, sigma_kind, residual_zeta, step_size, gamma, epsilon, rng, q, w):
     """One replayed update of transition p; returns delta.
 
     theta <- theta + alpha delta phi(s_t, a_t)                                  (Alg. 8 line 7, Alg. 10 line 9)
@@ -365,8 +386,8 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
         q_sa += theta[slots[p, k] * stride + action_columns[k, a]]
     target = rewards[p]
     if not terminal:
-        target += gamma * next_state_value(theta, visits, next_slots, stride, action_columns, n_tilings, target_kind,
-                                           sigma_kind, epsilon, rng, q, w)
+        target += gamma * next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
+                                           n_tilings, target_kind, sigma_kind, epsilon, rng, q, w)
     delta = target - q_sa
     if not np.isfinite(delta):
         return delta
@@ -378,12 +399,18 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
     return delta
 
 
+@nb.njit(inline="always", cache=True)
+def ring_index(i, capacity):
+    """i mod capacity for 0 <= i < 2 capacity, without an integer division."""
+    return i - capacity if i >= capacity else i
+
+
 @nb.njit(cache=True)
 def replay_phase(
     theta, visits, slots, actions, rewards, transition_trajectory,
     trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
     oldest_trajectory, n_closed_trajectories, n_closed_transitions,
-    stride, action_columns, n_replays, order, target_kind, sigma_kind, residual_zeta,
+    stride, action_columns, columns_are_actions, n_replays, order, target_kind, sigma_kind, residual_zeta,
     step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
 ):
     """Replay n_replays trajectories drawn uniformly from the closed ones (Alg. 8, 10, 12, 14 lines 1-3).
@@ -399,30 +426,30 @@ def replay_phase(
     sum_abs_delta = 0.0
     delta = 0.0
     for _ in range(n_replays):
-        j = (oldest_trajectory + random_integer(replay_rng, n_closed_trajectories)) % trajectory_capacity
+        j = ring_index(oldest_trajectory + random_integer(replay_rng, n_closed_trajectories), trajectory_capacity)
         start = trajectory_start[j]
         length = trajectory_length[j]
         for step in range(length):
             if order == ORDER_UNIFORM:
                 first = trajectory_start[oldest_trajectory]
-                p = (first + random_integer(replay_rng, n_closed_transitions)) % capacity
+                p = ring_index(first + random_integer(replay_rng, n_closed_transitions), capacity)
                 jp = transition_trajectory[p]
-                t = (p - trajectory_start[jp]) % capacity
+                t = ring_index(p - trajectory_start[jp] + capacity, capacity)
                 last = t == trajectory_length[jp] - 1
             else:
                 jp = j
                 t = length - 1 - step if order == ORDER_REVERSED else step
-                p = (start + t) % capacity
+                p = ring_index(start + t, capacity)
                 last = t == length - 1
             if last:
                 next_slots = trajectory_next_slots[jp]
                 terminal = trajectory_terminated[jp]
             else:
-                next_slots = slots[(p + 1) % capacity]
+                next_slots = slots[ring_index(p + 1, capacity)]
                 terminal = False
             delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
-                                  action_columns, target_kind, sigma_kind, residual_zeta, step_size, gamma, epsilon,
-                                  action_rng, q_scratch, w_scratch)
+                                  action_columns, columns_are_actions, target_kind, sigma_kind, residual_zeta,
+                                  step_size, gamma, epsilon, action_rng, q_scratch, w_scratch)
             updates += 1
             if not np.isfinite(delta):
                 return updates, sum_abs_delta, delta, STATUS_DIVERGED

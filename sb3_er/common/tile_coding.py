@@ -127,9 +127,15 @@ class TileCoder:
         return columns
 
     @property
+    def columns_are_actions(self) -> bool:
+        """True when actions are not tiled: column a of a row is action a."""
+        return self.action_tile_widths is None
+
+    @property
     def kernel_arguments(self) -> tuple:
-        """(inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns) in kernel order."""
-        return self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, self.stride, self.action_columns
+        """(inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions) in kernel order."""
+        return (self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, self.stride, self.action_columns,
+                self.columns_are_actions)
 
     def config(self) -> dict[str, Any]:
         """Constructor arguments that rebuild this exact coder."""
