@@ -142,7 +142,7 @@ def sarsa_lambda_steps_per_second(coder, n_steps) -> float:
     states = np.cumsum(rng.normal(0.0, 1.0 / 3.0, (n_steps + 1, coder.n_dims)) * coder.tile_widths, axis=0)
     theta = np.zeros(coder.n_weights)
     capacity = coder.n_tilings * 120
-    trace = (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int64),
+    trace = (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int32),
              np.zeros(1, np.int64))
     _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, 10, kernels.new_rng_state(0))
     start = time.process_time()

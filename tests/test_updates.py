@@ -173,7 +173,7 @@ def sarsa_lambda_step(coder, theta, trace, s, a, r, s_next, terminated, lam):
 
 
 def empty_trace(coder, capacity=64):
-    return (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int64),
+    return (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int32),
             np.zeros(1, np.int64))
 
 

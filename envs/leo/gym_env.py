@@ -80,6 +80,7 @@ class LeoEnv(gym.Env):
         self.action_space = spaces.MultiDiscrete([len(VOLTAGE_LEVELS)] * 3)
         self.tile_widths = np.array(TILE_WIDTHS)
         self.wrap_periods = None  # no periodic dimension: a fall ends the episode long before an angle wraps
+        self.memory_size = 2**25  # tile-coding weights: 262,144 state-tile slots of 128 voltage-tile columns
         self.action_values = [VOLTAGE_LEVELS.copy() for _ in range(3)]
         self.action_tile_widths = np.array(ACTION_TILE_WIDTHS)
         self._steps = 0

@@ -20,7 +20,7 @@ from sb3_er.common.policies import TileQPolicy, action_nvec
 DEFAULT_TOTAL_TIMESTEPS = 100_000
 DEFAULT_TILES_PER_DIMENSION = 10
 
-ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths")
+ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
 
 SelfTileQAlgorithm = TypeVar("SelfTileQAlgorithm", bound="TileQAlgorithm")
 
@@ -42,8 +42,8 @@ class TileQAlgorithm(BaseAlgorithm):
     """Base of the tile-coded algorithms: epsilon-greedy acting on TileQ and, optionally, online Sarsa(lambda).
 
     Subclasses react to each transition through ``_after_transition``. Tile coding defaults come from the env: its
-    ``tile_widths``, ``wrap_periods``, ``action_values`` and ``action_tile_widths`` attributes, else finite observation
-    bounds split into ``tiles_per_dimension`` tiles (policy_kwargs).
+    ``tile_widths``, ``wrap_periods``, ``action_values``, ``action_tile_widths`` and ``memory_size`` attributes, else
+    finite observation bounds split into ``tiles_per_dimension`` tiles (policy_kwargs).
 
     :param policy: "TileQ" or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
@@ -178,7 +178,7 @@ class TileQAlgorithm(BaseAlgorithm):
         capacity = min(coder.n_weights, coder.n_tilings * lifetime)
         self._trace_index = np.zeros(capacity, dtype=np.int64)
         self._trace_value = np.zeros(capacity, dtype=np.float64)
-        self._trace_position = np.full(coder.n_weights, -1, dtype=np.int64)
+        self._trace_position = np.full(coder.n_weights, -1, dtype=np.int32)
         self._trace_length = np.zeros(1, dtype=np.int64)
 
     def _excluded_save_params(self) -> list[str]:
