@@ -47,14 +47,6 @@ def _limit_threads_of_children() -> None:
         os.environ.setdefault(variable, "1")
 
 
-def protocol_columns(experiment: Experiment) -> list[str]:
-    """The CSV columns of the experiment's protocol records."""
-    from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
-
-    protocol = EpisodeReturnProtocol if experiment.protocol == "episodes" else GreedyDistanceProtocol
-    return list(protocol.COLUMNS)
-
-
 def build_protocol(experiment: Experiment, env, budget: float, seed: int, progress=None):
     """The experiment's protocol callback and the number of timesteps to give `learn` (the callback stops earlier)."""
     import gymnasium as gym
@@ -107,10 +99,11 @@ def run_single(job: RunJob, progress_queue=None) -> float:
         diverged = False
     except DivergenceError:
         diverged = True
-    env.close()
+    for used_env in [env, *getattr(callback, "eval_envs", [])]:
+        used_env.close()
     job.csv_path.parent.mkdir(parents=True, exist_ok=True)
     partial = job.csv_path.with_suffix(".csv.partial")
-    frame = pd.DataFrame(callback.records, columns=protocol_columns(experiment))
+    frame = pd.DataFrame(callback.records, columns=list(callback.COLUMNS))
     frame["diverged"] = diverged
     frame.to_csv(partial, index=False)
     os.replace(partial, job.csv_path)
