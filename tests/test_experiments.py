@@ -100,7 +100,8 @@ def test_episode_protocol_agrees_with_gymnasium_episode_statistics():
     model.learn(total_timesteps=12 * 100, callback=protocol)
     records = pd.DataFrame(protocol.records)
     assert list(records["episode"]) == list(range(1, 13))
-    np.testing.assert_allclose(records["return"], list(env.return_queue)[-12:])
+    # SB3's vectorised env hands rewards over as float32
+    np.testing.assert_allclose(records["return"], list(env.return_queue)[-12:], rtol=1e-5)
     np.testing.assert_array_equal(records["length"], list(env.length_queue)[-12:])
     assert records["timesteps"].iloc[-1] == records["length"].sum() == model.num_timesteps
 
