@@ -300,7 +300,8 @@ class TileQAlgorithm(BaseAlgorithm):
         return True
 
     def _vec_env_step(self, env_action: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        """VecEnv.step; for a plain one-env DummyVecEnv the same results without its per-step deep copy of infos."""
+        """VecEnv.step; for a plain one-env DummyVecEnv the same results without its per-step deep copy of infos
+        (and with the env's float64 reward, where DummyVecEnv's buffer would round it to float32)."""
         single = self._single_env
         if single is None:
             return self.env.step(env_action)
@@ -310,7 +311,7 @@ class TileQAlgorithm(BaseAlgorithm):
         if done:
             info["terminal_observation"] = obs
             obs, self.env.reset_infos[0] = single.reset()
-        return np.asarray(obs)[np.newaxis], np.array([reward], dtype=np.float32), np.array([done]), [info]
+        return np.asarray(obs)[np.newaxis], np.array([reward], dtype=np.float64), np.array([done]), [info]
 
     def _online_update(self, action: int, reward: float, next_obs: np.ndarray, terminated: bool) -> int:
         """Sarsa(lambda) on (s_k, a_k, r_{k+1}, s_{k+1}) (Alg. 2); returns a_{k+1} (-1 if s_{k+1} is terminal)."""
