@@ -74,7 +74,8 @@ class TileQPolicy(BasePolicy):
             raise ValueError(
                 f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape {observation_space.shape}"
             )
-        self.register_buffer("theta", th.zeros(self.tile_coder.n_weights, dtype=th.float64))
+        # NumPy allocates large arrays with transparent huge pages, which spares the random row reads TLB misses.
+        self.register_buffer("theta", th.from_numpy(np.zeros(self.tile_coder.n_weights, dtype=np.float64)))
         self.theta_array = self.theta.numpy()
         self.action_table = np.stack(
             np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1
