@@ -82,7 +82,10 @@ class TileCoder:
         self.slot_mask = n_slots - 1
         self.memory_size = int(memory_size)
         self.n_weights = n_slots * self.stride
-        self._slots_scratch = np.zeros(self.n_tilings, dtype=np.int64)
+        self.kernel_arguments = (self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, self.stride,
+                                 self.action_columns, self.columns_are_actions)
+        """The coder in kernel order: inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
+        columns_are_actions."""
 
     def _check_wrap_periods(self, wrap_periods) -> list[Optional[float]]:
         if wrap_periods is None:
@@ -131,11 +134,6 @@ class TileCoder:
         """True when actions are not tiled: column a of a row is action a."""
         return self.action_tile_widths is None
 
-    @property
-    def kernel_arguments(self) -> tuple:
-        """(inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions) in kernel order."""
-        return (self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, self.stride, self.action_columns,
-                self.columns_are_actions)
 
     def config(self) -> dict[str, Any]:
         """Constructor arguments that rebuild this exact coder."""
