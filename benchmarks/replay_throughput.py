@@ -68,7 +68,7 @@ def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays) -> float:
         return kernels.replay_phase(
             theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
             coder.columns_are_actions, n,
-            kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, ALPHA / coder.n_tilings, GAMMA, EPSILON,
+            kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, False, ALPHA / coder.n_tilings, GAMMA, EPSILON,
             kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch,
         )
 

@@ -27,6 +27,7 @@ SIGMAS = {
     "average_best": kernels.SIGMA_AVERAGE_BEST,
 }
 REPLAY_TRIGGERS = ("episode", "segment")
+RESIDUAL_ACTIONS = ("taken", "next")
 
 
 def _check_choice(name: str, value: Any, options) -> None:
@@ -57,6 +58,8 @@ class ER(TileQAlgorithm):
         thesis's choice), "average_best"; None is vanilla ER.
     :param residual_zeta: residual-gradient ER with direction phi(s, a) - zeta gamma phi(s', a) (Eq. 5.7-5.9);
         1 is the residual gradient of Alg. 12, None plain ER.
+    :param residual_action: the action of the residual term: "taken" (a_t, the thesis's Eq. 5.7 and Alg. 12) or
+        "next" (a_{t+1}, Baird's residual gradient of the squared TD error; not with the expected-Sarsa target).
     :param online_lambda: lambda of Sarsa(lambda) between replays, or None to act without online learning.
     Other parameters as in TileQAlgorithm.
     """
@@ -77,6 +80,7 @@ class ER(TileQAlgorithm):
         target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
         sigma: Optional[str] = None,
         residual_zeta: Optional[float] = None,
+        residual_action: Literal["taken", "next"] = "taken",
         online_lambda: Optional[float] = None,
         trace_cutoff: float = 0.01,
         policy_kwargs: Optional[dict[str, Any]] = None,
@@ -102,6 +106,10 @@ class ER(TileQAlgorithm):
             raise ValueError("the number of replays cannot be negative")
         if residual_zeta is not None and not 0.0 <= residual_zeta <= 1.0:
             raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9), got {residual_zeta}")
+        _check_choice("residual_action", residual_action, RESIDUAL_ACTIONS)
+        if residual_action == "next" and target == "expected_sarsa":
+            raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
+        self.residual_action = residual_action
         self.replay_every = replay_every
         self.n_replays = n_replays
         self.replays_per_stored_trajectory = replays_per_stored_trajectory
@@ -178,6 +186,7 @@ class ER(TileQAlgorithm):
             TARGETS[self.target],
             SIGMAS[self.sigma],
             0.0 if self.residual_zeta is None else float(self.residual_zeta),
+            self.residual_action == "next",
             self.current_learning_rate / coder.n_tilings,
             self.gamma,
             self.exploration_rate,

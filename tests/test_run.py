@@ -185,6 +185,8 @@ def test_divergence_is_reported_with_step_and_td_error(algo):
         (dict(residual_zeta=2.0), "residual_zeta"),
         (dict(replay_trigger="step"), "replay_trigger"),
         (dict(replay_every=0), "replay_every"),
+        (dict(residual_action="previous"), "residual_action"),
+        (dict(residual_zeta=1.0, residual_action="next", target="expected_sarsa"), "single a'"),
     ],
 )
 def test_bad_hyperparameters_are_named(kwargs, message):

@@ -34,14 +34,15 @@ def one_transition_buffer(coder, s, a, r, s_next, terminated=False):
     return buffer
 
 
-def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGMA_NONE, zeta=0.0, epsilon=0.0):
+def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGMA_NONE, zeta=0.0, epsilon=0.0,
+               residual_next_action=False):
     coder = buffer.tile_coder
     q_scratch = np.zeros(coder.n_actions)
     w_scratch = np.zeros(coder.n_actions)
     return kernels.replay_phase(
         theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
         coder.columns_are_actions, 1,
-        kernels.ORDER_REVERSED, target, sigma, zeta, ALPHA / coder.n_tilings, GAMMA, epsilon,
+        kernels.ORDER_REVERSED, target, sigma, zeta, residual_next_action, ALPHA / coder.n_tilings, GAMMA, epsilon,
         kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch,
     )
 
@@ -146,6 +147,16 @@ def test_residual_update_alg12(coder, zeta):
     run_replay(theta, one_transition_buffer(coder, 0.2, 1, 3.0, 1.7), zeta=zeta)
     np.testing.assert_allclose(theta, expected)
     assert q(theta, coder, 1.7, 1) == pytest.approx(-zeta * GAMMA * ALPHA * delta)
+
+
+def test_residual_gradient_with_the_next_action(coder):
+    """Baird's residual gradient: theta <- theta + alpha delta (phi(s, a) - zeta gamma phi(s', a')) / N, a' = argmax."""
+    theta = seeded_theta(coder, {(0.2, 1): 2.0, (1.7, 0): 1.0, (1.7, 2): 4.0})
+    delta = 3.0 + GAMMA * 4.0 - 2.0
+    expected = theta + ALPHA / N_TILINGS * delta * (phi(coder, 0.2, 1) - GAMMA * phi(coder, 1.7, 2))
+    run_replay(theta, one_transition_buffer(coder, 0.2, 1, 3.0, 1.7), zeta=1.0, residual_next_action=True)
+    np.testing.assert_allclose(theta, expected)
+    assert q(theta, coder, 1.7, 2) == pytest.approx(4.0 - GAMMA * ALPHA * delta)
 
 
 def test_residual_er_sigma_update_alg14(coder):

@@ -349,12 +349,12 @@ def sigma_of_state(q, w, sigma_kind):
 @nb.njit(inline="always", cache=True)
 def next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
                      sigma_kind, epsilon, rng, q, w):
-    """The bootstrap value at s': Q(s', a') of the target rule, on sigma-adjusted values for ER-sigma.
+    """The bootstrap value at s' and the action a' it belongs to, on sigma-adjusted values for ER-sigma.
 
     ER-sigma replaces the values of never-visited features by sigma(s') (Eq. 5.4, Alg. 10 lines 6-9):
     Q~(s', a) = Q(s', a) + u(a) * N * sigma(s') with u(a) N = N - W(s', a) (Eq. 5.3).
     Sarsa draws a' epsilon-greedily (Alg. 8 line 6); Q-learning takes the max (Eq. 2.5); Expected Sarsa the
-    expectation under the epsilon-greedy policy.
+    expectation under the epsilon-greedy policy (a' is then the greedy action).
     """
     if sigma_kind == SIGMA_NONE:
         all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
@@ -364,20 +364,24 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
         for a in range(q.shape[0]):
             q[a] += (n_tilings - w[a]) * sigma
     if target_kind == TARGET_SARSA:
-        return q[epsilon_greedy(q, epsilon, rng)]
-    best = q[argmax_first(q)]
+        next_action = epsilon_greedy(q, epsilon, rng)
+        return q[next_action], next_action
+    greedy = argmax_first(q)
     if target_kind == TARGET_Q_LEARNING:
-        return best
-    return (1.0 - epsilon) * best + epsilon * np.mean(q)
+        return q[greedy], greedy
+    return (1.0 - epsilon) * q[greedy] + epsilon * np.mean(q), greedy
 
 
 @nb.njit(inline="always", cache=True)
 def replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
-                  columns_are_actions, target_kind, sigma_kind, residual_zeta, step_size, gamma, epsilon, rng, q, w):
+                  columns_are_actions, target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma,
+                  epsilon, rng, q, w):
     """One replayed update of transition p; returns delta.
 
     theta <- theta + alpha delta phi(s_t, a_t)                                  (Alg. 8 line 7, Alg. 10 line 9)
     residual: theta <- theta + alpha delta (phi(s_t, a_t) - zeta gamma phi(s_{t+1}, a_t))   (Eq. 5.7-5.9, Alg. 12/14)
+    With ``residual_next_action`` the second term uses a_{t+1} instead of a_t: Baird's residual gradient of the
+    squared TD error.
     """
     n_tilings = slots.shape[1]
     a = actions[p]
@@ -385,9 +389,13 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
     for k in range(n_tilings):
         q_sa += theta[slots[p, k] * stride + action_columns[k, a]]
     target = rewards[p]
+    residual_action = a
     if not terminal:
-        target += gamma * next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
-                                           n_tilings, target_kind, sigma_kind, epsilon, rng, q, w)
+        value, next_action = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
+                                              n_tilings, target_kind, sigma_kind, epsilon, rng, q, w)
+        target += gamma * value
+        if residual_next_action:
+            residual_action = next_action
     delta = target - q_sa
     if not np.isfinite(delta):
         return delta
@@ -395,7 +403,7 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
         theta[slots[p, k] * stride + action_columns[k, a]] += step_size * delta
     if residual_zeta > 0.0 and not terminal:
         for k in range(n_tilings):
-            theta[next_slots[k] * stride + action_columns[k, a]] -= step_size * delta * residual_zeta * gamma
+            theta[next_slots[k] * stride + action_columns[k, residual_action]] -= step_size * delta * residual_zeta * gamma
     return delta
 
 
@@ -411,7 +419,7 @@ def replay_phase(
     trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
     oldest_trajectory, n_closed_trajectories, n_closed_transitions,
     stride, action_columns, columns_are_actions, n_replays, order, target_kind, sigma_kind, residual_zeta,
-    step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
+    residual_next_action, step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
 ):
     """Replay n_replays trajectories drawn uniformly from the closed ones (Alg. 8, 10, 12, 14 lines 1-3).
 
@@ -449,7 +457,7 @@ def replay_phase(
                 terminal = False
             delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
                                   action_columns, columns_are_actions, target_kind, sigma_kind, residual_zeta,
-                                  step_size, gamma, epsilon, action_rng, q_scratch, w_scratch)
+                                  residual_next_action, step_size, gamma, epsilon, action_rng, q_scratch, w_scratch)
             updates += 1
             if not np.isfinite(delta):
                 return updates, sum_abs_delta, delta, STATUS_DIVERGED
