@@ -1,11 +1,11 @@
 """Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
 
 import pathlib
-from typing import Any, ClassVar, Literal, Optional, Union
+from typing import Any, Literal, Optional, Union
 
 import numpy as np
 from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
-from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
 from sb3_er.common.base_class import TileQAlgorithm
@@ -61,16 +61,13 @@ class ER(TileQAlgorithm):
     :param residual_action: the action of the residual term: "taken" (a_t, the thesis's Eq. 5.7 and Alg. 12) or
         "next" (a_{t+1}, Baird's residual gradient of the squared TD error; not with the expected-Sarsa target).
     :param online_lambda: lambda of Sarsa(lambda) between replays, or None to act without online learning.
-    Other parameters as in TileQAlgorithm.
+    Other parameters (learning_rate, gamma, exploration_rate, trace_cutoff, policy_kwargs, ...) as in TileQAlgorithm.
     """
 
     def __init__(
         self,
         policy: Union[str, type[TileQPolicy]] = "TileQ",
         env: Union[GymEnv, str, None] = None,
-        learning_rate: Union[float, Schedule] = 0.2,
-        gamma: float = 0.99,
-        exploration_rate: float = 0.05,
         buffer_size: int = 1_000_000,
         replay_trigger: Literal["episode", "segment"] = "episode",
         replay_every: int = 1,
@@ -82,14 +79,7 @@ class ER(TileQAlgorithm):
         residual_zeta: Optional[float] = None,
         residual_action: Literal["taken", "next"] = "taken",
         online_lambda: Optional[float] = None,
-        trace_cutoff: float = 0.01,
-        policy_kwargs: Optional[dict[str, Any]] = None,
-        stats_window_size: int = 100,
-        tensorboard_log: Optional[str] = None,
-        verbose: int = 0,
-        seed: Optional[int] = None,
-        device: str = "cpu",
-        _init_setup_model: bool = True,
+        **kwargs,
     ):
         self.buffer_size = buffer_size
         _check_choice("replay_trigger", replay_trigger, REPLAY_TRIGGERS)
@@ -117,22 +107,7 @@ class ER(TileQAlgorithm):
         self.replay_updates = 0
         self.replay_phases = 0
         self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
-        super().__init__(
-            policy,
-            env,
-            learning_rate=learning_rate,
-            gamma=gamma,
-            exploration_rate=exploration_rate,
-            trace_lambda=online_lambda,
-            trace_cutoff=trace_cutoff,
-            policy_kwargs=policy_kwargs,
-            stats_window_size=stats_window_size,
-            tensorboard_log=tensorboard_log,
-            verbose=verbose,
-            seed=seed,
-            device=device,
-            _init_setup_model=_init_setup_model,
-        )
+        super().__init__(policy, env, trace_lambda=online_lambda, **kwargs)
 
     @property
     def online_lambda(self) -> Optional[float]:

@@ -1,8 +1,8 @@
 """Sarsa(lambda) on tile-coded Q (thesis Alg. 2), the baseline of every thesis experiment."""
 
-from typing import Any, Optional, Union
+from typing import Union
 
-from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common.base_class import TileQAlgorithm
 from sb3_er.common.policies import TileQPolicy
@@ -12,40 +12,14 @@ class SarsaLambda(TileQAlgorithm):
     """Online Sarsa(lambda) with epsilon-greedy acting and sparse replacing traces (Alg. 2, Eq. 2.6).
 
     :param trace_lambda: the trace decay lambda (thesis: 0.92 for the pendulum and the walker, 0.859 for LEO).
-    :param trace_cutoff: traces that decay below this value are dropped.
-    Other parameters as in TileQAlgorithm.
+    Other parameters (learning_rate, gamma, exploration_rate, trace_cutoff, policy_kwargs, ...) as in TileQAlgorithm.
     """
 
     def __init__(
         self,
         policy: Union[str, type[TileQPolicy]] = "TileQ",
         env: Union[GymEnv, str, None] = None,
-        learning_rate: Union[float, Schedule] = 0.2,
-        gamma: float = 0.99,
-        exploration_rate: float = 0.05,
         trace_lambda: float = 0.92,
-        trace_cutoff: float = 0.01,
-        policy_kwargs: Optional[dict[str, Any]] = None,
-        stats_window_size: int = 100,
-        tensorboard_log: Optional[str] = None,
-        verbose: int = 0,
-        seed: Optional[int] = None,
-        device: str = "cpu",
-        _init_setup_model: bool = True,
+        **kwargs,
     ):
-        super().__init__(
-            policy,
-            env,
-            learning_rate=learning_rate,
-            gamma=gamma,
-            exploration_rate=exploration_rate,
-            trace_lambda=trace_lambda,
-            trace_cutoff=trace_cutoff,
-            policy_kwargs=policy_kwargs,
-            stats_window_size=stats_window_size,
-            tensorboard_log=tensorboard_log,
-            verbose=verbose,
-            seed=seed,
-            device=device,
-            _init_setup_model=_init_setup_model,
-        )
+        super().__init__(policy, env, trace_lambda=trace_lambda, **kwargs)

@@ -28,7 +28,8 @@ def test_save_load_predict_and_continue(algo, tmp_path):
         assert getattr(loaded, name, None) == getattr(model, name, None)
 
     params = model.get_parameters()
-    assert set(params) == {"policy"} and params["policy"]["theta"].dtype.is_floating_point
+    assert set(params) == {"policy"}
+    np.testing.assert_array_equal(params["policy"]["theta"].numpy(), model.policy.theta_array)
     loaded.learn(300, reset_num_timesteps=False)
     assert loaded.num_timesteps == 1100
     assert np.shares_memory(loaded.policy.theta_array, loaded.policy.theta.numpy())

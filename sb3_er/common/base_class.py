@@ -140,7 +140,7 @@ class TileQAlgorithm(BaseAlgorithm):
         tiles_per_dimension = kwargs.pop("tiles_per_dimension", DEFAULT_TILES_PER_DIMENSION)
         for name in ENV_TILING_ATTRIBUTES:
             if kwargs.get(name) is None:
-                kwargs[name] = _to_builtin(self._env_attribute(name))
+                kwargs[name] = self._env_attribute(name)
         if kwargs.get("tile_widths") is None:
             low, high = self.observation_space.low.astype(np.float64), self.observation_space.high.astype(np.float64)
             unbounded = np.flatnonzero(~(np.isfinite(low) & np.isfinite(high)))
@@ -322,11 +322,11 @@ class TileQAlgorithm(BaseAlgorithm):
             *coder.kernel_arguments, self.current_learning_rate / coder.n_tilings, self.gamma,
             self.gamma * self.trace_lambda, self.trace_cutoff, self.exploration_rate, self.action_rng,
         )
+        if status == kernels.STATUS_BAD_OBSERVATION:
+            raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}")
         if status == kernels.STATUS_TRACE_FULL:
             raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
         if not math.isfinite(delta):
-            if not np.all(np.isfinite(next_obs)):
-                raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}")
             self._raise_divergence(delta, "the Sarsa(lambda) update")
         self._td_error_sum += abs(delta)
         self._td_error_count += 1

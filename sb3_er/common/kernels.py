@@ -21,7 +21,7 @@ ORDER_REVERSED, ORDER_FORWARD, ORDER_UNIFORM = 0, 1, 2
 TARGET_SARSA, TARGET_Q_LEARNING, TARGET_EXPECTED_SARSA = 0, 1, 2
 SIGMA_NONE, SIGMA_WORST, SIGMA_AVERAGE, SIGMA_BEST, SIGMA_AVERAGE_WORST, SIGMA_AVERAGE_BEST = -1, 0, 1, 2, 3, 4
 
-STATUS_OK, STATUS_DIVERGED, STATUS_TRACE_FULL = 0, 1, 2
+STATUS_OK, STATUS_DIVERGED, STATUS_TRACE_FULL, STATUS_BAD_OBSERVATION = 0, 1, 2, 3
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -252,7 +252,7 @@ def sarsa_lambda_step(
     The trace is sparse: ``trace_index[:n]`` holds the weights with a non-zero trace, ``trace_value[:n]`` their traces,
     ``trace_position[i]`` where weight i sits in that list (-1 if absent); ``trace_length[0]`` is n. Traces that decay
     below ``trace_cutoff`` are dropped. Returns (a_{k+1}, delta, status); a_{k+1} is -1 when s_{k+1} is terminal and
-    status reports a bad observation (delta NaN) or a full trace list.
+    status reports a NaN or infinite s_{k+1} or a full trace list.
     """
     n_tilings = slots.shape[0]
     q_sa = q_value(theta, slots, stride, action_columns, action)
@@ -261,7 +261,7 @@ def sarsa_lambda_step(
         target = reward
     else:
         if not state_slots(next_obs, inv_widths, offsets, wrap_tiles, slot_mask, next_slots):
-            return -1, np.nan, STATUS_OK
+            return -1, np.nan, STATUS_BAD_OBSERVATION
         all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q_scratch)
         next_action = epsilon_greedy(q_scratch, epsilon, rng)
         target = reward + gamma * q_scratch[next_action]
