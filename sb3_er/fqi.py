@@ -26,8 +26,8 @@ class FQI(FittedTileQAlgorithm):
     forming the f x f matrix) and Jacobi-preconditioned by the feature counts. A direct sparse factorisation does not
     scale: on the pendulum's data (150,000 transitions, 16 tilings) f reaches 380,000 and SuperLU's fill explodes.
     CG is warm-started from the current weights, and since successive sweeps' targets differ little, a few CG
-    iterations per sweep (``solver_iterations``) suffice; the solve is then inexact but its error does not accumulate
-    (each sweep starts from the previous solution). Sweeps continue across fits (the first sweep of a fit bootstraps
+    iterations per sweep (``solver_iterations``) suffice: each inexact solve continues from the previous one, so the
+    fit converges over the sweeps (raise solver_iterations for an exact projection per sweep). Sweeps continue across fits (the first sweep of a fit bootstraps
     from the weights of the previous fit), so the optimisation horizon (thesis 3.5.4: E sweeps = an E-step horizon)
     grows by ``n_iterations`` with every fit; set ``warm_start=False`` for Ernst's restart from Q_0 = 0 at every fit.
 
@@ -38,7 +38,7 @@ class FQI(FittedTileQAlgorithm):
     them. Without enough ridge the max of Eq. 3.1 picks such extrapolated values and FQI diverges (Gordon 1995: a
     least-squares fit is no averager); on MountainCar, ridge 0.01 diverged where 1 did not.
 
-    Defaults: every 5 episodes, 20 sweeps of at most 10 CG iterations, ridge 1.
+    Defaults: every 5 episodes, 10 sweeps of at most 5 CG iterations, ridge 1 (see benchmarks/framework_cost.py).
 
     :param fit_every: episodes between fits (default 5).
     :param n_iterations: E, sweeps per fit (>= 1).
@@ -56,9 +56,9 @@ class FQI(FittedTileQAlgorithm):
         policy: Union[str, type[TileQPolicy]] = "TileQ",
         env: Union[GymEnv, str, None] = None,
         fit_every: int = 5,
-        n_iterations: int = 20,
+        n_iterations: int = 10,
         ridge: float = 1.0,
-        solver_iterations: int = 10,
+        solver_iterations: int = 5,
         solver_tolerance: float = 1e-6,
         warm_start: bool = True,
         buffer_size: int = 1_000_000,

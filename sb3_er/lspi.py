@@ -121,14 +121,19 @@ class LSPI(FittedTileQAlgorithm):
     def _solve(self, a: sp.csc_matrix, b: np.ndarray, n_transitions: int) -> np.ndarray:
         """w = a^-1 b by sparse LU: diagonal pivots on a symmetric ordering first, partial pivoting if that is poor."""
         try:
-            lu = splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
-            w = lu.solve(b)
-            scale = max(np.linalg.norm(b), 1e-300)
-            if np.all(np.isfinite(w)) and np.linalg.norm(a @ w - b) <= 1e-8 * scale:
-                return w
+            try:
+                w = splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)).solve(b)
+                if np.all(np.isfinite(w)) and np.linalg.norm(a @ w - b) <= 1e-8 * max(np.linalg.norm(b), 1e-300):
+                    return w
+            except RuntimeError:  # a zero diagonal pivot: retry with partial pivoting
+                pass
             return splu(a).solve(b)
         except MemoryError:
             raise self._too_large(a.shape[0], n_transitions) from None
+        except RuntimeError as error:
+            raise ValueError(
+                f"LSPI's least-squares system is singular ({error}): raise ridge (now {self.ridge})"
+            ) from None
 
     def _record_train_metrics(self) -> None:
         super()._record_train_metrics()

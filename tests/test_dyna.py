@@ -206,3 +206,19 @@ def test_learns_mountain_car():
                  policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8)).learn(15_000)
     mean_return, _ = evaluate_policy(model, Monitor(gym.make("MountainCar-v0")), n_eval_episodes=10)
     assert mean_return > -170.0
+
+
+@pytest.mark.parametrize("env_id", ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0"])
+def test_zoo_config_and_sampler_build_the_algorithm(env_id):
+    import optuna
+    import rl_zoo3
+
+    import sb3_er_envs  # noqa: F401
+    from sb3_er import zoo
+
+    zoo.register_algorithms()
+    assert rl_zoo3.ALGOS["dyna"] is Dyna
+    assert zoo.load_hyperparameters("dyna", env_id)["policy"] == "TileQ"
+    Dyna("TileQ", env_id, seed=0, **zoo.model_kwargs("dyna", env_id)).learn(150)
+    trial = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0)).ask()
+    Dyna("TileQ", env_id, **zoo.SAMPLERS["dyna"](trial, 0, 1, {})).learn(50)
