@@ -247,7 +247,8 @@ class Dyna(BufferedTileQAlgorithm):
             actions = data.actions[rows]
         else:
             actions = self.planning_rng.integers(0, coder.n_actions, size=queries)
-        next_observations, rewards, continuation, covered = self.dynamics_model.predict(data.observations[rows], actions)
+        predicted = self.dynamics_model.predict(data.observations[rows], actions)
+        next_observations, rewards, continuation, covered = predicted
         next_slots = np.zeros((queries, coder.n_tilings), dtype=np.int64)
         kernels.batch_state_slots(next_observations, coder.inv_widths, coder.offsets, coder.wrap_tiles,
                                   coder.slot_mask, next_slots)
@@ -277,7 +278,9 @@ class Dyna(BufferedTileQAlgorithm):
         self._plan_position = start + count
         self.planning_updates += updates
         if status == kernels.STATUS_BAD_OBSERVATION:
-            raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}")
+            raise ValueError(
+                f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}"
+            )
         if status == kernels.STATUS_DIVERGED:
             where = "the direct update" if updates == 0 else f"planning update {updates}"
             self._raise_divergence(delta, where)

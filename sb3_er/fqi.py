@@ -27,9 +27,10 @@ class FQI(FittedTileQAlgorithm):
     scale: on the pendulum's data (150,000 transitions, 16 tilings) f reaches 380,000 and SuperLU's fill explodes.
     CG is warm-started from the current weights, and since successive sweeps' targets differ little, a few CG
     iterations per sweep (``solver_iterations``) suffice: each inexact solve continues from the previous one, so the
-    fit converges over the sweeps (raise solver_iterations for an exact projection per sweep). Sweeps continue across fits (the first sweep of a fit bootstraps
-    from the weights of the previous fit), so the optimisation horizon (thesis 3.5.4: E sweeps = an E-step horizon)
-    grows by ``n_iterations`` with every fit; set ``warm_start=False`` for Ernst's restart from Q_0 = 0 at every fit.
+    fit converges over the sweeps (raise solver_iterations for an exact projection per sweep). Sweeps continue
+    across fits (the first sweep of a fit bootstraps from the weights of the previous fit), so the optimisation
+    horizon (thesis 3.5.4: E sweeps = an E-step horizon) grows by ``n_iterations`` with every fit; set
+    ``warm_start=False`` for Ernst's restart from Q_0 = 0 at every fit.
 
     Cost per sweep: O(n N A) for the targets plus O(n N) per CG iteration (thesis 3.5.4: O(nEi)).
 

@@ -122,7 +122,8 @@ class LSPI(FittedTileQAlgorithm):
         """w = a^-1 b by sparse LU: diagonal pivots on a symmetric ordering first, partial pivoting if that is poor."""
         try:
             try:
-                w = splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)).solve(b)
+                lu = splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+                w = lu.solve(b)
                 if np.all(np.isfinite(w)) and np.linalg.norm(a @ w - b) <= 1e-8 * max(np.linalg.norm(b), 1e-300):
                     return w
             except RuntimeError:  # a zero diagonal pivot: retry with partial pivoting

@@ -1,7 +1,7 @@
 """rl-baselines3-zoo integration: our algorithms in rl_zoo3's registries, and `sb3-er train|enjoy|optimize`.
 
-``register_algorithms()`` adds ``sarsa_lambda``, ``er``, ``er_sigma``, ``residual_er`` and ``residual_er_sigma`` (and the
-other sample re-use methods of thesis chapter 3: ``dyna``, ``fqi``, ``lspi``) to ``rl_zoo3.ALGOS`` and to its optuna sampler and converter tables. The commands then run rl_zoo3's own ``train`` and
+``register_algorithms()`` adds ``sarsa_lambda``, ``er``, ``er_sigma``, ``residual_er`` and ``residual_er_sigma`` to
+``rl_zoo3.ALGOS`` and to its optuna sampler and converter tables. The commands then run rl_zoo3's own ``train`` and
 ``enjoy`` with our defaults filled in: the thesis's hyperparameters from ``zoo_configs/<algo>.yml``, the environment
 package ``sb3_er_envs`` and TensorBoard logs under ``<log folder>/tensorboard``. Every other rl_zoo3 option passes
 through unchanged. ``python -m sb3_er.zoo train ...`` is the same as ``sb3-er train ...``.

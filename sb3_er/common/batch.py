@@ -197,7 +197,7 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         if n_iterations < 1:
             raise ValueError(f"n_iterations must be at least 1, got {n_iterations}")
         if not (np.isfinite(ridge) and ridge > 0.0):
-            raise ValueError(f"ridge must be positive and finite (it keeps the least-squares system regular), got {ridge}")
+            raise ValueError(f"ridge must be positive and finite (it keeps the systems regular), got {ridge}")
         self.fit_every = fit_every
         self.n_iterations = n_iterations
         self.ridge = ridge

@@ -479,9 +479,9 @@ def weight_statistics(theta):
     return total / nonzero, nonzero / theta.shape[0]
 
 
-# --- Batch views, FQI, LSPI and Dyna (sb3_er.fqi, sb3_er.lspi, sb3_er.dyna; thesis chapter 3) ---------------------------
-# A binary design matrix Phi (n, f) over the f weights a data set touches is given by its active ``columns`` (n, N): row d
-# has a one at each columns[d, k] (a column repeated within a row, a hash collision, counts twice).
+# --- Batch views, FQI, LSPI and Dyna (sb3_er.fqi, sb3_er.lspi, sb3_er.dyna; thesis chapter 3) ----------------------
+# A binary design matrix Phi (n, f) over the f weights a data set touches is given by its active ``columns`` (n, N):
+# row d has a one at each columns[d, k] (a column repeated within a row, a hash collision, counts twice).
 
 
 @nb.njit(cache=True)
