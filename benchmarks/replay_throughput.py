@@ -52,7 +52,7 @@ def recorded_buffer(env: gym.Env, coder: TileCoder, n_transitions: int) -> Traje
     for _ in range(n_transitions - 1):
         action = env.action_space.sample()
         next_obs, reward, terminated, truncated, info = env.step(action)
-        buffer.add(obs, coder.slots(obs), int(flat_index[tuple(np.atleast_1d(action))]), reward)
+        buffer.add(obs, coder.slots(obs), int(flat_index[tuple(np.atleast_1d(action))]), reward, next_obs)
         if terminated or truncated or info.get("segment_end", False):
             buffer.close_trajectory(next_obs, terminated)
         obs = env.reset()[0] if terminated or truncated else next_obs

@@ -21,7 +21,7 @@ The reward of thesis Eq. 4.1 is taken at the state reached by the step,
 
 Every episode starts hanging down at rest. It ends (``terminated``, ``info["goal_reached"]``) when the pendulum reaches
 the goal ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), and is ``truncated`` after
-``episode_seconds`` (15 s, i.e. 1500 steps).
+``episode_seconds`` (15 s, i.e. 1500 steps). ``info["fell"]`` is always False: reaching the goal is no fall.
 """
 
 from __future__ import annotations
@@ -196,7 +196,7 @@ class PendulumSwingupEnv(gym.Env):
         self.velocity = 0.0
         self._steps = 0
         self._last_torque = 0.0
-        return self._observation(), {"goal_reached": False}
+        return self._observation(), {"goal_reached": False, "fell": False}
 
     def step(self, action):
         torque = self.torques[discrete_action_index(action, len(self.torques))]
@@ -217,7 +217,7 @@ class PendulumSwingupEnv(gym.Env):
         goal_reached = abs(self.theta) < self.goal_angle and abs(self.velocity) < self.goal_velocity
         truncated = not goal_reached and self._steps >= self.max_episode_steps
         reward = self.reward(self.theta, self.velocity, torque)
-        return self._observation(), reward, goal_reached, truncated, {"goal_reached": goal_reached}
+        return self._observation(), reward, goal_reached, truncated, {"goal_reached": goal_reached, "fell": False}
 
     def render(self) -> np.ndarray | None:
         """An RGB image: the rod from the pivot (up is theta = 0), the bob coloured by the applied torque."""

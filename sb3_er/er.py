@@ -1,5 +1,6 @@
 """Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
 
+import math
 import pathlib
 from typing import Any, Literal, Optional, Union
 
@@ -33,6 +34,11 @@ RESIDUAL_ACTIONS = ("taken", "next")
 def _check_choice(name: str, value: Any, options) -> None:
     if value not in options:
         raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
+
+
+def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
 
 
 class ER(TileQAlgorithm):
@@ -82,23 +88,10 @@ class ER(TileQAlgorithm):
         **kwargs,
     ):
         self.buffer_size = buffer_size
-        _check_choice("replay_trigger", replay_trigger, REPLAY_TRIGGERS)
-        _check_choice("replay_order", replay_order, REPLAY_ORDERS)
-        _check_choice("target", target, TARGETS)
-        _check_choice("sigma", sigma, SIGMAS)
         self.replay_trigger = replay_trigger
         self.replay_order = replay_order
         self.target = target
         self.sigma = sigma
-        if replay_every < 1:
-            raise ValueError(f"replay_every must be at least 1 episode, got {replay_every}")
-        if n_replays < 0 or (replays_per_stored_trajectory is not None and replays_per_stored_trajectory < 0):
-            raise ValueError("the number of replays cannot be negative")
-        if residual_zeta is not None and not 0.0 <= residual_zeta <= 1.0:
-            raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9), got {residual_zeta}")
-        _check_choice("residual_action", residual_action, RESIDUAL_ACTIONS)
-        if residual_action == "next" and target == "expected_sarsa":
-            raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
         self.residual_action = residual_action
         self.replay_every = replay_every
         self.n_replays = n_replays
@@ -113,6 +106,25 @@ class ER(TileQAlgorithm):
     def online_lambda(self) -> Optional[float]:
         return self.trace_lambda
 
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        _check_choice("replay_trigger", self.replay_trigger, REPLAY_TRIGGERS)
+        _check_choice("replay_order", self.replay_order, REPLAY_ORDERS)
+        _check_choice("target", self.target, TARGETS)
+        _check_choice("sigma", self.sigma, SIGMAS)
+        _check_choice("residual_action", self.residual_action, RESIDUAL_ACTIONS)
+        _check_integer("buffer_size", self.buffer_size, minimum=1)
+        _check_integer("replay_every", self.replay_every, minimum=1, unit=" episode")
+        _check_integer("n_replays", self.n_replays, minimum=0)
+        x = self.replays_per_stored_trajectory
+        if x is not None and not (isinstance(x, (int, float)) and math.isfinite(x) and x >= 0):
+            raise ValueError(f"replays_per_stored_trajectory must be a finite number >= 0 or None, got {x!r}")
+        zeta = self.residual_zeta
+        if zeta is not None and not (isinstance(zeta, (int, float)) and 0.0 <= zeta <= 1.0):
+            raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9) or None, got {zeta!r}")
+        if self.residual_action == "next" and self.target == "expected_sarsa":
+            raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
+
     def _setup_model(self) -> None:
         super()._setup_model()
         self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
@@ -125,12 +137,19 @@ class ER(TileQAlgorithm):
         super()._seed_generators(seed)
         self.seed_replay(seed)
 
+    def _end_episode_at_reset(self) -> None:
+        """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last
+        real s_{t+1} (replay bootstraps there), never joined to the next episode; no replay is triggered."""
+        super()._end_episode_at_reset()
+        if self.replay_buffer is not None:
+            self.replay_buffer.truncate_open_trajectory()
+
     def seed_replay(self, seed: Optional[int]) -> None:
         """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones."""
         self.replay_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_REPLAY)
 
     def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
-        self.replay_buffer.add(obs, self._slots, action, reward)
+        self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
         if not (done or info.get("segment_end", False)):
             return
         self.replay_buffer.close_trajectory(next_obs, terminated)
@@ -187,14 +206,23 @@ class ER(TileQAlgorithm):
         """Save the trajectories and the visit vector w."""
         save_to_pkl(path, self.replay_buffer, self.verbose)
 
-    def load_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
-        """Load a buffer saved by save_replay_buffer; its tile coding must match this model's."""
+    def load_replay_buffer(self, path: Union[str, pathlib.Path], truncate_last_traj: bool = True) -> None:
+        """Load a buffer saved by save_replay_buffer; its tile coding must match this model's.
+
+        :param truncate_last_traj: as in SB3: if True (the default, which rl-zoo always passes), the episode that was
+            in progress when the buffer was saved is over: its open trajectory is closed as truncated at its last
+            s_{t+1}. If False, it stays open, to be continued by ``learn(reset_num_timesteps=False)`` on an env that
+            was not reset since; any env reset (a ``learn()`` that resets, ``set_env``, a freshly loaded model) closes
+            it as truncated all the same, so it is never joined to another episode.
+        """
         buffer = load_from_pkl(path, self.verbose)
         if not isinstance(buffer, TrajectoryReplayBuffer):
             raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
         if buffer.tile_coder.config() != self.policy.tile_coder.config():
             raise ValueError("The replay buffer was stored with a different tile coding than this model's")
         buffer.tile_coder = self.policy.tile_coder
+        if truncate_last_traj:
+            buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
 
 

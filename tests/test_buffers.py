@@ -16,8 +16,8 @@ def chain_coder() -> TileCoder:
 
 
 def add_chain(buffer, states, actions, rewards, next_state, terminated):
-    for s, a, r in zip(states, actions, rewards):
-        buffer.add(np.array([s], float), buffer.tile_coder.slots(np.array([s], float)), a, r)
+    for s, a, r, s_next in zip(states, actions, rewards, [*states[1:], next_state]):
+        buffer.add(np.array([s], float), buffer.tile_coder.slots(np.array([s], float)), a, r, np.array([s_next], float))
     buffer.close_trajectory(np.array([next_state], float), terminated)
 
 
@@ -58,7 +58,7 @@ def test_trajectory_longer_than_the_buffer_is_an_error():
 def test_visit_vector_marks_stored_state_actions():
     coder = TileCoder([1.0], [3], n_tilings=4, memory_size=2**12)
     buffer = TrajectoryReplayBuffer(10, coder)
-    buffer.add(np.array([0.5]), coder.slots(np.array([0.5])), 2, 0.0)
+    buffer.add(np.array([0.5]), coder.slots(np.array([0.5])), 2, 0.0, np.array([0.7]))
     expected = np.zeros(coder.n_weights, np.uint8)
     expected[coder.feature_indices(np.array([0.5]), 2)] = 1
     np.testing.assert_array_equal(buffer.visits, expected)
@@ -68,7 +68,7 @@ def test_pickle_round_trip_keeps_everything_and_is_compact():
     buffer = TrajectoryReplayBuffer(10_000, chain_coder())
     add_chain(buffer, [0, 1, 2], [0, 1, 0], [-1, -1, 5], 3, True)
     add_chain(buffer, [5, 6], [1, 0], [1, 2], 7, False)
-    buffer.add(np.array([9.0]), buffer.tile_coder.slots(np.array([9.0])), 1, 0.5)  # an open trajectory
+    buffer.add(np.array([9.0]), buffer.tile_coder.slots(np.array([9.0])), 1, 0.5, np.array([9.5]))  # open
     data = pickle.dumps(buffer)
     assert len(data) < 50_000
     again = pickle.loads(data)

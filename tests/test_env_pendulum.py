@@ -34,7 +34,7 @@ def test_seven_torques_up_to_the_limit(env):
 def test_starts_hanging_down_at_rest(env):
     observation, info = env.reset(seed=5)
     assert abs(observation[0]) == pytest.approx(math.pi) and observation[1] == 0.0
-    assert info == {"goal_reached": False}
+    assert info == {"goal_reached": False, "fell": False}
 
 
 def test_energy_is_conserved_without_torque_or_damping(env):
@@ -129,7 +129,7 @@ def test_reaching_the_goal_terminates(env):
     env.set_state(0.05, 0.0)
     observation, reward, terminated, truncated, info = env.step(ZERO_TORQUE)
     assert abs(observation[0]) < 0.1 and abs(observation[1]) < 1.0
-    assert terminated and not truncated and info == {"goal_reached": True}
+    assert terminated and not truncated and info == {"goal_reached": True, "fell": False}  # a goal is no fall
     assert reward == pytest.approx(-5 * observation[0] ** 2 - 0.1 * observation[1] ** 2)
 
 

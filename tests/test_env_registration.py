@@ -16,7 +16,7 @@ ALL_IDS = ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0", "sb3_er/Simplest
 
 def make(env_id, **kwargs):
     if env_id == "sb3_er/Leo-v0":
-        pytest.importorskip("dm_control", reason="LEO needs the dmc extra")
+        pytest.importorskip("sb3_er_envs.leo.leo", reason="LEO needs the dmc extra")
     return gymnasium.make(env_id, **kwargs)
 
 

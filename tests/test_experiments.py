@@ -85,7 +85,7 @@ def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
 
 
 def test_leo_reproduction(tmp_path):
-    pytest.importorskip("dm_control")
+    pytest.importorskip("sb3_er_envs.leo.leo", reason="LEO needs the dmc extra")
     algos = ["sarsa_lambda", "residual_er_sigma"]
     result = reproduce("leo", n_seeds=2, algos=algos, out_dir=tmp_path, budget=4, n_workers=1, show_progress=False)
     table, markdown = _assert_well_formed(result, algos, [0, 1], ["learning_time_s", "distance"], 2)

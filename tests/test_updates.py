@@ -29,7 +29,7 @@ def q(theta, coder, s, a) -> float:
 
 def one_transition_buffer(coder, s, a, r, s_next, terminated=False):
     buffer = TrajectoryReplayBuffer(8, coder)
-    buffer.add(np.array([s]), coder.slots(np.array([s])), a, r)
+    buffer.add(np.array([s]), coder.slots(np.array([s])), a, r, np.array([s_next]))
     buffer.close_trajectory(np.array([s_next]), terminated)
     return buffer
 

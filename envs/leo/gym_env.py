@@ -9,6 +9,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from . import leo as leo_domain
+from ._gl import rendering_error
 from .leo import CONTROL_TIMESTEP, PHYSICS_SUBSTEPS, TIME_LIMIT, VOLTAGE_LEVELS, LeoWalk, load_physics
 
 #: Tile widths of Table 4.3 in observation order (angle, rate per joint).
@@ -41,7 +43,9 @@ class LeoEnv(gym.Env):
     Parameters
     ----------
     render_mode:
-        ``None`` or ``"rgb_array"`` (headless rendering needs a GL backend, e.g. ``MUJOCO_GL=osmesa``).
+        ``None`` or ``"rgb_array"``. Simulating needs no OpenGL; rendering needs a backend this machine has (EGL,
+        OSMesa or a display for GLFW, chosen automatically or by ``MUJOCO_GL``), else ``render()`` raises
+        :class:`sb3_er_envs.leo.RenderingUnavailable` naming the missing library.
     start_noise:
         Half-width [rad] of the uniform start-pose variation (torso, hips, swing knee); 0 gives Erik's exact pose.
     filter_rates:
@@ -115,8 +119,14 @@ class LeoEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
+        if leo_domain.RENDERING_UNAVAILABLE is not None:
+            raise rendering_error(leo_domain.RENDERING_UNAVAILABLE)
         height, width = self.render_size
-        return self.physics.render(height=height, width=width, camera_id=self.camera)
+        try:
+            return self.physics.render(height=height, width=width, camera_id=self.camera)
+        except Exception as error:  # noqa: BLE001  (dm_control raises several kinds when no GL context can be made)
+            raise rendering_error(f"the {leo_domain.RENDER_BACKEND} backend failed",
+                                  error) from error
 
     def close(self):
         if not self._closed:

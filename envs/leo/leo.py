@@ -19,19 +19,25 @@ from __future__ import annotations
 import collections
 import math
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
 
-if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    # Headless: render on the CPU with OSMesa unless the user chose a backend (MuJoCo reads this at import).
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
+from ._gl import prepare_backend
 
-from dm_control import mujoco  # noqa: E402
+_USER_MUJOCO_GL = os.environ.get("MUJOCO_GL")
+#: Why MuJoCo cannot render in this process (None: it can try). Simulation never needs OpenGL.
+RENDERING_UNAVAILABLE = prepare_backend()
+
+from dm_control import _render, mujoco  # noqa: E402
 from dm_control.rl import control  # noqa: E402
 from dm_control.suite import base  # noqa: E402
 from dm_env import specs  # noqa: E402
+
+#: The OpenGL backend dm_control took ("glfw", "egl", "osmesa", or "disable" when rendering is unavailable).
+RENDER_BACKEND = _render.BACKEND
+if _USER_MUJOCO_GL is None:
+    os.environ.pop("MUJOCO_GL", None)  # dm_control has read our choice; leave the user's environment as it was
 
 MODEL_PATH = Path(__file__).with_name("leo.xml")
 

@@ -93,12 +93,17 @@ def hash_tile(tiling, coords_hash):
     return _mix64(coords_hash ^ (np.uint64(tiling) * _GOLDEN))
 
 
+#: Largest |x / width| a tile coordinate may have: beyond it the int64 coordinate would overflow.
+MAX_TILE_COORDINATE = 2.0**62
+
+
 @nb.njit(cache=True)
 def state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
-    """Hashed state-tile slot of obs in each tiling; False if obs has a NaN or infinite entry."""
+    """Hashed state-tile slot of obs in each tiling; False if an entry of obs is NaN, infinite or so large that its
+    tile coordinate would overflow (|x / width| >= MAX_TILE_COORDINATE)."""
     n_dims = obs.shape[0]
     for d in range(n_dims):
-        if not np.isfinite(obs[d]):
+        if not abs(obs[d] * inv_widths[d]) < MAX_TILE_COORDINATE:
             return False
     for k in range(offsets.shape[0]):
         h = _GOLDEN
@@ -252,7 +257,7 @@ def sarsa_lambda_step(
     The trace is sparse: ``trace_index[:n]`` holds the weights with a non-zero trace, ``trace_value[:n]`` their traces,
     ``trace_position[i]`` where weight i sits in that list (-1 if absent); ``trace_length[0]`` is n. Traces that decay
     below ``trace_cutoff`` are dropped. Returns (a_{k+1}, delta, status); a_{k+1} is -1 when s_{k+1} is terminal and
-    status reports a NaN or infinite s_{k+1} or a full trace list.
+    status reports an s_{k+1} that cannot be tiled (NaN, infinite, too large) or a full trace list.
     """
     n_tilings = slots.shape[0]
     q_sa = q_value(theta, slots, stride, action_columns, action)

@@ -14,6 +14,11 @@ from sb3_er.common import kernels
 from sb3_er.common.tile_coding import TileCoder
 
 
+def action_start(action_space: spaces.Space) -> np.ndarray:
+    """The first action of each action dimension (gymnasium's ``start``; 0 unless the space says otherwise)."""
+    return np.atleast_1d(np.asarray(getattr(action_space, "start", 0), dtype=np.int64)).reshape(-1)
+
+
 def action_nvec(action_space: spaces.Space) -> list[int]:
     """Choices per action dimension of a Discrete or MultiDiscrete space."""
     if isinstance(action_space, spaces.Discrete):
@@ -28,12 +33,17 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
     )
 
 
+def _tileable(coder: TileCoder, obs: np.ndarray) -> bool:
+    return bool(np.all(np.abs(obs * coder.inv_widths) < kernels.MAX_TILE_COORDINATE))
+
+
 class TileQPolicy(BasePolicy):
     """Greedy policy of a binary tile-coded linear Q-function (thesis Eq. 2.8).
 
     The weights theta are a float64 CPU tensor registered as a buffer, so SB3's save/load and get/set_parameters work
     unchanged; the numba kernels update its NumPy view in place. MultiDiscrete actions are flattened in C order.
-    Exploration belongs to the algorithm: ``predict`` here is always greedy.
+    Exploration belongs to the algorithm: ``predict`` here is always greedy. Internally actions are flat indices
+    0..A-1; the env sees them shifted by the space's ``start`` (``Discrete(3, start=-1)`` receives -1, 0, 1).
 
     :param observation_space: a flat Box.
     :param action_space: Discrete or MultiDiscrete.
@@ -79,7 +89,8 @@ class TileQPolicy(BasePolicy):
         self.theta_array = self.theta.numpy()
         self.action_table = np.stack(
             np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1
-        )
+        ) + action_start(action_space)
+        self._actions_are_indices = isinstance(action_space, spaces.Discrete) and int(action_space.start) == 0
         self._slots_scratch = np.zeros(self.tile_coder.n_tilings, dtype=np.int64)
         self._q_scratch = np.zeros(self.tile_coder.n_actions, dtype=np.float64)
 
@@ -111,14 +122,17 @@ class TileQPolicy(BasePolicy):
             self.theta_array, observations, *coder.kernel_arguments, self._slots_scratch, self._q_scratch, out
         )
         if not ok:
-            raise ValueError("Observation contains NaN or infinite values")
+            bad = next(row for row in observations if not _tileable(coder, row))
+            raise ValueError(coder.bad_observation_message(bad))
         return out
 
     def to_env_actions(self, flat_actions: np.ndarray) -> np.ndarray:
-        """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete."""
-        if isinstance(self.action_space, spaces.Discrete):
+        """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete,
+        shifted by the space's ``start``."""
+        if self._actions_are_indices:
             return flat_actions
-        return self.action_table[flat_actions]
+        table = self.action_table[flat_actions]
+        return table[:, 0] if isinstance(self.action_space, spaces.Discrete) else table
 
     def q_values(self, observations: np.ndarray) -> np.ndarray:
         """Q(s, .) for each observation: (B, D) -> (B, n_actions), MultiDiscrete actions flattened in C order."""
@@ -126,7 +140,8 @@ class TileQPolicy(BasePolicy):
         coder = self.tile_coder
         out = np.empty((batch.shape[0], coder.n_actions), dtype=np.float64)
         if not kernels.batch_q_values(self.theta_array, batch, *coder.kernel_arguments, self._slots_scratch, out):
-            raise ValueError("Observation contains NaN or infinite values")
+            bad = next(row for row in batch if not _tileable(coder, row))
+            raise ValueError(coder.bad_observation_message(bad))
         return out
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = False):
