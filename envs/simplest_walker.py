@@ -60,7 +60,7 @@ Under both, a fall ends the episode (``terminated``) with ``fall_reward`` in pla
 Why Schuitema's reward is our reading of "a reward of 50 for every meter footstep length": the thesis takes its walker
 settings from Schuitema (2012), and GRL, which keeps that code lineage, pays ``50 * 4 sin(phi_st)`` capped at 30.
 Under the literal reading no policy has a reason to walk: a dive (one long step, then a fall) returns about -5 to -15,
-while walking passively for 100 s returns about -120 (-500 for the steps, about +380 for 7.6 units of footsteps), and
+while walking passively for 100 s returns about -118 (-500 for the steps, +382 for 7.64 units of footsteps), and
 measured learners never walked (``walker_readings.md`` in the project's shared notes). Under Schuitema's reward a
 passive footstep every ~19 control steps earns 24-30 against 18 steps of -1, so walking pays and learners walk.
 
@@ -346,7 +346,7 @@ class SimplestWalkerEnv(gym.Env):
     default is Schuitema's capped footstep reward: the thesis's "a reward of 50 for every meter footstep length" comes
     with walker settings taken from Schuitema (2012), whose code lineage (GRL) pays ``min(50 * 4 sin(phi_st), 30)``, and
     the literal reading makes a dive (one long step, then a fall, about -5 to -15) worth far more than 100 s of walking
-    (about -120), so nothing learns to walk under it.
+    (about -118), so nothing learns to walk under it.
 
     Parameters
     ----------
@@ -516,11 +516,6 @@ class SimplestWalkerEnv(gym.Env):
         stance_angle = GARCIA_FIXED_POINT[0] * (1.0 + v * rng.uniform(-1.0, 1.0))
         energy = 1.0 + rng.uniform(*self.start_energy_surplus)
         return impact_manifold_state(stance_angle, energy, self.slope)
-
-    def observation_of(self, state) -> np.ndarray:
-        """The observation of a state ``[phi_st, phi_h, phi_st', phi_h']`` (the stance-change flag, if any, 0)."""
-        stance, hip, stance_rate, hip_rate = (float(x) for x in state)
-        return self._observe(stance, hip, stance_rate, hip_rate, False)
 
     def step(self, action):
         index = int(action)
