@@ -69,7 +69,8 @@ def main() -> None:
             env = CompassWalkerEnv()
             env_rate(env, actions[:1000])
             rate, footsteps, falls = env_rate(env, actions)
-            print(f"{'CompassWalkerEnv':>17} env.step, {policy:<14}: {rate:>10,.0f} steps/s ({footsteps} footsteps, {falls} falls)")
+            label = "CompassWalkerEnv"
+            print(f"{label:>17} env.step, {policy:<14}: {rate:>10,.0f} steps/s ({footsteps} footsteps, {falls} falls)")
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 """GRL's compass-walker walk task: the simplest walker as the Delft lab's later framework sets it up, for cross-checks.
 
 GRL (github wcaarls/grl) descends from the code the thesis ran (Schuitema 2012). Its walk task with Sarsa(lambda) is a
-peer to compare against: :class:`CompassWalkerEnv` rebuilds that task on our simulation (:mod:`sb3_er_envs.simplest_walker`,
-same equations of motion, impact map and root-found heel strikes). Every setting below comes from GRL's source at
+peer to compare against: :class:`CompassWalkerEnv` rebuilds that task on our simulation
+(:mod:`sb3_er_envs.simplest_walker`, same equations of motion, impact map and root-found heel strikes). Every setting below comes from GRL's source at
 ``base/src/environments/compass_walker/`` (``compass_walker.cpp`` for the model, walk task, start, observation,
 reward and falls; ``SWModel.cpp`` / ``SWModel.h`` for the integrator) and ``cfg/compass_walker/sarsa_walk.yaml`` (the
 experiment); the file is named with each fact.

@@ -1,5 +1,6 @@
-"""CompassWalker-v0 against GRL's walk task (github wcaarls/grl: base/src/environments/compass_walker/compass_walker.cpp,
-cfg/compass_walker/sarsa_walk.yaml), as read from its source; the physics is SimplestWalkerEnv's, tested there."""
+"""CompassWalker-v0 against GRL's walk task as read from its source (github wcaarls/grl:
+base/src/environments/compass_walker/compass_walker.cpp, cfg/compass_walker/sarsa_walk.yaml); the physics is
+SimplestWalkerEnv's, tested there."""
 
 import math
 import warnings

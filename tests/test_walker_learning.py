@@ -1,8 +1,8 @@
 """SarsaLambda on GRL's compass-walker walk task with GRL's learner settings learns to walk as fast as GRL does.
 
 GRL (github wcaarls/grl, cfg/compass_walker/sarsa_walk.yaml): Sarsa(lambda), alpha 0.4 on Q, gamma 0.99, lambda 0.92,
-epsilon 0.05, replacing traces, 16 tilings, weights drawn from U[0, 1] and averaged over the 16 active tiles (so Q starts
-in [0, 1]); a greedy test episode of 1001 steps from Garcia's fixed point. Measured with GRL: after 50 learning episodes
+epsilon 0.05, replacing traces, 16 tilings, weights drawn from U[0, 1] and averaged over the 16 active tiles (so Q
+starts in [0, 1]); a greedy test episode of 1001 steps from Garcia's fixed point. Measured with GRL: after 50 learning episodes
 the greedy test walks without a fall in 15 of 15 runs (walker_readings.md).
 
 Also the gait figure and animation tools (sb3_er.experiments.gait) on tiny models.
@@ -75,7 +75,7 @@ def test_sarsa_lambda_walks_grls_task_after_50_episodes():
     assert sum(walks) >= 4, f"greedy 1001-step tests without a fall per seed: {walks}"
 
 
-# --- Gait figures (thesis Figures 4.6 / 6.3) and animations, on tiny models --------------------------------------------
+# --- Gait figures (thesis Figures 4.6 / 6.3) and animations, on tiny models ------------------------------------------
 
 
 class PassivePolicy:
