@@ -2,10 +2,10 @@
 
 GRL (github wcaarls/grl) descends from the code the thesis ran (Schuitema 2012). Its walk task with Sarsa(lambda) is a
 peer to compare against: :class:`CompassWalkerEnv` rebuilds that task on our simulation
-(:mod:`sb3_er_envs.simplest_walker`, same equations of motion, impact map and root-found heel strikes). Every setting below comes from GRL's source at
-``base/src/environments/compass_walker/`` (``compass_walker.cpp`` for the model, walk task, start, observation,
-reward and falls; ``SWModel.cpp`` / ``SWModel.h`` for the integrator) and ``cfg/compass_walker/sarsa_walk.yaml`` (the
-experiment); the file is named with each fact.
+(:mod:`sb3_er_envs.simplest_walker`, same equations of motion, impact map and root-found heel strikes). Every setting
+below comes from GRL's source at ``base/src/environments/compass_walker/`` (``compass_walker.cpp`` for the model,
+walk task, start, observation, reward and falls; ``SWModel.cpp`` / ``SWModel.h`` for the integrator) and
+``cfg/compass_walker/sarsa_walk.yaml`` (the experiment); the file is named with each fact.
 
 * Dynamics (``compass_walker.h`` defaults, ``sarsa_walk.yaml``): control step 0.2, 20 RK4 substeps, slope 0.004; the
   hip action is an acceleration added to the hip equation (``SWModel.cpp``). At a heel strike GRL continues the

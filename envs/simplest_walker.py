@@ -309,7 +309,7 @@ def _distance_to_segment(columns: np.ndarray, rows: np.ndarray, start: np.ndarra
 
 
 REWARD_READINGS = ("schuitema", "literal")
-"""Values of ``reward``: GRL's (Schuitema's) capped footstep reward (default) and the thesis's sentence read literally."""
+"""Values of ``reward``: GRL's (Schuitema's) capped footstep reward (default) and the thesis's words read literally."""
 FALL_CRITERIA = ("hip", "angles")
 """Values of ``fall``: the hip touching the slope (the thesis's text, default) and GRL's angle limits."""
 OBSERVATIONS = ("thesis", "grl")
