@@ -69,7 +69,7 @@ def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays) -> float:
             theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
             coder.columns_are_actions, n,
             kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, False, ALPHA / coder.n_tilings, GAMMA, EPSILON,
-            kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch,
+            kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch, *kernels.ZERO_INITIAL,
         )
 
     phase(1)

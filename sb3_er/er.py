@@ -188,6 +188,7 @@ class ER(TileQAlgorithm):
             self.action_rng,
             self._q_scratch,
             self._w_scratch,
+            *self.policy.initial_arguments,
         )
         self.replay_updates += updates
         self.replay_phases += 1

@@ -96,7 +96,7 @@ def replay_once(buffer, order):
         theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
         coder.columns_are_actions, 1, order,
         kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, False, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions),
+        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions), *kernels.ZERO_INITIAL,
     )
     return [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(5)]
 

@@ -35,7 +35,7 @@ def one_transition_buffer(coder, s, a, r, s_next, terminated=False):
 
 
 def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGMA_NONE, zeta=0.0, epsilon=0.0,
-               residual_next_action=False):
+               residual_next_action=False, initial=kernels.ZERO_INITIAL):
     coder = buffer.tile_coder
     q_scratch = np.zeros(coder.n_actions)
     w_scratch = np.zeros(coder.n_actions)
@@ -43,7 +43,7 @@ def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGM
         theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
         coder.columns_are_actions, 1,
         kernels.ORDER_REVERSED, target, sigma, zeta, residual_next_action, ALPHA / coder.n_tilings, GAMMA, epsilon,
-        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch,
+        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch, *initial,
     )
 
 

@@ -8,8 +8,6 @@ episodes the greedy test walks without a fall in 15 of 15 runs (walker_readings.
 Also the gait figure and animation tools (sb3_er.experiments.gait) on tiny models.
 """
 
-import inspect
-
 import gymnasium as gym
 import imageio.v2 as imageio
 import numpy as np
@@ -17,13 +15,10 @@ import pytest
 from stable_baselines3.common.callbacks import BaseCallback
 
 import sb3_er_envs  # noqa: F401  (registers the ids)
-from sb3_er import SarsaLambda, TileQPolicy
+from sb3_er import SarsaLambda
 from sb3_er.experiments.gait import gait_trace, plot_gait, save_walker_gif
 from sb3_er_envs.compass_walker import TEST_EPISODE_STEPS, CompassWalkerEnv
 from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT, SimplestWalkerEnv
-
-HAS_INITIAL_VALUE = "initial_value" in inspect.signature(TileQPolicy.__init__).parameters
-
 
 class StopAfterEpisodes(BaseCallback):
     """Stops learn() once ``n_episodes`` episodes have ended, after their last transition was learned."""
@@ -54,7 +49,6 @@ def greedy_test_walks(model) -> bool:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not HAS_INITIAL_VALUE, reason="needs TileQ's policy_kwargs initial_value (GRL's U[0, 1] weights)")
 def test_sarsa_lambda_walks_grls_task_after_50_episodes():
     walks = []
     for seed in range(5):

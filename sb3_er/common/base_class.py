@@ -205,6 +205,8 @@ class TileQAlgorithm(BaseAlgorithm):
         BaseAlgorithm.set_random_seed(self, self.seed)  # not ours: load() has just restored their states
         self.policy_kwargs = self._resolve_policy_kwargs()
         self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
+        if self.policy.initial_value_seed is not None:  # keep the drawn seed: a reloaded model rebuilds the same start
+            self.policy_kwargs["initial_value_seed"] = self.policy.initial_value_seed
         coder = self.policy.tile_coder
         self._slots = np.zeros(coder.n_tilings, dtype=np.int64)
         self._next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
@@ -416,7 +418,7 @@ class TileQAlgorithm(BaseAlgorithm):
         if self._td_error_count:
             self.logger.record("train/td_error", self._td_error_sum / self._td_error_count)
             self._td_error_sum, self._td_error_count = 0.0, 0
-        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.theta_array)
+        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.theta_array, *self.policy.initial_arguments)
         self.logger.record("train/weights_abs_mean", weights_abs_mean)
         self.logger.record("train/memory_fill", memory_fill)
         self.logger.record("train/learning_rate", self.current_learning_rate)

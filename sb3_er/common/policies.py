@@ -33,6 +33,25 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
     )
 
 
+def _initial_range(initial_value) -> tuple[float, float]:
+    """(low, high) of Q's initial values from a number or a (low, high) pair; ValueError naming the problem."""
+    values = np.atleast_1d(np.asarray(initial_value, dtype=np.float64)) if _is_numeric(initial_value) else None
+    if values is None or values.ndim != 1 or values.size not in (1, 2) or not np.all(np.isfinite(values)):
+        raise ValueError(f"initial_value must be a finite number or a (low, high) pair, got {initial_value!r}")
+    low, high = float(values[0]), float(values[-1])
+    if low > high:
+        raise ValueError(f"initial_value (low, high) needs low <= high, got {initial_value!r}")
+    return low, high
+
+
+def _is_numeric(value) -> bool:
+    try:
+        np.asarray(value, dtype=np.float64)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
 def _tileable(coder: TileCoder, obs: np.ndarray) -> bool:
     return bool(np.all(np.abs(obs * coder.inv_widths) < kernels.MAX_TILE_COORDINATE))
 
@@ -54,6 +73,14 @@ class TileQPolicy(BasePolicy):
     :param wrap_periods: per observation dimension a period or None.
     :param action_values: per action dimension the value of each choice (for action tiling).
     :param action_tile_widths: per action dimension a tile width over action_values; None keeps actions apart.
+    :param initial_value: where Q starts. A number c sets every weight to c / N, so that Q(s, a) = c everywhere; a pair
+        (low, high) draws each weight from U(low / N, high / N), so that Q starts in [low, high] (GRL's walker draws
+        its averaged weights from U[0, 1]: ``initial_value=(0, 1)`` here). Default 0, the thesis's Alg. 2-14 line 1.
+        Optimistic values explore; pessimistic ones (thesis Figure 5.5) trust only visited features. ER-sigma
+        replaces the initial values of unvisited features by sigma(s') (Eq. 5.4).
+    :param initial_value_seed: seed of the draw of (low, high) initial weights; None draws one from NumPy's global
+        generator (which the algorithm seeds with its ``seed``). The resolved seed is kept, so a reloaded model knows
+        every weight's initial value.
     """
 
     def __init__(
@@ -67,6 +94,8 @@ class TileQPolicy(BasePolicy):
         wrap_periods: Optional[Sequence[Optional[float]]] = None,
         action_values: Optional[Sequence[Sequence[float]]] = None,
         action_tile_widths: Optional[Sequence[float]] = None,
+        initial_value: Union[float, Sequence[float]] = 0.0,
+        initial_value_seed: Optional[int] = None,
     ):
         super().__init__(observation_space, action_space)
         if tile_widths is None:
@@ -84,9 +113,19 @@ class TileQPolicy(BasePolicy):
             raise ValueError(
                 f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape {observation_space.shape}"
             )
+        low, high = _initial_range(initial_value)
+        if low != high and initial_value_seed is None:
+            initial_value_seed = int(np.random.randint(0, 2**62))
+        self.initial_value = initial_value if low != high else low
+        self.initial_value_seed = None if low == high else int(initial_value_seed)
+        n = self.tile_coder.n_tilings
+        self.initial_arguments = (low / n, (high - low) / n, np.uint64(self.initial_value_seed or 0))
+        """Initial weights in kernel order: initial_low, initial_span (per weight) and initial_seed."""
         # NumPy allocates large arrays with transparent huge pages, which spares the random row reads TLB misses.
         self.register_buffer("theta", th.from_numpy(np.zeros(self.tile_coder.n_weights, dtype=np.float64)))
         self.theta_array = self.theta.numpy()
+        if low != 0.0 or high != 0.0:
+            kernels.fill_initial_weights(self.theta_array, *self.initial_arguments)
         self.action_table = np.stack(
             np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1
         ) + action_start(action_space)
@@ -106,8 +145,16 @@ class TileQPolicy(BasePolicy):
         data = super()._get_constructor_parameters()
         config = self.tile_coder.config()
         del config["action_nvec"]
-        data.update(config)
+        data.update(config, initial_value=self.initial_value, initial_value_seed=self.initial_value_seed)
         return data
+
+    def initial_weights(self, indices: np.ndarray) -> np.ndarray:
+        """The initial values of the weights at ``indices`` (any integer array shape)."""
+        indices = np.asarray(indices, dtype=np.int64)
+        out = np.empty(indices.size, dtype=np.float64)
+        for j, i in enumerate(indices.reshape(-1)):
+            out[j] = kernels.initial_weight(i, *self.initial_arguments)
+        return out.reshape(indices.shape)
 
     def _as_batch(self, observation) -> tuple[np.ndarray, bool]:
         obs = np.asarray(observation, dtype=np.float64)
