@@ -28,6 +28,7 @@ SIGMAS = {
     "average_best": kernels.SIGMA_AVERAGE_BEST,
 }
 REPLAY_TRIGGERS = ("episode", "segment")
+REPLAY_UNITS = ("episode", "segment")
 RESIDUAL_ACTIONS = ("taken", "next")
 
 
@@ -44,17 +45,23 @@ def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
 class ER(TileQAlgorithm):
     """Experience replay with the Sarsa update (thesis Alg. 7-8) and its variants (Alg. 9-14).
 
-    Every transition is stored in trajectories; a trajectory closes at the end of an episode and wherever the env sets
+    Every transition is stored in trajectories. A trajectory is a whole episode (``replay_unit="episode"``, Alg. 7:
+    D_e closes at the episode's end) or, with ``replay_unit="segment"``, also closes wherever the env sets
     ``info["segment_end"]`` (the simplest walker's footsteps). At each replay trigger, ``n_replays`` trajectories (or
     ``replays_per_stored_trajectory`` times the number stored) are drawn uniformly and replayed from their last sample to
-    their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'.
+    their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'. The episode in
+    progress is one of the stored trajectories (Alg. 8 line 2 draws e' from {1, ..., e}, the current episode e
+    included); its last sample bootstraps from the latest s'. At an episode's end it is empty, so this matters only for
+    replays triggered mid-episode (the walker's footsteps).
 
     Between replays the agent acts epsilon-greedily on the current Q, or learns online with Sarsa(lambda) if
     ``online_lambda`` is given (the thesis's LEO setup).
 
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
-    :param replay_trigger: "episode" replays every ``replay_every`` episodes; "segment" at every closed trajectory
-        (each footstep and each fall for the walker).
+    :param replay_trigger: "episode" replays every ``replay_every`` episodes; "segment" at every episode end and every
+        ``info["segment_end"]`` (each footstep and each fall for the walker: thesis 4.2.2, "after every step or fall").
+    :param replay_unit: what a stored trajectory is: "episode" (the thesis's Alg. 7-8) or "segment" (closed also at
+        each ``info["segment_end"]``: the walker's footstep-to-footstep stretches, our earlier reading).
     :param replay_every: episodes between replay phases for the "episode" trigger.
     :param n_replays: trajectories replayed per phase.
     :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead.
@@ -76,6 +83,7 @@ class ER(TileQAlgorithm):
         env: Union[GymEnv, str, None] = None,
         buffer_size: int = 1_000_000,
         replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
         replay_every: int = 1,
         n_replays: int = 100,
         replays_per_stored_trajectory: Optional[float] = None,
@@ -89,6 +97,7 @@ class ER(TileQAlgorithm):
     ):
         self.buffer_size = buffer_size
         self.replay_trigger = replay_trigger
+        self.replay_unit = replay_unit
         self.replay_order = replay_order
         self.target = target
         self.sigma = sigma
@@ -109,6 +118,7 @@ class ER(TileQAlgorithm):
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
         _check_choice("replay_trigger", self.replay_trigger, REPLAY_TRIGGERS)
+        _check_choice("replay_unit", self.replay_unit, REPLAY_UNITS)
         _check_choice("replay_order", self.replay_order, REPLAY_ORDERS)
         _check_choice("target", self.target, TARGETS)
         _check_choice("sigma", self.sigma, SIGMAS)
@@ -150,22 +160,24 @@ class ER(TileQAlgorithm):
 
     def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
         self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
-        if not (done or info.get("segment_end", False)):
+        segment_end = bool(info.get("segment_end", False))
+        if not (done or segment_end):
             return
-        self.replay_buffer.close_trajectory(next_obs, terminated)
+        if done or self.replay_unit == "segment":
+            self.replay_buffer.close_trajectory(next_obs, terminated)
         episode_trigger = done and (self._episode_num + 1) % self.replay_every == 0
         if self.replay_trigger == "segment" or episode_trigger:
             self.replay(self._replays_per_phase())
 
     def _replays_per_phase(self) -> int:
         if self.replays_per_stored_trajectory is not None:
-            return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_trajectories))
+            return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_stored_trajectories))
         return self.n_replays
 
     def replay(self, n_trajectories: int) -> dict[str, float]:
         """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean |delta|."""
         buffer = self.replay_buffer
-        if buffer.n_trajectories == 0 or n_trajectories <= 0:
+        if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}
         coder = self.policy.tile_coder
         updates, sum_abs_delta, last_delta, status = kernels.replay_phase(

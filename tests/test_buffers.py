@@ -108,3 +108,25 @@ def test_reversed_replay_backs_up_the_final_reward_in_one_pass():
     add_chain(buffer, [0, 1, 2, 3, 4], [0] * 5, [0, 0, 0, 0, 10], 5, terminated=True)
     assert replay_once(buffer, kernels.ORDER_REVERSED) == [10, 10, 10, 10, 10]
     assert replay_once(buffer, kernels.ORDER_FORWARD) == [0, 0, 0, 0, 10]
+
+
+def test_the_open_episode_is_replayed_and_bootstraps_from_its_latest_state():
+    """Alg. 8 line 2 draws e' from {1, ..., e}: the episode in progress is replayable, its last sample bootstrapping
+    from the latest s'. Chain 0 -> 1 -> 2 -> 3 (rewards 0, 0, 5), still open at s' = 3, where Q(3, 0) = 2."""
+    buffer = TrajectoryReplayBuffer(100, chain_coder())
+    for s, r in zip([0, 1, 2], [0.0, 0.0, 5.0]):
+        buffer.add(np.array([float(s)]), buffer.tile_coder.slots(np.array([float(s)])), 0, r, np.array([s + 1.0]))
+    assert buffer.n_trajectories == 0 and buffer.n_stored_trajectories == 1
+    coder = buffer.tile_coder
+    theta = np.zeros(coder.n_weights)
+    theta[coder.feature_indices(np.array([3.0]), 0)] = 2.0
+    kernels.replay_phase(
+        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
+        coder.columns_are_actions, 1, kernels.ORDER_REVERSED,
+        kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, False, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
+        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions), *kernels.ZERO_INITIAL,
+    )
+    # alpha 1, gamma 1, reversed: Q(2) = 5 + Q(3) = 7, then Q(1) = 0 + 7, Q(0) = 7 (not terminal: s' = 3 bootstraps)
+    assert [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(3)] == [7.0, 7.0, 7.0]
+    buffer.close_trajectory(np.array([3.0]), terminated=False)
+    assert buffer.n_stored_trajectories == 1  # the same episode, now closed

@@ -44,6 +44,7 @@ class TrajectoryReplayBuffer:
         self.trajectory_next_obs = np.zeros((self.capacity, n_dims), dtype=np.float64)
         self.trajectory_next_slots = np.zeros((self.capacity, n_tilings), dtype=np.int64)
         self.open_next_obs = np.zeros(n_dims, dtype=np.float64)
+        self.open_next_slots = np.zeros(n_tilings, dtype=np.int64)
         self.visits = np.zeros(tile_coder.n_weights, dtype=np.uint8)
         self.oldest_trajectory = 0
         self.write_row = 0
@@ -54,6 +55,11 @@ class TrajectoryReplayBuffer:
     @property
     def n_closed_transitions(self) -> int:
         return self.n_transitions - self.open_length
+
+    @property
+    def n_stored_trajectories(self) -> int:
+        """Closed trajectories, plus the open one when it holds transitions (replay draws from all of them)."""
+        return self.n_trajectories + (1 if self.open_length else 0)
 
     @property
     def open_trajectory(self) -> int:
@@ -107,7 +113,9 @@ class TrajectoryReplayBuffer:
         self.n_trajectories -= 1
 
     def replay_arguments(self) -> tuple:
-        """The buffer's arrays and counters in the order of ``kernels.replay_phase``."""
+        """The buffer's arrays and counters in the order of ``kernels.replay_phase``, the open trajectory included."""
+        if self.open_length:
+            self.open_next_slots[:] = self.tile_coder.slots(self.open_next_obs)
         return (
             self.slots,
             self.actions,
@@ -119,7 +127,11 @@ class TrajectoryReplayBuffer:
             self.trajectory_next_slots,
             self.oldest_trajectory,
             self.n_trajectories,
-            self.n_closed_transitions,
+            self._oldest_row(),
+            self.n_transitions,
+            self.open_trajectory,
+            self.open_length,
+            self.open_next_slots,
         )
 
     def trajectories(self) -> list[dict[str, Any]]:

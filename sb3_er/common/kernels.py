@@ -466,42 +466,54 @@ def ring_index(i, capacity):
 def replay_phase(
     theta, visits, slots, actions, rewards, transition_trajectory,
     trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
-    oldest_trajectory, n_closed_trajectories, n_closed_transitions,
+    oldest_trajectory, n_closed_trajectories, first_row, n_transitions, open_trajectory, open_length, open_next_slots,
     stride, action_columns, columns_are_actions, n_replays, order, target_kind, sigma_kind, residual_zeta,
     residual_next_action, step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
     initial_low, initial_span, initial_seed,
 ):
-    """Replay n_replays trajectories drawn uniformly from the closed ones (Alg. 8, 10, 12, 14 lines 1-3).
+    """Replay n_replays trajectories drawn uniformly from the stored ones (Alg. 8, 10, 12, 14 lines 1-3).
 
+    The stored trajectories are the closed ones and, when it holds transitions, the open one: the episode in progress,
+    as Alg. 8 line 2 draws e' "uniformly distributed over {1, ..., e}" with e the current episode. Its index is
+    ``open_trajectory``, its rows follow the closed rows in the ring, and its last transition bootstraps from
+    ``open_next_slots``, the tiles of its latest s_{t+1}. ``first_row`` is the oldest stored row and
+    ``n_transitions`` counts every stored transition, the open ones included.
     Reversed order replays each from its last sample to its first (t = k..1, the thesis default); forward replays in
-    temporal order; uniform replays as many transitions drawn uniformly from all closed transitions (Appendix A).
+    temporal order; uniform replays as many transitions drawn uniformly from all stored transitions (Appendix A).
     Trajectory picks use ``replay_rng`` and exploration ``action_rng``, so variants replay exactly the same trajectories.
     Returns (updates, sum of |delta|, last delta, status).
     """
     capacity = slots.shape[0]
     trajectory_capacity = trajectory_start.shape[0]
+    n_trajectories = n_closed_trajectories + (1 if open_length > 0 else 0)
+    open_start = ring_index(first_row + n_transitions - open_length, capacity)
     updates = 0
     sum_abs_delta = 0.0
     delta = 0.0
+    if n_trajectories == 0:
+        return updates, sum_abs_delta, delta, STATUS_OK
     for _ in range(n_replays):
-        j = ring_index(oldest_trajectory + random_integer(replay_rng, n_closed_trajectories), trajectory_capacity)
-        start = trajectory_start[j]
-        length = trajectory_length[j]
+        j = ring_index(oldest_trajectory + random_integer(replay_rng, n_trajectories), trajectory_capacity)
+        length = open_length if j == open_trajectory else trajectory_length[j]
         for step in range(length):
             if order == ORDER_UNIFORM:
-                first = trajectory_start[oldest_trajectory]
-                p = ring_index(first + random_integer(replay_rng, n_closed_transitions), capacity)
+                p = ring_index(first_row + random_integer(replay_rng, n_transitions), capacity)
                 jp = transition_trajectory[p]
-                t = ring_index(p - trajectory_start[jp] + capacity, capacity)
-                last = t == trajectory_length[jp] - 1
             else:
                 jp = j
+            if jp == open_trajectory:
+                start, jp_length, end_slots, end_terminal = open_start, open_length, open_next_slots, False
+            else:
+                start, jp_length = trajectory_start[jp], trajectory_length[jp]
+                end_slots, end_terminal = trajectory_next_slots[jp], trajectory_terminated[jp]
+            if order == ORDER_UNIFORM:
+                t = ring_index(p - start + capacity, capacity)
+            else:
                 t = length - 1 - step if order == ORDER_REVERSED else step
                 p = ring_index(start + t, capacity)
-                last = t == length - 1
-            if last:
-                next_slots = trajectory_next_slots[jp]
-                terminal = trajectory_terminated[jp]
+            if t == jp_length - 1:
+                next_slots = end_slots
+                terminal = end_terminal
             else:
                 next_slots = slots[ring_index(p + 1, capacity)]
                 terminal = False
