@@ -102,7 +102,7 @@ def test_summary_table_puts_the_thesis_numbers_beside_ours():
     er_sigma_falls = table[(table.algorithm == "ER-σ") & (table.metric == "Falls")].iloc[0]
     assert er_sigma_falls.difference_with_sarsa_lambda == "-50 %"
     assert er_sigma_falls.thesis_average == "44"
-    assert er_sigma_falls.thesis_difference == "-41 %"
+    assert er_sigma_falls.thesis_difference == "-41 %"  # computed from 44 and 74, as printed
     text = markdown_table(walker, table)
     assert "| ER-σ | Rise time [s] | 100 | -50 % | 500 | -67 % |" in text
     assert text.count("\n") == 1 + 3 * 2  # header, rule, three metrics for each of two algorithms
@@ -147,3 +147,15 @@ def test_rise_time_is_invariant_to_positive_affine_rescaling(curve, scale, shift
     threshold = curve[0] + 0.9 * (curve.max() - curve[0])
     if np.min(np.abs(curve - threshold)) > 1e-6 * (1 + np.abs(curve).max()):
         assert rescaled == original
+
+
+def test_thesis_differences_are_computed_from_the_thesis_averages():
+    from sb3_er.experiments.summary import thesis_difference
+
+    walker, leo = EXPERIMENTS["walker"], EXPERIMENTS["leo"]
+    # (150 - 74) / 74 = +103 %, printed +51 %; (140 - 74) / 74 = +89 %, printed +48 %
+    assert thesis_difference(walker, "er", "falls") == "+103 % (printed +51 %)"
+    assert thesis_difference(walker, "residual_er", "falls") == "+89 % (printed +48 %)"
+    assert thesis_difference(walker, "er_sigma", "falls") == "-41 %"  # (44 - 74) / 74 agrees with the print
+    assert thesis_difference(leo, "er", "falls") == ">+63 % (printed >+93 %)"  # (6170 - 3792) / 3792
+    assert thesis_difference(walker, "sarsa_lambda", "falls") == "-"
