@@ -37,7 +37,7 @@ def test_gridworld_reproduction_with_value_maps(tmp_path):
     result = reproduce("gridworld", n_seeds=2, algos=algos, out_dir=tmp_path, budget=15, n_workers=1,
                        show_progress=False)
     table, markdown = _assert_well_formed(result, algos, [0, 1], ["episode", "return", "length"], 15)
-    assert set(table["metric"]) == {"Rise time [episodes]", "End performance", "Falls"}
+    assert set(table["metric"]) == {"Rise time [episodes]", "Settling time [episodes]", "End performance", "Falls"}
     assert {path.name for path in result.figures} >= {"value_maps_after_goal.png", "value_maps_long_replay.png"}
     statistics = pd.read_csv(tmp_path / "value_maps.csv")
     # two situations x two cases x (Sarsa(lambda) + four replay variants), each variant replaying the same count

@@ -154,8 +154,10 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
         label = ALGORITHM_LABELS.get(algo, algo)
         rise = summary.rise_time
         rise_text = f">{_format_number(run_end)}" if math.isnan(rise) and summary.n_seeds else None
+        settling = summary.settling_time
         metrics = [
             ("rise_time", f"Rise time [{experiment.rise_time_unit}]", rise, None, rise_text),
+            ("settling_time", f"Settling time [{experiment.rise_time_unit}]", settling, None, None),
             ("end_performance", "End performance", summary.end_performance, summary.end_performance_ci, None),
         ]
         if experiment.has_falls:
