@@ -13,8 +13,8 @@ from gymnasium.wrappers import RecordEpisodeStatistics
 import sb3_er_envs  # noqa: F401
 from sb3_er import ER, SarsaLambda
 from sb3_er.cli import main
-from sb3_er.experiments.records import read_record
 from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
+from sb3_er.experiments.records import read_record
 from sb3_er.experiments.reproduce import reproduce
 from sb3_er.experiments.runner import plan_jobs, run_csv_path, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS
