@@ -21,7 +21,8 @@ SETTINGS = {"n_seeds": 2, "algos": ALGOS, "budget": 4, "show_progress": False}  
 def local_ray():
     """One local Ray instance with 2 CPUs for the module; the runs use it instead of starting their own."""
     os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-    ray.init(num_cpus=2, include_dashboard=False, runtime_env={"env_vars": RAY_ENV_VARS})
+    # address="local": a new instance even when another one runs on this machine (ray.init() would join that)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, runtime_env={"env_vars": RAY_ENV_VARS})
     yield
     ray.shutdown()
 
