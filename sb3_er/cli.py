@@ -32,26 +32,62 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
         f"(defaults: {budgets})",
     )
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: number of CPUs)")
+    parser.add_argument(
+        "--jobs", type=int, default=None,
+        help="worker processes, or the CPUs of the local Ray instance with --backend ray (default: number of CPUs)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--backend", choices=["local", "ray"], default="local",
+        help="local: worker processes on this machine (default); ray: one Ray task per run, on a local Ray instance "
+        "or the cluster at --address (needs pip install 'sb3-er[ray]')",
+    )
+    parser.add_argument(
+        "--address", default=None,
+        help="Ray cluster to run on: 'auto' (the cluster this machine belongs to) or HOST:PORT of its head node; "
+        "default: start a local Ray instance",
+    )
+    parser.add_argument(
+        "--allow-mixed-versions", action="store_true",
+        help="resume next to finished runs made by other code (version, git commit) or another configuration, or "
+        "without a version record (seed_<n>.json); without it such a resume is refused",
+    )
     return parser
 
 
 def reproduce_command(argv: Sequence[str]) -> None:
-    """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J]`."""
+    """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J] [--backend ray ...]`.
+
+    Bad option combinations, a missing import (ray) and version conflicts with finished runs exit with the message
+    (status 2).
+    """
+    from sb3_er.experiments.records import MixedVersionsError
     from sb3_er.experiments.reproduce import reproduce
 
-    args = _reproduce_parser().parse_args(argv)
-    result = reproduce(
-        args.experiment,
-        n_seeds=args.seeds,
-        algos=args.algos,
-        out_dir=args.out,
-        budget=args.budget,
-        n_workers=args.jobs,
-        first_seed=args.first_seed,
-        show_progress=not args.no_progress,
-    )
+    parser = _reproduce_parser()
+    args = parser.parse_args(argv)
+    if args.address is not None and args.backend != "ray":
+        parser.error("--address needs --backend ray")
+    if args.address is not None and args.jobs is not None:
+        parser.error("--jobs sets the CPUs of a local Ray instance; a cluster at --address uses its own CPUs")
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    try:
+        result = reproduce(
+            args.experiment,
+            n_seeds=args.seeds,
+            algos=args.algos,
+            out_dir=args.out,
+            budget=args.budget,
+            n_workers=args.jobs,
+            first_seed=args.first_seed,
+            show_progress=not args.no_progress,
+            backend=args.backend,
+            address=args.address,
+            allow_mixed_versions=args.allow_mixed_versions,
+        )
+    except (ImportError, MixedVersionsError) as error:  # a missing ray, or finished runs of other code
+        parser.exit(2, f"sb3-er reproduce: error: {error}\n")
     print(result.table_markdown.read_text())
     print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
     print(f"table:   {result.table_markdown}  and  {result.table_csv}")

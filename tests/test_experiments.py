@@ -1,5 +1,9 @@
 """Short reproductions of each thesis experiment (tiny budgets, 2 seeds), resumption, protocols and the CLI."""
 
+import json
+import re
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pandas as pd
@@ -10,10 +14,16 @@ import sb3_er_envs  # noqa: F401
 from sb3_er import ER, SarsaLambda
 from sb3_er.cli import main
 from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
+from sb3_er.experiments.records import read_record
 from sb3_er.experiments.reproduce import reproduce
-from sb3_er.experiments.runner import run_csv_path
+from sb3_er.experiments.runner import plan_jobs, run_csv_path, run_jobs
+from sb3_er.experiments.specs import EXPERIMENTS
 
 PNG_SIGNATURE = b"\x89PNG"
+
+
+def result_budget(result):
+    return json.loads((result.out_dir / "settings.json").read_text())["budget"]
 
 
 def _assert_well_formed(result, algos, seeds, columns, n_records):
@@ -23,6 +33,8 @@ def _assert_well_formed(result, algos, seeds, columns, n_records):
             assert set(columns) <= set(frame.columns)
             assert len(frame) == n_records
             assert frame["cumulative_falls"].is_monotonic_increasing
+            record = read_record(run_csv_path(result.out_dir, algo, seed))  # written by the driver beside the CSV
+            assert (record["run"], record["config"]["budget"]) == (f"{algo}/seed_{seed}", result_budget(result))
     table = pd.read_csv(result.table_csv)
     assert set(table["seeds"]) == {len(seeds)}
     markdown = result.table_markdown.read_text()
@@ -137,6 +149,23 @@ def test_bad_requests_are_refused_with_a_clear_message(tmp_path):
         GreedyDistanceProtocol([], dt=0.2, eval_interval=100.0, learning_time=200.0)
     with pytest.raises(ValueError, match="n_episodes"):
         EpisodeReturnProtocol(0)
+    with pytest.raises(ValueError, match="unknown backend 'dask'; choose one of local, ray"):
+        reproduce("walker", backend="dask", out_dir=tmp_path)
+    with pytest.raises(ValueError, match="address .* is for the Ray backend only"):
+        reproduce("walker", address="auto", out_dir=tmp_path)
+
+
+def test_missing_ray_names_the_extra(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # as if ray were not installed
+    jobs, _ = plan_jobs(EXPERIMENTS["gridworld"], ["er"], [0], 2, tmp_path)
+    with pytest.raises(ImportError, match=re.escape("pip install 'sb3-er[ray]'")):
+        run_jobs(jobs, backend="ray", show_progress=False)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "gridworld", "--backend", "ray", "--seeds", "1", "--algos", "er", "--budget", "2",
+              "--out", str(tmp_path), "--no-progress"])
+    assert exit_info.value.code == 2
+    assert "pip install 'sb3-er[ray]'" in capsys.readouterr().err
+    assert not run_csv_path(tmp_path, "er", 0).exists()
 
 
 def test_cli_usage_and_errors(capsys):
@@ -150,3 +179,15 @@ def test_cli_usage_and_errors(capsys):
         main(["reproduce", "walkr"])
     assert exit_info.value.code == 2
     assert "invalid choice: 'walkr'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "--help"])
+    help_text = capsys.readouterr().out
+    assert all(option in help_text for option in ("--backend", "--address", "--allow-mixed-versions"))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "walker", "--address", "auto"])
+    assert exit_info.value.code == 2
+    assert "--address needs --backend ray" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "walker", "--backend", "ray", "--address", "auto", "--jobs", "4"])
+    assert exit_info.value.code == 2
+    assert "a cluster at --address uses its own CPUs" in capsys.readouterr().err

@@ -9,7 +9,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sb3_er.experiments.runner import plan_jobs, run_jobs
+from sb3_er.experiments import records
+from sb3_er.experiments.runner import BACKENDS, RunJob, plan_jobs, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
 from sb3_er.experiments.summary import load_curves, markdown_table, summary_table
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
@@ -59,6 +60,35 @@ def _pin_settings(out_dir: Path, experiment: Experiment, budget: float) -> None:
         settings_path.write_text(json.dumps(settings, indent=2))
 
 
+def _check_finished_runs(finished: list[RunJob], out_dir: Path, allow_mixed_versions: bool) -> None:
+    """Refuse to resume next to finished runs of other code or configuration (see sb3_er.experiments.records)."""
+    if not finished:
+        return
+    code = records.code_version()
+    records.check_versions(
+        {job.key: records.read_record(job.csv_path) for job in finished},
+        {job.key: records.current_record(job, code) for job in finished},
+        allow_mixed_versions,
+        f"{out_dir} holds finished runs that",
+    )
+
+
+def _code_versions_line(out_dir: Path, algos: Sequence[str], seeds: Sequence[int]) -> str:
+    """Which code made the runs, e.g. "Code: sb3-er 0.1.0, commit 91bd149ab1 (40 runs)"."""
+    from sb3_er.experiments.runner import run_csv_path
+
+    counts: dict[str, int] = {}
+    for algo in algos:
+        for seed in seeds:
+            csv_path = run_csv_path(out_dir, algo, seed)
+            if csv_path.is_file():
+                description = records.describe_code(records.read_record(csv_path))
+                counts[description] = counts.get(description, 0) + 1
+    versions = "; ".join(f"{description} ({count} runs)" for description, count in counts.items())
+    mixed = " **Mixed versions: the runs were made by different code.**" if len(counts) > 1 else ""
+    return f"Code: {versions}.{mixed}"
+
+
 def reproduce(
     experiment_name: str,
     n_seeds: int = 20,
@@ -68,8 +98,18 @@ def reproduce(
     n_workers: int | None = None,
     first_seed: int = 0,
     show_progress: bool = True,
+    backend: str = "local",
+    address: str | None = None,
+    allow_mixed_versions: bool = False,
 ) -> Reproduction:
-    """Run (or resume) an experiment and write its per-run CSVs, summary table (markdown and CSV) and figures."""
+    """Run (or resume) an experiment and write its per-run CSVs and records, summary table (markdown, CSV), figures.
+
+    `backend` ``"local"`` runs on `n_workers` processes (default: all CPUs); ``"ray"`` runs every (algorithm, seed)
+    pair as a Ray task with one CPU, on a local Ray instance of `n_workers` CPUs, or on the cluster at `address`
+    (``"auto"`` or ``"HOST:PORT"``). Resuming next to finished runs whose version record differs from the current code
+    or configuration, or that have no record, raises MixedVersionsError naming the runs and fields, unless
+    `allow_mixed_versions`. Failed runs raise RunFailure after the others are written.
+    """
     from sb3_er.experiments.plots import plot_mean_with_ci
 
     start = time.perf_counter()
@@ -80,12 +120,20 @@ def reproduce(
     budget = float(experiment.default_budget if budget is None else budget)
     if budget <= 0:
         raise ValueError(f"the run length must be positive ({experiment.budget_unit}), got {budget}")
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    if address is not None and backend != "ray":
+        raise ValueError(f"an address ({address!r}) is for the Ray backend only; add --backend ray")
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
     _pin_settings(out_dir, experiment, budget)
     seeds = list(range(first_seed, first_seed + n_seeds))
 
     to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir)
-    run_jobs(to_run, n_workers or os.cpu_count() or 1, show_progress)
+    _check_finished_runs(finished, out_dir, allow_mixed_versions)
+    if backend == "local":
+        n_workers = n_workers or os.cpu_count() or 1
+    run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
+             allow_mixed_versions=allow_mixed_versions)
 
     curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
     table = summary_table(experiment, curves, budget)
@@ -122,6 +170,8 @@ def reproduce(
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
+        "",
+        _code_versions_line(out_dir, algos, seeds),
     ]
     if experiment.name == "gridworld":
         value_figures, value_section = _gridworld_value_maps(out_dir, first_seed)
