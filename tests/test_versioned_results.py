@@ -25,9 +25,11 @@ RUN_LEVEL_KEYS = {"n_timesteps", "policy"}  # keys of zoo_configs/er.yml that ar
 needs_git = pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")
 
 
-def _fake_commit(monkeypatch, commit, dirty=False, diff=None):
+def _fake_commit(monkeypatch, commit, dirty=False, diff=None, code="from the commit"):
+    """Pretend the code is at `commit`; its code hash is the commit's letter repeated, or `code` (None: unknown)."""
     state = {"git_commit": commit, "git_dirty": dirty, "git_diff_sha256": diff}
     monkeypatch.setattr(records, "git_state", lambda root=records.PACKAGE_ROOT: dict(state))
+    monkeypatch.setattr(records, "code_hash", lambda: commit[0] * 64 if code == "from the commit" else code)
 
 
 def _git(cwd, *arguments):
@@ -111,7 +113,7 @@ def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_p
     _fake_commit(monkeypatch, "a" * 40)
     reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
     _fake_commit(monkeypatch, "b" * 40)  # same configuration, other code
-    with pytest.raises(MixedVersionsError, match="er/seed_0: git_commit aaaaaaaaaa -> bbbbbbbbbb"):
+    with pytest.raises(MixedVersionsError, match="er/seed_0: code_sha256 aaaaaaaaaa -> bbbbbbbbbb"):
         reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
 
     arguments = ["reproduce", "pendulum", "--seeds", "2", "--algos", "er", "--budget", "1", "--jobs", "1",
@@ -119,7 +121,7 @@ def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_p
     with pytest.raises(SystemExit) as exit_info:
         main(arguments)
     assert exit_info.value.code == 2
-    assert "git_commit aaaaaaaaaa -> bbbbbbbbbb" in capsys.readouterr().err
+    assert "code_sha256 aaaaaaaaaa -> bbbbbbbbbb" in capsys.readouterr().err
 
     with pytest.warns(MixedVersionsWarning, match="kept because mixed versions are allowed"):
         main([*arguments, "--allow-mixed-versions"])
@@ -131,14 +133,24 @@ def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_p
     assert "Mixed versions" in summary
 
 
-def test_same_commit_warns_only_when_the_uncommitted_changes_differ(tmp_path, monkeypatch):
-    _fake_commit(monkeypatch, "a" * 40, dirty=True, diff="1" * 64)
+def test_a_commit_that_leaves_the_code_alone_mixes_freely(tmp_path, monkeypatch):
+    _fake_commit(monkeypatch, "a" * 40, code="c" * 64)
+    reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    _fake_commit(monkeypatch, "b" * 40, code="c" * 64)  # e.g. a commit of the README during a long reproduction
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MixedVersionsWarning)
+        resumed = reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
+    assert (resumed.runs_done, resumed.runs_skipped) == (1, 1)
+
+
+def test_without_a_code_hash_the_same_commit_warns_only_when_the_uncommitted_changes_differ(tmp_path, monkeypatch):
+    _fake_commit(monkeypatch, "a" * 40, dirty=True, diff="1" * 64, code=None)
     reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
     with warnings.catch_warnings():
         warnings.simplefilter("error", MixedVersionsWarning)
         resumed = reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)  # the same changes: silent
     assert (resumed.runs_done, resumed.runs_skipped) == (0, 1)
-    _fake_commit(monkeypatch, "a" * 40, dirty=True, diff="2" * 64)
+    _fake_commit(monkeypatch, "a" * 40, dirty=True, diff="2" * 64, code=None)
     with pytest.warns(MixedVersionsWarning, match="er/seed_0: same commit, different uncommitted changes"):
         resumed = reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
     assert (resumed.runs_done, resumed.runs_skipped) == (1, 1)
@@ -156,18 +168,16 @@ def test_runs_without_a_record_are_an_unknown_version(tmp_path):
 
 def test_a_run_made_by_other_code_than_the_drivers_is_not_written(tmp_path, monkeypatch):
     # the driver reads the commit before it starts a run, the run when it starts: a node with other code
-    commits = iter(["a" * 40, "b" * 40] * 2)
-    monkeypatch.setattr(records, "git_state", lambda root=None: {
-        "git_commit": next(commits), "git_dirty": False, "git_diff_sha256": None
-    })
+    codes = iter(["a" * 64, "b" * 64] * 2)
+    monkeypatch.setattr(records, "code_hash", lambda: next(codes))
     jobs, _ = plan_jobs(EXPERIMENTS["pendulum"], ["er"], [0], 1, tmp_path)
-    expected = r"er/seed_0:\nran on .* other code .*\(worker -> driver\): git_commit bbbbbbbbbb -> aaaaaaaaaa"
+    expected = r"er/seed_0:\nran on .* other code .*\(worker -> driver\): code_sha256 bbbbbbbbbb -> aaaaaaaaaa"
     with pytest.raises(RunFailure, match=expected):
         run_jobs(jobs, 1, show_progress=False)
     assert not run_csv_path(tmp_path, "er", 0).exists()
-    with pytest.warns(MixedVersionsWarning, match="er/seed_0 ran with .*git_commit bbbbbbbbbb -> aaaaaaaaaa"):
+    with pytest.warns(MixedVersionsWarning, match="er/seed_0 ran with .*code_sha256 bbbbbbbbbb -> aaaaaaaaaa"):
         run_jobs(jobs, 1, show_progress=False, allow_mixed_versions=True)
-    assert records.read_record(run_csv_path(tmp_path, "er", 0))["git_commit"] == "b" * 40
+    assert records.read_record(run_csv_path(tmp_path, "er", 0))["code_sha256"] == "b" * 64
 
 
 def test_compare_records_names_each_differing_field():

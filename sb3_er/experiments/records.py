@@ -4,6 +4,8 @@ Every finished run of ``sb3-er reproduce`` has a record ``runs/<algo>/seed_<n>.j
 made where the run ran (a worker process or a Ray worker on another machine) and holds:
 
 - ``sb3_er_version``: ``sb3_er.__version__``;
+- ``code_sha256``: a hash of the code itself, every source file of the packages ``sb3_er`` and ``sb3_er_envs`` as
+  imported (see :func:`code_hash`; works for a checkout and an installed wheel alike);
 - ``git_commit``, ``git_dirty`` and ``git_diff_sha256``: the commit of the checkout the package was imported from,
   whether the work tree differed from that commit, and a hash of the differences (see :func:`git_state`; all three
   None when the package is not a git checkout, e.g. an installed wheel, or git is missing);
@@ -18,9 +20,10 @@ made where the run ran (a worker process or a Ray worker on another machine) and
   ``wall_time_s`` (seconds from the run's start to its end).
 
 :func:`compare_records` decides what a resume may mix. A missing record, a different ``sb3_er_version``,
-``git_commit`` or any ``config`` field refuses (an unknown or different commit may be different code, even with the
-same configuration). The same commit with a dirty tree whose diff differs (or is unknown), and different
-``dependencies`` or Python versions, warn. ``resolved``, ``host``, times and wall time are never compared: the resolved
+``code_sha256`` or any ``config`` field refuses. Runs of different commits with identical code (a commit that touched
+only the README, say) mix freely, so a long reproduction survives commits that leave the code alone. Records without
+``code_sha256`` fall back to the commit: a different or unknown commit refuses, the same commit with different
+uncommitted changes warns. Different ``dependencies`` or Python versions warn. ``resolved``, ``host``, times and wall time are never compared: the resolved
 values follow from the config and the code, which are compared already.
 """
 
@@ -88,11 +91,29 @@ def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
     }
 
 
+CODE_SUFFIXES = (".py", ".xml", ".yml", ".yaml")
+
+
+def code_hash() -> str:
+    """SHA-256 of the source of the imported packages ``sb3_er`` and ``sb3_er_envs``: every file with a suffix in
+    CODE_SUFFIXES under their directories (caches excluded), by relative path and content, in sorted order."""
+    import sb3_er
+    import sb3_er_envs
+
+    digest = hashlib.sha256()
+    for package in (sb3_er, sb3_er_envs):
+        root = Path(package.__file__).resolve().parent
+        for path in sorted(p for p in root.rglob("*") if p.suffix in CODE_SUFFIXES and "__pycache__" not in p.parts):
+            digest.update(f"\0{package.__name__}/{path.relative_to(root).as_posix()}\0".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def code_version() -> dict[str, Any]:
-    """``sb3_er_version`` plus :func:`git_state` of the imported package's checkout."""
+    """``sb3_er_version``, :func:`code_hash` and :func:`git_state` of the imported package's checkout."""
     import sb3_er
 
-    return {"sb3_er_version": sb3_er.__version__, **git_state()}
+    return {"sb3_er_version": sb3_er.__version__, "code_sha256": code_hash(), **git_state()}
 
 
 def _jsonable(value: Any) -> Any:
@@ -286,16 +307,19 @@ def compare_records(recorded: dict[str, Any] | None, current: dict[str, Any]) ->
     if recorded is None:
         return ["no version record (a run made before records existed, or its .json was deleted): unknown version"], []
     refusals = _differences(recorded.get("sb3_er_version"), current.get("sb3_er_version"), "sb3_er_version")
-    refusals += _differences(recorded.get("git_commit"), current.get("git_commit"), "git_commit")
-    refusals += _differences(recorded.get("config"), current.get("config"), "config")
     warnings = []
-    same_commit = recorded.get("git_commit") == current.get("git_commit") and current.get("git_commit") is not None
-    either_dirty = recorded.get("git_dirty") or current.get("git_dirty")
-    if same_commit and either_dirty and recorded.get("git_diff_sha256") != current.get("git_diff_sha256"):
-        warnings.append(
-            "same commit, different uncommitted changes (git_diff_sha256 "
-            f"{_short(recorded.get('git_diff_sha256'))} -> {_short(current.get('git_diff_sha256'))})"
-        )
+    if recorded.get("code_sha256") is not None and current.get("code_sha256") is not None:
+        refusals += _differences(recorded.get("code_sha256"), current.get("code_sha256"), "code_sha256")
+    else:  # an older record: the commit is all we know of the code
+        refusals += _differences(recorded.get("git_commit"), current.get("git_commit"), "git_commit")
+        same_commit = recorded.get("git_commit") == current.get("git_commit") and current.get("git_commit") is not None
+        either_dirty = recorded.get("git_dirty") or current.get("git_dirty")
+        if same_commit and either_dirty and recorded.get("git_diff_sha256") != current.get("git_diff_sha256"):
+            warnings.append(
+                "same commit, different uncommitted changes (git_diff_sha256 "
+                f"{_short(recorded.get('git_diff_sha256'))} -> {_short(current.get('git_diff_sha256'))})"
+            )
+    refusals += _differences(recorded.get("config"), current.get("config"), "config")
     warnings += _differences(recorded.get("dependencies"), current.get("dependencies"), "dependencies")
     warnings += _differences(recorded.get("python"), current.get("python"), "python")
     return refusals, warnings
