@@ -12,6 +12,16 @@ from sb3_er.experiments.thesis import ALGORITHM_LABELS
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
 
 
+def _name_value(text: str) -> tuple[str, object]:
+    """``NAME:VALUE`` with VALUE read as YAML (``3`` -> 3, ``angles`` -> "angles", ``[1, 2]`` -> [1, 2])."""
+    import yaml
+
+    name, separator, value = text.partition(":")
+    if not separator or not name.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected NAME:VALUE, got {text!r}")
+    return name, yaml.safe_load(value)
+
+
 def _reproduce_parser() -> argparse.ArgumentParser:
     budgets = ", ".join(f"{name} {spec.default_budget:g} {spec.budget_unit}" for name, spec in EXPERIMENTS.items())
     parser = argparse.ArgumentParser(
@@ -46,6 +56,16 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         "--address", default=None,
         help="Ray cluster to run on: 'auto' (the cluster this machine belongs to) or HOST:PORT of its head node; "
         "default: start a local Ray instance",
+    )
+    parser.add_argument(
+        "--env-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
+        help="a reading of the env other than its defaults, as gymnasium.make keyword arguments, e.g. "
+        "--env-kwargs n_actions:3 fall:angles (values read as YAML: 3 is a number, angles a string)",
+    )
+    parser.add_argument(
+        "--algo-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
+        help="constructor arguments overriding zoo_configs/<algo>.yml for every chosen algorithm that has them, e.g. "
+        "--algo-kwargs replay_unit:segment",
     )
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
@@ -85,6 +105,8 @@ def reproduce_command(argv: Sequence[str]) -> None:
             backend=args.backend,
             address=args.address,
             allow_mixed_versions=args.allow_mixed_versions,
+            env_kwargs=dict(args.env_kwargs),
+            algo_kwargs=dict(args.algo_kwargs),
         )
     except (ImportError, MixedVersionsError) as error:  # a missing ray, or finished runs of other code
         parser.exit(2, f"sb3-er reproduce: error: {error}\n")

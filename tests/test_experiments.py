@@ -40,7 +40,7 @@ def _assert_well_formed(result, algos, seeds, columns, n_records):
     markdown = result.table_markdown.read_text()
     assert markdown.count("| Rise time") == len(algos)
     for figure in result.figures:
-        assert figure.read_bytes()[:4] == PNG_SIGNATURE
+        assert figure.read_bytes()[:4] == (b"GIF8" if figure.suffix == ".gif" else PNG_SIGNATURE)
     return table, markdown
 
 
@@ -78,6 +78,12 @@ def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
         first, algos, [0, 1], ["learning_time_s", "distance", "episodes"], 3  # evaluations at 0, 100 and 200 s
     )
     assert "11.7" in markdown  # Table 6.2's Sarsa(lambda) end performance
+    names = {path.name for path in first.figures}
+    assert {"typical_runs.png", "gait_sarsa_lambda.png", "gait_er_sigma.png", "walker_er_sigma.gif"} <= names
+    gait = pd.read_csv(tmp_path / "runs" / "er_sigma" / "seed_0_gait.csv")  # the first seed's greedy gait, 10 s
+    assert list(gait.columns) == ["time", "stance_angle", "hip_angle", "swing_foot_height", "fell"]
+    assert gait["stance_angle"].iloc[0] == pytest.approx(0.1534) and len(gait) <= 51  # from Garcia's fixed point
+    assert not (tmp_path / "runs" / "er_sigma" / "seed_1_gait.csv").exists()
     frame = pd.read_csv(run_csv_path(tmp_path, "er_sigma", 1))
     assert list(frame["learning_time_s"]) == [0.0, 100.0, 200.0]
     finished = {path: path.stat().st_mtime_ns for path in (tmp_path / "runs").rglob("*.csv")}
@@ -191,3 +197,23 @@ def test_cli_usage_and_errors(capsys):
         main(["reproduce", "walker", "--backend", "ray", "--address", "auto", "--jobs", "4"])
     assert exit_info.value.code == 2
     assert "a cluster at --address uses its own CPUs" in capsys.readouterr().err
+
+
+def test_a_reading_other_than_the_defaults_runs_and_is_recorded(tmp_path):
+    from sb3_er.experiments import records
+
+    main(["reproduce", "walker", "--seeds", "1", "--algos", "sarsa_lambda", "er", "--budget", "100", "--jobs", "1",
+          "--no-progress", "--out", str(tmp_path), "--env-kwargs", "n_actions:3", "fall:angles",
+          "--algo-kwargs", "replay_unit:segment"])
+    er = records.read_record(run_csv_path(tmp_path, "er", 0))
+    sarsa = records.read_record(run_csv_path(tmp_path, "sarsa_lambda", 0))
+    assert er["config"]["env_kwargs"] == {"n_actions": 3, "fall": "angles"}
+    assert er["config"]["algorithm_kwargs"]["replay_unit"] == "segment"
+    assert "replay_unit" not in sarsa["config"]["algorithm_kwargs"]  # Sarsa(lambda) has no such parameter
+    assert er["resolved"]["env"]["n_actions"] == 3
+    assert "n_actions=3, fall='angles', replay_unit='segment'" in (tmp_path / "summary.md").read_text()
+    with pytest.raises(ValueError, match="no chosen algorithm has the parameters \\['replay_units'\\]"):
+        reproduce("walker", n_seeds=1, algos=["er"], out_dir=tmp_path / "other", budget=100, n_workers=1,
+                  show_progress=False, algo_kwargs={"replay_units": "segment"})
+    with pytest.raises(SystemExit):
+        main(["reproduce", "walker", "--env-kwargs", "n_actions=3"])

@@ -1,5 +1,5 @@
-"""Figures like the thesis's: mean learning curves with 95% CI bands (Figure 6.1), cumulative falls (Figure 6.2) and
-grid-world value maps (Figures 5.2-5.5, Tables 5.1-5.2)."""
+"""Figures like the thesis's: mean learning curves with 95% CI bands (Figure 6.1), cumulative falls (Figure 6.2),
+typical single runs (Figure 4.5) and grid-world value maps (Figures 5.2-5.5, Tables 5.1-5.2)."""
 
 from __future__ import annotations
 
@@ -26,6 +26,25 @@ def plot_mean_with_ci(
         (line,) = axes.plot(x, mean, label=f"{ALGORITHM_LABELS.get(algo, algo)} (n={curves.shape[0]})")
         if np.isfinite(half_width).any():
             axes.fill_between(x, mean - half_width, mean + half_width, color=line.get_color(), alpha=0.2, linewidth=0)
+    axes.set_xlabel(x_label)
+    axes.set_ylabel(y_label)
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize="small")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def plot_typical_runs(
+    runs: Mapping[str, tuple[np.ndarray, np.ndarray]], x_label: str, y_label: str, title: str, path: Path
+) -> Path:
+    """Figure 4.5: one run's learning curve per algorithm (label -> (x, y)), to show how single runs behave (drops in
+    performance, runs that find no gait) where the mean curves smooth it away; saved to `path`."""
+    figure, axes = plt.subplots(figsize=(7.0, 4.2))
+    for label, (x, y) in runs.items():
+        axes.plot(x, y, label=label, linewidth=1.2)
     axes.set_xlabel(x_label)
     axes.set_ylabel(y_label)
     axes.set_title(title)

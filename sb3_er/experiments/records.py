@@ -145,7 +145,8 @@ def run_config(job) -> dict[str, Any]:
     Raises ValueError for an algorithm that has no class (the zoo lookup names the known ones) and KeyError when
     ``zoo_configs/<algo>.yml`` has no entry for the experiment's env.
     """
-    from sb3_er.zoo import algorithm_classes, model_kwargs
+    from sb3_er.experiments.runner import job_model_kwargs
+    from sb3_er.zoo import algorithm_classes
 
     experiment = job.experiment
     classes = algorithm_classes()
@@ -158,9 +159,9 @@ def run_config(job) -> dict[str, Any]:
             "experiment": experiment.name,
             "algorithm": job.algo,
             "algorithm_class": f"{algorithm_class.__module__}.{algorithm_class.__qualname__}",
-            "algorithm_kwargs": {"policy": "TileQ", "seed": job.seed, **model_kwargs(job.algo, experiment.env_id)},
+            "algorithm_kwargs": {"policy": "TileQ", "seed": job.seed, **job_model_kwargs(job)},
             "env_id": experiment.env_id,
-            "env_kwargs": {},
+            "env_kwargs": dict(getattr(job, "env_kwargs", ())),
             "budget": float(job.budget),
             "budget_unit": experiment.budget_unit,
             "protocol": {

@@ -44,10 +44,13 @@ def _checked_algorithms(algos: Sequence[str]) -> list[str]:
     return list(dict.fromkeys(algos))
 
 
-def _pin_settings(out_dir: Path, experiment: Experiment, budget: float) -> None:
-    """Record the experiment and run length of `out_dir`; refuse to mix runs of different settings in one folder."""
+def _pin_settings(out_dir: Path, experiment: Experiment, budget: float, env_kwargs: dict, algo_kwargs: dict) -> None:
+    """Record the experiment, run length and reading of `out_dir`; refuse to mix runs of different settings in one
+    folder."""
     settings_path = out_dir / "settings.json"
     settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget}
+    if env_kwargs or algo_kwargs:
+        settings.update(env_kwargs=records.normalized(env_kwargs), algo_kwargs=records.normalized(algo_kwargs))
     if settings_path.is_file():
         existing = json.loads(settings_path.read_text())
         if existing != settings:
@@ -101,6 +104,8 @@ def reproduce(
     backend: str = "local",
     address: str | None = None,
     allow_mixed_versions: bool = False,
+    env_kwargs: dict | None = None,
+    algo_kwargs: dict | None = None,
 ) -> Reproduction:
     """Run (or resume) an experiment and write its per-run CSVs and records, summary table (markdown, CSV), figures.
 
@@ -109,6 +114,10 @@ def reproduce(
     (``"auto"`` or ``"HOST:PORT"``). Resuming next to finished runs whose version record differs from the current code
     or configuration, or that have no record, raises MixedVersionsError naming the runs and fields, unless
     `allow_mixed_versions`. Failed runs raise RunFailure after the others are written.
+
+    `env_kwargs` and `algo_kwargs` run a reading other than the defaults: keyword arguments of ``gymnasium.make`` for
+    the learning and evaluation envs, and constructor arguments that override the zoo config of every algorithm that
+    has them (a name that no chosen algorithm accepts is a ValueError). The table's heading names them.
     """
     from sb3_er.experiments.plots import plot_mean_with_ci
 
@@ -124,11 +133,13 @@ def reproduce(
         raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     if address is not None and backend != "ray":
         raise ValueError(f"an address ({address!r}) is for the Ray backend only; add --backend ray")
+    env_kwargs, algo_kwargs = dict(env_kwargs or {}), dict(algo_kwargs or {})
+    _check_algo_kwargs(algos, algo_kwargs)
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    _pin_settings(out_dir, experiment, budget)
+    _pin_settings(out_dir, experiment, budget, env_kwargs, algo_kwargs)
     seeds = list(range(first_seed, first_seed + n_seeds))
 
-    to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir)
+    to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir, env_kwargs, algo_kwargs)
     _check_finished_runs(finished, out_dir, allow_mixed_versions)
     if backend == "local":
         n_workers = n_workers or os.cpu_count() or 1
@@ -160,8 +171,10 @@ def reproduce(
                 out_dir / "cumulative_falls.png",
             )
         )
+    figures += _per_run_figures(experiment, out_dir, curves, first_seed)
+    reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
     sections = [
-        f"# {experiment.title}: {n_seeds} seeds, {budget:g} {experiment.budget_unit} per run",
+        f"# {experiment.title}: {n_seeds} seeds, {budget:g} {experiment.budget_unit} per run{reading}",
         "",
         markdown_table(experiment, table),
         "",
@@ -188,6 +201,54 @@ def reproduce(
         runs_skipped=len(finished),
         wall_time_s=time.perf_counter() - start,
     )
+
+
+def _check_algo_kwargs(algos: Sequence[str], algo_kwargs: dict) -> None:
+    from sb3_er.experiments.runner import accepted_parameters
+    from sb3_er.zoo import algorithm_classes
+
+    accepted = set().union(*(accepted_parameters(algorithm_classes()[algo]) for algo in algos))
+    unknown = sorted(set(algo_kwargs) - accepted)
+    if unknown:
+        raise ValueError(f"no chosen algorithm has the parameters {unknown}; they take {sorted(accepted)}")
+
+
+def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: int) -> list[Path]:
+    """Figure 4.5 (one seed's learning curve per algorithm, for the walking experiments) and, for the walker, each
+    algorithm's learned gait (Figures 4.6 / 6.3, ``gait_<algo>.png``) and animation (``walker_<algo>.gif``) from the
+    first seed's final greedy policy."""
+    import shutil
+
+    import pandas as pd
+
+    from sb3_er.experiments.gait import GaitTrace, plot_gait
+    from sb3_er.experiments.plots import plot_typical_runs
+    from sb3_er.experiments.runner import artifact_path, run_csv_path
+
+    figures = []
+    if experiment.protocol == "walking":
+        runs = {}
+        for algo, curve in curves.items():
+            if curve is not None and seed in curve.seeds:
+                frame = pd.read_csv(run_csv_path(out_dir, algo, seed))
+                runs[ALGORITHM_LABELS[algo]] = (frame[experiment.x_column].to_numpy(),
+                                                frame[experiment.performance_column].to_numpy())
+        if runs:
+            figures.append(plot_typical_runs(runs, experiment.x_label, experiment.performance_label,
+                                             f"{experiment.title}: typical runs (seed {seed})",
+                                             out_dir / "typical_runs.png"))
+    for algo in curves:
+        csv_path = run_csv_path(out_dir, algo, seed)
+        gait_csv, gif = artifact_path(csv_path, "gait.csv"), artifact_path(csv_path, "walker.gif")
+        if gait_csv.is_file():
+            table = pd.read_csv(gait_csv)
+            trace = GaitTrace(table["time"].to_numpy(), table["stance_angle"].to_numpy(), table["hip_angle"].to_numpy(),
+                              table["swing_foot_height"].to_numpy(), bool(table["fell"].iloc[-1]), 0.0)
+            figures.append(plot_gait({ALGORITHM_LABELS[algo]: trace}, out_dir / f"gait_{algo}.png",
+                                     f"{experiment.title}: greedy gait after learning, {ALGORITHM_LABELS[algo]}"))
+        if gif.is_file():
+            figures.append(Path(shutil.copyfile(gif, out_dir / f"walker_{algo}.gif")))
+    return figures
 
 
 def _gridworld_value_maps(out_dir: Path, seed: int) -> tuple[list[Path], str]:

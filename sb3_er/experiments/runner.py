@@ -22,7 +22,7 @@ import time
 import traceback
 import warnings
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +43,10 @@ RAY_MISSING = "the Ray backend needs the ray package: pip install 'sb3-er[ray]'"
 class RunJob:
     """One learning run: an algorithm on an experiment with one seed, for `budget` episodes or seconds.
 
-    `csv_path` is where the driver writes the run's CSV; the run itself never touches it.
+    `csv_path` is where the driver writes the run's CSV; the run itself never touches it. `env_kwargs` and
+    `algo_kwargs` (sorted ``(name, value)`` pairs) are a reading to run instead of the defaults: keyword arguments of
+    ``gymnasium.make`` and overrides of the zoo config's constructor arguments (see :func:`job_model_kwargs`).
+    `figure_run` asks the run for the data of its per-run figures (the walker's gait and animation).
     """
 
     experiment: Experiment
@@ -51,21 +54,49 @@ class RunJob:
     seed: int
     budget: float
     csv_path: Path
+    env_kwargs: tuple = ()
+    algo_kwargs: tuple = ()
+    figure_run: bool = False
 
     @property
     def key(self) -> str:
         return f"{self.algo}/seed_{self.seed}"
 
 
+def accepted_parameters(algorithm_class: type) -> set[str]:
+    """Constructor parameter names of `algorithm_class` and its sb3_er base classes (which receive ``**kwargs``)."""
+    import inspect
+
+    names: set[str] = set()
+    for cls in algorithm_class.__mro__:
+        if cls.__module__.startswith("sb3_er") and "__init__" in vars(cls):
+            names.update(name for name, parameter in inspect.signature(cls.__init__).parameters.items()
+                         if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY))
+    return names
+
+
+def job_model_kwargs(job: RunJob) -> dict[str, Any]:
+    """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
+    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
+    from sb3_er.zoo import algorithm_classes, model_kwargs
+
+    kwargs = model_kwargs(job.algo, job.experiment.env_id)
+    accepted = accepted_parameters(algorithm_classes()[job.algo])
+    kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted})
+    return kwargs
+
+
 @dataclass
 class RunResult:
     """What one run returns: the protocol's records (one row per measurement, plus ``diverged``), its version record
-    (see :mod:`sb3_er.experiments.records`) and its wall time in seconds."""
+    (see :mod:`sb3_er.experiments.records`), its wall time in seconds, and the files of its per-run figures as bytes
+    (``artifacts``: a suffix such as ``"gait.csv"`` to content; written beside the CSV as ``seed_<n>_<suffix>``)."""
 
     key: str
     frame: pd.DataFrame
     record: dict[str, Any]
     wall_time_s: float
+    artifacts: dict[str, bytes] = field(default_factory=dict)
 
 
 def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
@@ -78,8 +109,9 @@ def _limit_threads_of_children() -> None:
         os.environ.setdefault(variable, value)
 
 
-def build_protocol(experiment: Experiment, env, budget: float, seed: int, progress=None):
-    """The experiment's protocol callback and the number of timesteps to give `learn` (the callback stops earlier)."""
+def build_protocol(experiment: Experiment, env, budget: float, seed: int, progress=None, env_kwargs=None):
+    """The experiment's protocol callback and the number of timesteps to give `learn` (the callback stops earlier).
+    The walking protocols evaluate on envs made with the learning env's `env_kwargs`."""
     import gymnasium as gym
 
     from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
@@ -87,7 +119,7 @@ def build_protocol(experiment: Experiment, env, budget: float, seed: int, progre
     if experiment.protocol == "episodes":
         callback = EpisodeReturnProtocol(int(budget), progress=progress)
         return callback, int(budget) * int(env.unwrapped.max_episode_steps)
-    eval_envs = [gym.make(experiment.env_id) for _ in range(experiment.eval_runs)]
+    eval_envs = [gym.make(experiment.env_id, **(env_kwargs or {})) for _ in range(experiment.eval_runs)]
     callback = GreedyDistanceProtocol(
         eval_envs,
         dt=env.unwrapped.dt,
@@ -113,7 +145,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
 
     import sb3_er_envs  # noqa: F401  (registers the environment ids)
     from sb3_er import DivergenceError
-    from sb3_er.zoo import algorithm_classes, model_kwargs
+    from sb3_er.zoo import algorithm_classes
 
     torch.set_num_threads(1)
     start = time.perf_counter()
@@ -126,9 +158,10 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
             last_reported[0] = fraction
             progress_queue.put((job.key, fraction))
 
-    env = gym.make(experiment.env_id)
-    model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **model_kwargs(job.algo, experiment.env_id))
-    callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report)
+    env_kwargs = dict(job.env_kwargs)
+    env = gym.make(experiment.env_id, **env_kwargs)
+    model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **job_model_kwargs(job))
+    callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report, env_kwargs)
     try:
         model.learn(total_timesteps=total_timesteps, callback=callback)
         diverged = False
@@ -138,16 +171,51 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
         used_env.close()
     frame = pd.DataFrame(callback.records, columns=list(callback.COLUMNS))
     frame["diverged"] = diverged
+    artifacts = figure_artifacts(job, model) if job.figure_run and not diverged else {}
     wall_time_s = time.perf_counter() - start
     record = records.finished_record(job, model, env, wall_time_s, code)
     if progress_queue is not None:
         progress_queue.put((job.key, 1.0))
-    return RunResult(job.key, frame, record, wall_time_s)
+    return RunResult(job.key, frame, record, wall_time_s, artifacts)
+
+
+GAIT_SECONDS = 10.0
+
+
+def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
+    """The data of a run's own figures, made where the run ran: for the simplest walker, the final greedy policy's
+    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` and an animation as ``walker.gif``."""
+    if not job.experiment.env_id.endswith("SimplestWalker-v0"):
+        return {}
+    import io
+    import tempfile
+
+    import gymnasium as gym
+
+    from sb3_er.experiments.gait import gait_trace, save_walker_gif
+
+    env = gym.make(job.experiment.env_id, render_mode="rgb_array", **dict(job.env_kwargs))
+    trace = gait_trace(model, env, seconds=GAIT_SECONDS)
+    table = pd.DataFrame({"time": trace.time, "stance_angle": trace.stance_angle, "hip_angle": trace.hip_angle,
+                          "swing_foot_height": trace.swing_foot_height, "fell": trace.fell})
+    buffer = io.StringIO()
+    table.to_csv(buffer, index=False)
+    with tempfile.TemporaryDirectory() as folder:
+        gif = save_walker_gif(model, Path(folder) / "walker.gif", seconds=GAIT_SECONDS, env=env).read_bytes()
+    env.close()
+    return {"gait.csv": buffer.getvalue().encode(), "walker.gif": gif}
+
+
+def artifact_path(csv_path: Path, suffix: str) -> Path:
+    """Where a run's figure data `suffix` (e.g. ``"gait.csv"``) lives: ``seed_<n>_<suffix>`` beside its CSV."""
+    return csv_path.with_name(f"{csv_path.stem}_{suffix}")
 
 
 def write_run(job: RunJob, result: RunResult) -> None:
     """Write `result` to ``job.csv_path`` and its version record beside it, each atomically, the CSV last."""
     job.csv_path.parent.mkdir(parents=True, exist_ok=True)
+    for suffix, content in result.artifacts.items():
+        artifact_path(job.csv_path, suffix).write_bytes(content)
     records.write_json_atomically(records.record_path(job.csv_path), result.record)
     partial = job.csv_path.with_suffix(".csv.partial")
     result.frame.to_csv(partial, index=False)
@@ -161,9 +229,15 @@ def run_single(job: RunJob, progress_queue=None) -> float:
     return result.wall_time_s
 
 
-def plan_jobs(experiment: Experiment, algos, seeds, budget: float, out_dir: Path) -> tuple[list[RunJob], list[RunJob]]:
-    """All jobs of the reproduction, split into (to run, already finished)."""
-    jobs = [RunJob(experiment, algo, seed, budget, run_csv_path(out_dir, algo, seed)) for algo in algos for seed in seeds]
+def plan_jobs(experiment: Experiment, algos, seeds, budget: float, out_dir: Path, env_kwargs=None,
+              algo_kwargs=None) -> tuple[list[RunJob], list[RunJob]]:
+    """All jobs of the reproduction, split into (to run, already finished). The first seed's runs make the per-run
+    figures' data."""
+    env_items = tuple(sorted((env_kwargs or {}).items()))
+    algo_items = tuple(sorted((algo_kwargs or {}).items()))
+    seeds = list(seeds)
+    jobs = [RunJob(experiment, algo, seed, budget, run_csv_path(out_dir, algo, seed), env_items, algo_items,
+                   figure_run=seed == seeds[0]) for algo in algos for seed in seeds]
     finished = [job for job in jobs if job.csv_path.is_file()]
     return [job for job in jobs if not job.csv_path.is_file()], finished
 
