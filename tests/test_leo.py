@@ -445,6 +445,30 @@ def test_step_control_is_dm_control_physics_step_bit_for_bit():
     assert mujoco.get_mjcb_time() is None  # the quiet clock is only in place during the step
 
 
+def test_reset_for_leaves_the_data_of_dm_controls_reset_context():
+    """LeoEnv's reset (Physics.reset_for, two mj_forward calls fewer) leaves exactly the data and task state that
+    ``with physics.reset_context(): task.initialize_episode(physics)`` leaves, also after an episode has run."""
+    twins = [leo_domain.load_physics() for _ in range(2)]
+    tasks = [leo_domain.LeoWalk(random=7, start_noise=0.08) for _ in range(2)]
+    for episode in range(3):
+        with twins[0].reset_context():
+            tasks[0].initialize_episode(twins[0])
+        twins[1].reset_for(tasks[1])
+        a, b = (physics.data.ptr for physics in twins)
+        for field in ("qpos", "qvel", "qacc", "qacc_warmstart", "qfrc_actuator", "actuator_force", "efc_force",
+                      "xanchor", "geom_xpos", "ctrl", "time", "qM", "cinert"):
+            field = "M" if field == "qM" and not hasattr(a, "qM") else field
+            assert np.array_equal(getattr(a, field), getattr(b, field)), (episode, field)
+        assert a.ncon == b.ncon and np.array_equal(a.contact.dist, b.contact.dist)
+        assert tasks[0].stance_values() == tasks[1].stance_values()
+        assert tasks[0].stance_contact == tasks[1].stance_contact
+        for physics, task in zip(twins, tasks):
+            for _ in range(20):
+                task.apply_voltages(2.0, -3.0, 1.0, physics)
+                physics.step_control(leo_domain.PHYSICS_SUBSTEPS)
+                task.after_step(physics)
+
+
 def test_step_control_keeps_mujoco_timers_on_request_and_leaves_a_user_clock_alone():
     physics = leo_domain.load_physics()
     with physics.reset_context():

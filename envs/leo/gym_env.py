@@ -112,8 +112,7 @@ class LeoEnv(gym.Env):
         super().reset(seed=seed)
         if seed is not None:
             self.task.random.seed(int(self.np_random.integers(2**32)))
-        with self.physics.reset_context():
-            self.task.initialize_episode(self.physics)
+        self.physics.reset_for(self.task)
         self._steps = 0
         return self._observation(), self.task.info(self.physics)
 

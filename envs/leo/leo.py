@@ -168,6 +168,7 @@ class Physics(mujoco.Physics):
         paired = set(model.pair_geom1.tolist()) | set(model.pair_geom2.tolist())
         filtered = set(np.flatnonzero(model.geom_contype | model.geom_conaffinity).tolist())
         self._contact_geoms = np.array(sorted(g for g in paired | filtered if model.geom_rbound[g] > 0.0))
+        self._contact_radius = model.geom_size[self._contact_geoms, 0]
         self._left_heel = model.name2id("heel_left", "geom")
         self.hip_joint = model.name2id("hip_left", "joint")
         self._torso_body = model.name2id("torso", "body")
@@ -194,16 +195,33 @@ class Physics(mujoco.Physics):
         unknown = set(angles) - set(self.qpos_index)
         if unknown:
             raise ValueError(f"unknown LEO joints {sorted(unknown)}; known: {sorted(self.qpos_index)}")
-        self.data.qpos[:] = 0.0
-        self.data.qvel[:] = 0.0
+        model, data = self._raw
+        qpos = self._qpos
+        qpos[:] = 0.0
+        self._qvel[:] = 0.0
         for name, value in angles.items():
-            self.data.qpos[self.qpos_index[name]] = value
+            qpos[self.qpos_index[name]] = value
+        mujoco_engine.mj_kinematics(model, data)  # geom positions only; the forward below recomputes everything
+        geom_xpos = data.geom_xpos
+        lowest = float(np.min(geom_xpos[self._contact_geoms, 2] - self._contact_radius))
+        qpos[self.qpos_index["root_z"]] -= lowest
+        qpos[self.qpos_index["root_x"]] -= float(geom_xpos[self._left_heel, 0])
         self.forward()
-        radius = self.model.geom_size[self._contact_geoms, 0]
-        lowest = float(np.min(self.data.geom_xpos[self._contact_geoms, 2] - radius))
-        self.data.qpos[self.qpos_index["root_z"]] -= lowest
-        self.data.qpos[self.qpos_index["root_x"]] -= float(self.data.geom_xpos[self._left_heel, 0])
-        self.forward()
+
+    def reset_for(self, task) -> None:
+        """``with physics.reset_context(): task.initialize_episode(physics)``, leaving bit for bit the same data,
+        with two of its four ``mj_forward`` calls dropped: dm_control's ``reset`` forwards the default pose, which
+        ``set_pose`` then overwrites entirely (``mj_forward`` does not touch the warm start that ``mj_resetData``
+        zeroed). The closing forward runs without actuation, as dm_control's ``after_reset``."""
+        model, data = self._raw
+        mujoco_engine.mj_resetData(model, data)
+        task.initialize_episode(self)
+        flags = model.opt.disableflags
+        model.opt.disableflags = flags | mujoco_engine.mjtDisableBit.mjDSBL_ACTUATION
+        try:
+            self.forward()
+        finally:
+            model.opt.disableflags = flags
 
     def set_voltages(self, voltages) -> None:
         """Set the 7 motor voltages (order: shoulder, hip left, hip right, knee left, knee right, ankle left, ankle
@@ -340,7 +358,8 @@ class LeoWalk(base.Task):
         self.stance = LEFT
         self._voltages = [0.0] * len(_MOTOR_JOINTS)
         physics.set_voltages(self._voltages)
-        self._angles = [physics.joint_angle(name) for name in _STATE_JOINTS]
+        qpos = physics._qpos.tolist()
+        self._angles = [qpos[index] for index in physics._state_qpos]
         self._raw_rates = [0.0] * len(_STATE_JOINTS)
         self._rates = [0.0] * len(_STATE_JOINTS)
         self._previous_rates = list(self._rates)
