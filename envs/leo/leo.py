@@ -163,8 +163,6 @@ class Physics(mujoco.Physics):
         self._motor_ctrl = slice(first, first + len(_MOTOR_JOINTS)) if contiguous else self._motor_actuators
         self._foot_side = {model.name2id(f"{part}_{side}", "geom"): index
                            for index, side in enumerate(_SIDES) for part in ("heel", "toe")}
-        self._foot_geoms = [frozenset(g for g, side in self._foot_side.items() if side == index)
-                            for index in range(len(_SIDES))]
         paired = set(model.pair_geom1.tolist()) | set(model.pair_geom2.tolist())
         filtered = set(np.flatnonzero(model.geom_contype | model.geom_conaffinity).tolist())
         self._contact_geoms = np.array(sorted(g for g in paired | filtered if model.geom_rbound[g] > 0.0))
