@@ -249,7 +249,7 @@ def test_render_draws_the_rod_towards_the_angle():
 
 
 def test_thesis_attributes(env):
-    np.testing.assert_array_equal(env.tile_widths, [0.33, 0.33])
+    np.testing.assert_array_equal(env.tile_widths, [0.33, 3.3])  # the printed 0.33 rad and our reading of the rate
     assert env.wrap_periods == (2 * math.pi, None) and env.dt == 0.01
     assert env.gravity_torque == pytest.approx(GRAVITY_TORQUE)
 
