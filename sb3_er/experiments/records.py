@@ -30,6 +30,7 @@ values follow from the config and the code, which are compared already.
 from __future__ import annotations
 
 import datetime
+import functools
 import hashlib
 import importlib.metadata
 import inspect
@@ -94,9 +95,15 @@ def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
 CODE_SUFFIXES = (".py", ".xml", ".yml", ".yaml")
 
 
+@functools.lru_cache(maxsize=1)
 def code_hash() -> str:
     """SHA-256 of the source of the imported packages ``sb3_er`` and ``sb3_er_envs``: every file with a suffix in
-    CODE_SUFFIXES under their directories (caches excluded), by relative path and content, in sorted order."""
+    CODE_SUFFIXES under their directories (caches excluded), by relative path and content, in sorted order.
+
+    Read once per process, the first time it is asked for (``execute_run`` and the driver ask before any run): the
+    code a process runs is the code it imported, not what is on disk later. Editing the checkout during a long
+    reproduction therefore neither changes the records of the runs already under way nor refuses them.
+    """
     import sb3_er
     import sb3_er_envs
 
@@ -395,3 +402,6 @@ def check_versions(
             MixedVersionsWarning,
             stacklevel=4,
         )
+
+
+code_hash()  # the code this process imported, read now (see code_hash)
