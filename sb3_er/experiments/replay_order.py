@@ -212,7 +212,7 @@ def ranking(means: dict[str, float]) -> str:
 
 def replay_order_table(frames: dict[int, pd.DataFrame]) -> pd.DataFrame:
     """Per checkpoint: per order the mean greedy return over seeds with its 95% CI (diverged replays left out and
-    counted), the mean actual replayed updates, the paired differences between the orders (same database per seed)
+    counted), how many greedy episodes reached the goal, the mean actual replayed updates, the paired differences between the orders (same database per seed)
     with their 95% CI, our ranking and the thesis's finding. `frames` maps seeds to run frames."""
     data = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
     rows = []
@@ -226,6 +226,7 @@ def replay_order_table(frames: dict[int, pd.DataFrame]) -> pd.DataFrame:
             mean, half = mean_confidence_interval(values["return"].to_numpy()) if n else (math.nan, math.nan)
             means[order] = float(mean)
             row.update({f"{order}_mean": float(mean), f"{order}_ci95": float(half), f"{order}_n": n,
+                        f"{order}_goals": int(values["goal_reached"].astype(bool).sum()),
                         f"{order}_diverged": int(at[at["order"] == order]["diverged"].astype(bool).sum()),
                         f"{order}_updates": float(values["replayed_updates"].mean()) if n else math.nan})
         wide = at.pivot_table(index="seed", columns="order", values="return")
@@ -252,6 +253,7 @@ def _markdown(table: pd.DataFrame) -> str:
         cells = [f"{row['checkpoint']:,}"]
         for order in ORDERS:
             text = _format(row[f"{order}_mean"], row[f"{order}_ci95"])
+            text += f" (goal {row[f'{order}_goals']}/{row[f'{order}_n']})"
             if row[f"{order}_diverged"]:
                 text += f" ({row[f'{order}_diverged']} diverged)"
             cells.append(text)
@@ -344,8 +346,8 @@ def reproduce_replay_order(
         "α 0.2, γ 0.98, ε 0.1, 16 tilings), replayed by fresh ER models in each order from zero weights (ε-greedy "
         f"a' with ε 0.1), one trajectory at a time. Evaluation every {eval_every:,} replayed updates (each checkpoint "
         "passed by less than one trajectory; mean actual counts in summary.csv): the return of one greedy episode "
-        "from the start (hanging at rest), at most the env's time limit. Mean ± 95 % CI over seeds; differences "
-        "are paired by database.",
+        "from the start (hanging at rest), at most the env's time limit. Mean ± 95 % CI over seeds (in brackets: "
+        "greedy episodes that reached the goal); differences are paired by database.",
         "",
         _markdown(table),
         "",

@@ -98,6 +98,8 @@ def verdict(table: pd.DataFrame) -> str:
     scored = table[np.isfinite(table["score"])]
     if scored.empty:
         return "No run finished without diverging: nothing to compare."
+    if len(scored) < 2:
+        return f"Ours: only {scored['definition'].iloc[0]} has scored runs; nothing to compare."
     order = scored.sort_values("score", ascending=False)["definition"].tolist()
     best = scored.loc[scored["score"].idxmax()]
     text = f"Ours, best first: {' > '.join(order)}. "
@@ -192,7 +194,7 @@ def reproduce_sigma(
     scores = {labels[definition]: np.array([score for frame in runs.values() if math.isfinite(score := run_score(frame))])
               for definition, runs in frames.items()}
     figures = [plot_scores(scores, "score: mean distance [m per 100 s]",
-                           f"Simplest walker, ER-σ per σ definition (Figure B.1): {n_seeds} runs each, "
+                           f"Simplest walker, ER-σ per σ definition (Figure B.1)\n{n_seeds} runs each of "
                            f"{budget:g} s, mean and 95% CI", out_dir / "sigma_scores.png")]
     curves = {}
     for definition, runs in frames.items():
