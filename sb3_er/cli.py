@@ -70,7 +70,7 @@ def _reproduce_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--algo-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
         help="constructor arguments overriding zoo_configs/<algo>.yml for every chosen algorithm that has them, e.g. "
-        "--algo-kwargs replay_unit:segment",
+        "--algo-kwargs replay_unit:segment (for the analyses: sigma only, on top of its sigma definitions)",
     )
     analyses = parser.add_argument_group("analyses")
     analyses.add_argument("--database-episodes", type=int, default=None,

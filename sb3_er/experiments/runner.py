@@ -10,6 +10,10 @@ Backends: ``"local"`` runs the jobs in this process (one worker) or in spawned w
 thread each, so that N workers use N cores; ``"ray"`` runs each job as a Ray task with one CPU, on a local Ray instance
 that the driver starts (and stops) or on an existing cluster (``address="auto"`` or ``"HOST:PORT"``). Ray's usage
 statistics are switched off for the driver, the instance it starts and the workers.
+
+The thesis's analyses (:data:`~sb3_er.experiments.specs.ANALYSES`) use the same machinery: the sigma study's runs are
+walker runs told apart by their ``label``, and the runs of an :class:`~sb3_er.experiments.specs.Analysis` are done by
+the function its ``task`` names in :data:`TASKS` instead of a protocol callback.
 """
 
 from __future__ import annotations
