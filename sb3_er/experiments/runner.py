@@ -10,6 +10,10 @@ Backends: ``"local"`` runs the jobs in this process (one worker) or in spawned w
 thread each, so that N workers use N cores; ``"ray"`` runs each job as a Ray task with one CPU, on a local Ray instance
 that the driver starts (and stops) or on an existing cluster (``address="auto"`` or ``"HOST:PORT"``). Ray's usage
 statistics are switched off for the driver, the instance it starts and the workers.
+
+The thesis's analyses (:data:`~sb3_er.experiments.specs.ANALYSES`) use the same machinery: the sigma study's runs are
+walker runs told apart by their ``label``, and the runs of an :class:`~sb3_er.experiments.specs.Analysis` are done by
+the function its ``task`` names in :data:`TASKS` instead of a protocol callback.
 """
 
 from __future__ import annotations
@@ -47,6 +51,8 @@ class RunJob:
     `algo_kwargs` (sorted ``(name, value)`` pairs) are a reading to run instead of the defaults: keyword arguments of
     ``gymnasium.make`` and overrides of the zoo config's constructor arguments (see :func:`job_model_kwargs`).
     `figure_run` asks the run for the data of its per-run figures (the walker's gait and animation).
+    `label` names the run in place of `algo` (its key ``<label>/seed_<seed>``), so that several runs of one algorithm
+    with different `algo_kwargs` (the sigma study's definitions) are told apart by the driver and in their records.
     """
 
     experiment: Experiment
@@ -57,10 +63,11 @@ class RunJob:
     env_kwargs: tuple = ()
     algo_kwargs: tuple = ()
     figure_run: bool = False
+    label: str = ""
 
     @property
     def key(self) -> str:
-        return f"{self.algo}/seed_{self.seed}"
+        return f"{self.label or self.algo}/seed_{self.seed}"
 
 
 def accepted_parameters(algorithm_class: type) -> set[str]:
@@ -97,6 +104,37 @@ class RunResult:
     record: dict[str, Any]
     wall_time_s: float
     artifacts: dict[str, bytes] = field(default_factory=dict)
+
+
+TASKS = {
+    "replay_order": "sb3_er.experiments.replay_order:replay_order_run",
+    "pessimistic": "sb3_er.experiments.pessimistic:pessimistic_run",
+}
+"""Runs that are no learning run under a protocol (see :class:`~sb3_er.experiments.specs.Analysis`): the task name
+of the job's experiment to ``module:function``. The function takes ``(job, env, report)`` (the env made from the
+experiment's env id and the job's env kwargs; ``report(fraction)`` feeds the progress bar) and returns a
+:class:`TaskOutput`."""
+
+
+@dataclass
+class TaskOutput:
+    """What a task returns to :func:`execute_run`: its records (one row per measurement, with a ``diverged``
+    column), the model whose settings its version record holds (e.g. the model that collected the data), and the data
+    of its per-run figures (as ``RunResult.artifacts``)."""
+
+    frame: pd.DataFrame
+    model: Any
+    artifacts: dict[str, bytes] = field(default_factory=dict)
+
+
+def task_function(task: str):
+    """The function of a task name in TASKS; ValueError naming the known tasks for another name."""
+    import importlib
+
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
+    module, _, name = TASKS[task].partition(":")
+    return getattr(importlib.import_module(module), name)
 
 
 def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
@@ -160,6 +198,15 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
 
     env_kwargs = dict(job.env_kwargs)
     env = gym.make(experiment.env_id, **env_kwargs)
+    task = getattr(experiment, "task", "")
+    if task:  # an analysis (specs.Analysis): the task does the run's work
+        output = task_function(task)(job, env, report)
+        env.close()
+        wall_time_s = time.perf_counter() - start
+        record = records.finished_record(job, output.model, env, wall_time_s, code)
+        if progress_queue is not None:
+            progress_queue.put((job.key, 1.0))
+        return RunResult(job.key, output.frame, record, wall_time_s, output.artifacts)
     model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **job_model_kwargs(job))
     callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report, env_kwargs)
     try:
