@@ -3,8 +3,6 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-export MUJOCO_GL ?= osmesa
-export PYOPENGL_PLATFORM ?= osmesa
 
 .PHONY: test demo install clean
 

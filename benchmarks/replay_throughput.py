@@ -52,7 +52,7 @@ def recorded_buffer(env: gym.Env, coder: TileCoder, n_transitions: int) -> Traje
     for _ in range(n_transitions - 1):
         action = env.action_space.sample()
         next_obs, reward, terminated, truncated, info = env.step(action)
-        buffer.add(obs, coder.slots(obs), int(flat_index[tuple(np.atleast_1d(action))]), reward)
+        buffer.add(obs, coder.slots(obs), int(flat_index[tuple(np.atleast_1d(action))]), reward, next_obs)
         if terminated or truncated or info.get("segment_end", False):
             buffer.close_trajectory(next_obs, terminated)
         obs = env.reset()[0] if terminated or truncated else next_obs
@@ -69,7 +69,7 @@ def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays) -> float:
             theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
             coder.columns_are_actions, n,
             kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, False, ALPHA / coder.n_tilings, GAMMA, EPSILON,
-            kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch,
+            kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch, *kernels.ZERO_INITIAL,
         )
 
     phase(1)

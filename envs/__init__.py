@@ -5,6 +5,8 @@ The entry points are strings, so registering imports no environment module (and 
 * ``sb3_er/WindyCliff-v0``: windy cliff grid world (thesis 5.1), :class:`sb3_er_envs.windy_cliff.WindyCliffEnv`
 * ``sb3_er/PendulumSwingup-v0``: pendulum swing-up (thesis 4.2.1), :class:`sb3_er_envs.pendulum.PendulumSwingupEnv`
 * ``sb3_er/SimplestWalker-v0``: simplest walker (thesis 4.2.2), :class:`sb3_er_envs.simplest_walker.SimplestWalkerEnv`
+* ``sb3_er/CompassWalker-v0``: the same walker in GRL's walk task (a peer's setup, for cross-checks),
+  :class:`sb3_er_envs.compass_walker.CompassWalkerEnv`
 * ``sb3_er/Leo-v0``: the LEO biped in MuJoCo (thesis 4.2.3, needs the ``dmc`` extra), :class:`sb3_er_envs.leo.LeoEnv`
 
 Every environment ends its own episodes at its time limit and reports it as ``truncated``, so none is registered with
@@ -29,6 +31,7 @@ ENV_IDS = {
     "sb3_er/WindyCliff-v0": "sb3_er_envs.windy_cliff:WindyCliffEnv",
     "sb3_er/PendulumSwingup-v0": "sb3_er_envs.pendulum:PendulumSwingupEnv",
     "sb3_er/SimplestWalker-v0": "sb3_er_envs.simplest_walker:SimplestWalkerEnv",
+    "sb3_er/CompassWalker-v0": "sb3_er_envs.compass_walker:CompassWalkerEnv",
     "sb3_er/Leo-v0": "sb3_er_envs.leo:LeoEnv",
 }
 

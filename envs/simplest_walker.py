@@ -23,23 +23,74 @@ impact map of thesis Eq. 4.4 is applied there,
     phi_st+ = -phi_st-,  phi_h+ = -2 phi_st-,  phi_st'+ = c phi_st'-,  phi_h'+ = c (1 - c) phi_st'-,  c = cos(2 phi_st-)
 
 and the integration continues to the end of the control step. The footstep is ``2 sin(-phi_st-)`` long. ``phi_h`` is
-reported wrapped into ``[-pi, pi)`` (the dynamics are 2 pi periodic in it). The observation is the state; its bounds are
-``|phi_st| <= pi/2`` (a fall ends the episode there), ``|phi_h| <= pi``, ``|phi_st'| <= 5`` and ``|phi_h'| <= 50``,
-generous for the rates (random hip actions peak near 1.4 and 15), which are clipped to them should they ever get there.
-``tile_widths`` are those of Table 4.2 in observation order, without wrapping (``phi_h`` stays far from +-pi while
-walking).
+kept wrapped into ``[-pi, pi)`` (the dynamics are 2 pi periodic in it).
+
+Which reading is the default, and why: the thesis ran Schuitema's (2012) code, which the Delft lab's later framework
+GRL (github wcaarls/grl) keeps: the thesis takes its gamma, epsilon and lambda from Schuitema and says he used a
+learning rate of 0.4, which is exactly GRL's walker configuration. Where the thesis describes a mechanism in words (the
+footstep reward, what a fall is, the coordinates, the start distribution) we take the mechanism of that code; where it
+states a number of its own (15 actions, -50 for a fall, alpha 0.2, the tile widths of Table 4.2) we take the number.
+Every reading is an option, the thesis's words included.
+
+Observation (``observation=``):
+
+* ``"grl"`` (default): the coordinates of GRL's walk task (``compass_walker.cpp``, ``observe``): ``[phi_st,
+  phi_h - 2 phi_st, phi_st', phi_h' - 2 phi_st']``. The second is the swing leg's angle from the stance leg's mirror
+  image, 0 at every heel strike. Bounds ``pi/2, 2 pi, 5, 60``. Table 4.2's widths are GRL's rounded (GRL: 0.0838,
+  0.1047, 0.1111, 0.2222 for exactly these coordinates, ``cfg/compass_walker/sarsa_walk.yaml``), which is how we
+  know the thesis tiled these coordinates although its text names the hip joint's angle.
+* ``"thesis"``: the state of Eq. 4.2 as the text names it, with bounds ``|phi_st| <= pi/2``, ``|phi_h| <= pi``,
+  ``|phi_st'| <= 5`` and ``|phi_h'| <= 50``, generous for the rates (random hip actions peak near 1.4 and 15), which
+  are clipped to them should they ever get there.
+
+``tile_widths`` default to Table 4.2's (0.10, 0.10, 0.11, 0.21) in either case; pass GRL's (``GRL_TILE_WIDTHS``) or
+others through ``tile_widths=``.
+
+Neither wraps a dimension (``wrap_periods = None``): ``phi_h`` stays far from +-pi while walking, and GRL's tile coder
+wraps nothing for this task.
 
 Actions: ``Discrete(15)``, hip accelerations ``u`` from 15 evenly spaced levels in ``[-1.2, 1.2]`` (index 7 is 0).
 
-Reward per control step: -1, plus 50 per unit of step length for each footstep in the step. A fall, the hip touching
-the slope (``|phi_st| = pi/2``, located inside the step like a heel strike), ends the episode (``terminated``) with the
-reward -50 in place of all others. The episode is ``truncated`` after ``episode_seconds`` (100, i.e. 500 steps).
+Reward (``reward=``), with ``time_reward`` (-1), ``step_reward`` (50), ``step_reward_cap`` and ``fall_reward`` (-50):
+
+* ``"schuitema"`` (default): ``time_reward`` per control step; in a control step with a heel strike,
+  ``min(step_reward * 4 sin(phi_st), step_reward_cap)`` (cap 30 by default) takes the place of ``time_reward``, where
+  ``phi_st`` is the new stance leg's angle at the END of the control step: the integration goes on after the impact,
+  so it is a little smaller than the post-impact angle (at the fixed point the footstep pays about 24 to 30). This is
+  the reading of GRL's walk task (``compass_walker.cpp``, ``evaluate``: the reward is computed from the state the
+  model hands over after the whole control step). ``4 sin(phi_st)`` is twice the step length ``2 sin(phi_st)`` that
+  the angle implies; GRL's comment says the footstep reward takes the last step to be as long as this one instead of
+  tracking the hip, which would not be Markov.
+* ``"literal"``: the thesis's sentence word for word: ``time_reward`` per control step plus ``step_reward`` per unit
+  of step length of each footstep, uncapped unless ``step_reward_cap`` is given.
+
+Under both, a fall ends the episode (``terminated``) with ``fall_reward`` in place of all other rewards of that step.
+
+Why Schuitema's reward is our reading of "a reward of 50 for every meter footstep length": the thesis takes its walker
+settings from Schuitema (2012), and GRL, which keeps that code lineage, pays ``50 * 4 sin(phi_st)`` capped at 30.
+Under the literal reading no policy has a reason to walk: a dive (one long step, then a fall) returns about -5 to -15,
+while walking passively for 100 s returns about -118 (-500 for the steps, +382 for 7.64 units of footsteps), and
+measured learners never walked (``walker_readings.md`` in the project's shared notes). Under Schuitema's reward a
+passive footstep every ~19 control steps earns 24-30 against 18 steps of -1, so walking pays and learners walk.
+
+Fall (``fall=``):
+
+* ``"angles"`` (default, GRL's walk task, ``compass_walker.cpp``, ``observe`` and ``evaluate``): ``|phi_st| > pi/8``
+  or ``|phi_h - 2 phi_st| > pi/4``, checked on the state at the end of each control step: the walker is doomed. A hip
+  touching the slope inside the step, where the simulation stops, also counts (it implies the first condition). The
+  code has no other fall test, so this is what the thesis's "the hip mass touches the ground" describes.
+* ``"hip"`` (the thesis's words taken literally): the hip touches the slope, ``|phi_st| = pi/2``, located inside the
+  control step like a heel strike.
+
+The episode is ``truncated`` after ``episode_seconds`` (100, i.e. 500 steps).
 
 ``info``: ``footstep`` (a heel strike happened in this step), ``segment_end`` (the same flag: experience replay closes a
 trajectory segment there), ``step_length`` (length of this step's footsteps, 0 without one), ``distance`` (sum of all
-step lengths so far: how far the stance foot has moved down the slope), ``fell``, and at footsteps only
-``heel_strike_time`` (time of the first heel strike from the start of the control step). The state right after the
-last heel strike is kept in ``env.post_impact_state``.
+step lengths so far: how far the stance foot has moved down the slope), ``fell``, ``swing_foot_height`` (the swing
+foot's height above the slope at the end of the step, ``cos(phi_st) - cos(phi_st - phi_h)`` for unit legs; negative
+while it scuffs through the slope around mid-stance) and at footsteps only ``heel_strike_time`` (time of the first
+heel strike from the start of the control step). The state ``[phi_st, phi_h, phi_st', phi_h']`` is ``env.state``
+whatever the observation; the state right after the last heel strike is kept in ``env.post_impact_state``.
 
 Readings of the thesis's gaps and typos:
 
@@ -48,12 +99,15 @@ Readings of the thesis's gaps and typos:
   ``phi_st < 0`` alone does not suffice once the hip is actuated.
 * Eq. 4.5 prints ``phi_h' = +0.0073`` at the fixed point; Eq. 4.4 gives ``phi_h'+ = (1 - cos(2 phi_st+)) phi_st'+ =
   -0.0073`` there, which is the value Garcia's gait has and the one we use.
-* The start distribution is not given ("random variations ... so that the walker always has enough energy to start
-  walking"). Ours varies the post-impact state of Eq. 4.5 on the impact manifold: ``phi_st ~ U(0.1534 (1 - v),
-  0.1534 (1 + v))`` with ``v = initial_state_variation`` (0.1), ``phi_h = 2 phi_st``, ``phi_h' = (1 - cos(2 phi_st))
+* The start distribution (``start=``) is described, not given ("random variations ... so that the walker always has
+  enough energy to start walking"). ``"grl"`` (default, ``compass_walker.cpp``, ``start``): each of the four values
+  of Eq. 4.5 times its own ``U[1 - v, 1 + v]``, ``v = initial_state_variation`` (0.2), drawn again while
+  ``phi_st'^2 / 2 + cos(phi_st) cos(mu) < cos(mu)``: exactly "random variations" with "enough energy to start
+  walking". ``"impact"`` (our earlier reading) varies the post-impact state on the impact manifold: ``phi_st ~
+  U(0.1534 (1 - v), 0.1534 (1 + v))`` with ``v`` 0.1 by default, ``phi_h = 2 phi_st``, ``phi_h' = (1 - cos(2 phi_st))
   phi_st'`` and ``phi_st'`` fixed by the stance leg's energy ``E = phi_st'^2 / 2 + cos(phi_st - mu)``, drawn from
   ``U(1 + 0.4 e*, 1 + 1.6 e*)`` where ``e* = 0.00105`` is the fixed point's surplus over the energy 1 needed to pass
-  over the stance foot. Every such start passes mid-stance and takes a step with zero actuation (tested).
+  over the stance foot. Every start of either kind passes mid-stance (tested).
 * The fall reward replaces the -1 of that step, so a fall is worth exactly -50.
 """
 
@@ -267,8 +321,48 @@ def _distance_to_segment(columns: np.ndarray, rows: np.ndarray, start: np.ndarra
     return np.hypot(columns - start[0] - along * direction[0], rows - start[1] - along * direction[1])
 
 
+REWARD_READINGS = ("schuitema", "literal")
+"""Values of ``reward``: GRL's (Schuitema's) capped footstep reward (default) and the thesis's words read literally."""
+FALL_CRITERIA = ("angles", "hip")
+"""Values of ``fall``: GRL's angle limits (default) and the hip touching the slope (the thesis's words)."""
+OBSERVATIONS = ("thesis", "grl")
+"""Values of ``observation``: GRL's coordinates (default) and the state of Eq. 4.2."""
+STARTS = ("grl", "impact")
+"""Values of ``start``: GRL's start distribution (default) and ours on the impact manifold."""
+
+THESIS_TILE_WIDTHS = (0.10, 0.10, 0.11, 0.21)
+"""Table 4.2: stance leg angle and rate 0.10, 0.11; "hip joint" angle and rate 0.10, 0.21, in observation order (stance
+angle, hip coordinate, stance rate, hip-coordinate rate), whichever coordinates the observation uses."""
+GRL_TILE_WIDTHS = (0.0838, 0.1047, 0.1111, 0.2222)
+"""GRL's ``cfg/compass_walker/sarsa_walk.yaml``: phi_st, phi_h - 2 phi_st, phi_st', phi_h' - 2 phi_st'."""
+FALL_STANCE_ANGLE = math.pi / 8
+"""GRL's fall: |phi_st| beyond this at the end of a control step."""
+FALL_LEG_GAP = math.pi / 4
+"""GRL's fall: |phi_h - 2 phi_st| beyond this at the end of a control step."""
+SCHUITEMA_STEP_REWARD_CAP = 30.0
+"""GRL's cap on the footstep reward ``min(50 * 4 sin(phi_st), 30)``."""
+
+
+def _choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(repr(c) for c in choices)}; got {value!r}")
+    return value
+
+
+def swing_foot_height(stance: float, hip: float) -> float:
+    """Height of the swing foot above the slope for unit legs: hip height ``cos(phi_st)`` minus the swing leg's reach
+    ``cos(phi_st - phi_h)`` (0 at heel strike and at mid-stance with the legs together)."""
+    return math.cos(stance) - math.cos(stance - hip)
+
+
 class SimplestWalkerEnv(gym.Env):
     """Garcia's simplest walker on a 0.004 rad slope with 15 hip accelerations (thesis 4.2.2, Eq. 4.2-4.5, Table 4.2).
+
+    The readings (module docstring) are options. The defaults take the mechanisms of the code the thesis ran
+    (Schuitema's, which GRL keeps: the footstep reward ``min(50 * 4 sin(phi_st), 30)``, the angle fall test, GRL's
+    coordinates and start distribution) and the numbers the thesis states (15 actions, -50 for a fall, Table 4.2's
+    tile widths). The thesis's words read literally are options too; the literal reward makes a dive (one long step,
+    then a fall, about -5 to -15) worth far more than 100 s of walking (about -118), so nothing learns to walk under it.
 
     Parameters
     ----------
@@ -281,16 +375,38 @@ class SimplestWalkerEnv(gym.Env):
         Control period (0.2 model time units) and RK4 steps per control period (10).
     episode_seconds:
         Time after which the episode is truncated (100, i.e. 500 control steps).
-    step_reward, fall_reward, time_reward:
-        Reward per unit of step length at a footstep (50), for a fall (-50, replacing the step's other rewards) and
-        per control step (-1).
+    reward:
+        ``"schuitema"`` (default) or ``"literal"``, see below and the module docstring.
+    fall:
+        ``"angles"`` (default, GRL: ``|phi_st| > pi/8`` or ``|phi_h - 2 phi_st| > pi/4`` at the end of a control step)
+        or ``"hip"`` (the hip touches the slope).
+    observation:
+        ``"grl"`` (default, ``[phi_st, phi_h - 2 phi_st, phi_st', phi_h' - 2 phi_st']``) or ``"thesis"`` (Eq. 4.2).
+        ``observation_space`` follows it; nothing is wrapped.
+    start:
+        ``"grl"`` (default: Garcia's four values each times U[1 - v, 1 + v], redrawn until the walker can pass
+        mid-stance) or ``"impact"`` (our post-impact reading, see the module docstring).
+    tile_widths:
+        Tile widths of the 4 observation dimensions; None takes Table 4.2's (0.10, 0.10, 0.11, 0.21).
+    time_reward:
+        Reward of a control step (-1). Under ``"schuitema"`` a step with a heel strike pays the footstep reward
+        instead; under ``"literal"`` the footstep reward is added to it.
+    step_reward:
+        Footstep reward scale (50). ``"schuitema"``: the footstep pays ``step_reward * 4 sin(phi_st)`` with ``phi_st``
+        the new stance angle at the end of the control step. ``"literal"``: ``step_reward`` per unit of step length.
+    step_reward_cap:
+        Upper limit of a control step's footstep reward; ``None`` (default) takes the reading's own: 30 under
+        ``"schuitema"``, none (infinity) under ``"literal"``.
+    fall_reward:
+        Reward of the control step in which the walker falls (-50), replacing every other reward of that step.
     initial_state_variation:
-        Relative spread ``v`` of the start's stance angle around 0.1534 rad (0.1, at most 0.2); 0 starts every
-        episode at Garcia's fixed point. Otherwise the stance-leg energy is drawn from ``1 + [0.4, 1.6] * 0.00105``.
+        Relative spread ``v`` of the start (at most 0.2); None takes the start's own: 0.2 for ``"grl"``, 0.1 for
+        ``"impact"``. 0 starts every episode at Garcia's fixed point.
     render_mode:
         ``None`` or ``"rgb_array"``.
 
-    ``reset(options={"state": s})`` starts from an explicit state ``s`` (e.g. :data:`GARCIA_FIXED_POINT`).
+    ``reset(options={"state": s})`` starts from an explicit state ``s = [phi_st, phi_h, phi_st', phi_h']`` (e.g.
+    :data:`GARCIA_FIXED_POINT`) whatever the observation. ``env.state`` is the current state in those coordinates.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 5}
@@ -299,6 +415,7 @@ class SimplestWalkerEnv(gym.Env):
     start_energy_surplus = (0.4 * 0.00105, 1.6 * 0.00105)
     max_stance_rate = 5.0
     max_hip_rate = 50.0
+    _stance_change_flag = False  # CompassWalkerEnv appends GRL's stance-leg-changed flag to the observation
 
     def __init__(
         self,
@@ -308,12 +425,24 @@ class SimplestWalkerEnv(gym.Env):
         dt: float = 0.2,
         substeps: int = 10,
         episode_seconds: float = 100.0,
+        reward: str = "schuitema",
+        fall: str = "angles",
+        observation: str = "grl",
+        start: str = "grl",
+        tile_widths: Any = None,
         step_reward: float = 50.0,
+        step_reward_cap: float | None = None,
         fall_reward: float = -50.0,
         time_reward: float = -1.0,
-        initial_state_variation: float = 0.1,
+        initial_state_variation: float | None = None,
         render_mode: str | None = None,
     ) -> None:
+        self.reward = _choice("reward", reward, REWARD_READINGS)
+        self.fall = _choice("fall", fall, FALL_CRITERIA)
+        self.observation = _choice("observation", observation, OBSERVATIONS)
+        self.start = _choice("start", start, STARTS)
+        if initial_state_variation is None:
+            initial_state_variation = 0.2 if self.start == "grl" else 0.1
         for name, value in (("dt", dt), ("episode_seconds", episode_seconds)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be a positive finite number, got {value}")
@@ -326,6 +455,8 @@ class SimplestWalkerEnv(gym.Env):
         ):
             if not math.isfinite(value):
                 raise ValueError(f"{name} must be finite, got {value}")
+        if step_reward_cap is not None and (math.isnan(step_reward_cap) or step_reward_cap == -math.inf):
+            raise ValueError(f"step_reward_cap must be None, a number or +inf, got {step_reward_cap}")
         if not 0.0 <= slope < 0.1:
             raise ValueError(f"slope must lie in [0, 0.1) rad (Garcia's gaits exist up to about 0.019), got {slope}")
         if max_hip_acceleration < 0.0:
@@ -350,15 +481,34 @@ class SimplestWalkerEnv(gym.Env):
         self.substeps = int(substeps)
         self.max_episode_steps = max(1, round(episode_seconds / dt))
         self.step_reward = float(step_reward)
+        if step_reward_cap is None:
+            step_reward_cap = SCHUITEMA_STEP_REWARD_CAP if self.reward == "schuitema" else math.inf
+        self.step_reward_cap = float(step_reward_cap)
         self.fall_reward = float(fall_reward)
         self.time_reward = float(time_reward)
         self.initial_state_variation = float(initial_state_variation)
         self.render_mode = render_mode
+        self._schuitema = self.reward == "schuitema"
+        self._angle_fall = self.fall == "angles"
+        self._grl_coordinates = self.observation == "grl"
 
-        self.tile_widths = np.array([0.10, 0.10, 0.11, 0.21])
+        self._state_high = np.array([_HALF_PI, math.pi, self.max_stance_rate, self.max_hip_rate])
+        if self._grl_coordinates:
+            high = [_HALF_PI, 2.0 * math.pi, self.max_stance_rate, self.max_hip_rate + 2.0 * self.max_stance_rate]
+        else:
+            high = list(self._state_high)
+        tile_widths = list(THESIS_TILE_WIDTHS if tile_widths is None else np.asarray(tile_widths, dtype=np.float64))
+        if len(tile_widths) != 4 or not all(math.isfinite(w) and w > 0 for w in tile_widths):
+            raise ValueError(f"tile_widths must be 4 positive numbers (stance angle, hip coordinate, their rates), "
+                             f"got {tile_widths}")
+        low = [-h for h in high]
+        if self._stance_change_flag:
+            tile_widths.append(self.stance_change_tile_width)
+            low.append(0.0)
+            high.append(1.0)
+        self.tile_widths = np.array(tile_widths)
         self.wrap_periods = None
-        high = np.array([_HALF_PI, math.pi, self.max_stance_rate, self.max_hip_rate])
-        self.observation_space = spaces.Box(low=-high, high=high, dtype=np.float64)
+        self.observation_space = spaces.Box(low=np.array(low), high=np.array(high), dtype=np.float64)
         self.action_space = spaces.Discrete(len(self.hip_accelerations))
 
         self.state = GARCIA_FIXED_POINT.copy()
@@ -384,11 +534,20 @@ class SimplestWalkerEnv(gym.Env):
         self.distance = 0.0
         self._steps = 0
         self._episode_over = False
-        return self.state.copy(), self._info(False, 0.0, False)
+        stance, hip, stance_rate, hip_rate = self.state.tolist()
+        return self._observe(stance, hip, stance_rate, hip_rate, False), self._info(False, 0.0, False)
 
     def sample_start_state(self, rng: np.random.Generator) -> np.ndarray:
-        """A random post-impact start (module docstring): stance angle 0.1534 (1 +- v), energy 1 + [0.4, 1.6] e*."""
+        """A random start (module docstring). ``"grl"``: Garcia's four values each times U[1 - v, 1 + v], redrawn until
+        the stance leg's kinetic energy lifts the hip over phi_st = 0. ``"impact"``: a post-impact state with stance
+        angle 0.1534 (1 +- v) and energy 1 + [0.4, 1.6] e*."""
         v = self.initial_state_variation
+        if self.start == "grl":
+            cos_slope = math.cos(self.slope)
+            while True:
+                state = GARCIA_FIXED_POINT * rng.uniform(1.0 - v, 1.0 + v, size=4)
+                if 0.5 * state[2] ** 2 + math.cos(state[0]) * cos_slope >= cos_slope:
+                    return state
         stance_angle = GARCIA_FIXED_POINT[0] * (1.0 + v * rng.uniform(-1.0, 1.0))
         energy = 1.0 + rng.uniform(*self.start_energy_surplus)
         return impact_manifold_state(stance_angle, energy, self.slope)
@@ -399,25 +558,55 @@ class SimplestWalkerEnv(gym.Env):
             raise ValueError(f"action must be an integer in [0, {len(self.hip_accelerations) - 1}], got {action!r}")
         if self._episode_over:
             raise RuntimeError("the episode has ended (fall or time limit); call reset() before step()")
-        hip_acceleration = self.hip_accelerations[index]
         outcome = self._outcome
-        simulate_control_step(self.state, hip_acceleration, self.slope, self.dt, self.substeps, outcome)
+        simulate_control_step(self.state, self.hip_accelerations[index], self.slope, self.dt, self.substeps, outcome)
         self._steps += 1
         footsteps, step_length, fell_flag, _ = outcome[:4].tolist()
-        fell = fell_flag != 0.0
+        stance, hip, stance_rate, hip_rate = self.state.tolist()
+        fell = fell_flag != 0.0 or (
+            self._angle_fall and (abs(stance) > FALL_STANCE_ANGLE or abs(hip - 2.0 * stance) > FALL_LEG_GAP)
+        )
         footstep = footsteps != 0.0
-        reward = self.time_reward
+        if fell:
+            reward = self.fall_reward
+        elif not footstep:
+            reward = self.time_reward
+        elif self._schuitema:
+            reward = min(self.step_reward * 4.0 * math.sin(stance), self.step_reward_cap)
+        else:
+            reward = self.time_reward + min(self.step_reward * step_length, self.step_reward_cap)
         if footstep:
             self.distance += step_length
             self.post_impact_state = outcome[POST_IMPACT_STATE].copy()
-            reward += self.step_reward * step_length
-        if fell:
-            reward = self.fall_reward
         truncated = not fell and self._steps >= self.max_episode_steps
         self._episode_over = fell or truncated
-        observation = self.state.copy()
-        np.clip(observation, self.observation_space.low, self.observation_space.high, out=observation)
-        return observation, reward, fell, truncated, self._info(footstep, step_length, fell)
+        observation = self._observe(stance, hip, stance_rate, hip_rate, footstep)
+        info = {
+            "footstep": footstep,
+            "segment_end": footstep,
+            "step_length": step_length,
+            "distance": self.distance,
+            "fell": fell,
+            "swing_foot_height": math.cos(stance) - math.cos(stance - hip),
+        }
+        if footstep:
+            info["heel_strike_time"] = float(outcome[HEEL_STRIKE_TIME])
+        return observation, reward, fell, truncated, info
+
+    def _observe(self, stance: float, hip: float, stance_rate: float, hip_rate: float, footstep: bool) -> np.ndarray:
+        """The observation of the state, rates clipped to the bounds (angles are bounded by the simulation)."""
+        max_stance_rate, max_hip_rate = self.max_stance_rate, self.max_hip_rate
+        if self._grl_coordinates:
+            hip -= 2.0 * stance
+            hip_rate -= 2.0 * stance_rate
+            max_hip_rate += 2.0 * max_stance_rate
+        if not -max_stance_rate <= stance_rate <= max_stance_rate:
+            stance_rate = math.copysign(max_stance_rate, stance_rate)
+        if not -max_hip_rate <= hip_rate <= max_hip_rate:
+            hip_rate = math.copysign(max_hip_rate, hip_rate)
+        if self._stance_change_flag:
+            return np.array((stance, hip, stance_rate, hip_rate, 1.0 if footstep else 0.0))
+        return np.array((stance, hip, stance_rate, hip_rate))
 
     def render(self) -> np.ndarray | None:
         """An RGB image following the hip: the slope marked every 0.25 leg lengths, stance leg blue, swing leg red."""
@@ -454,12 +643,14 @@ class SimplestWalkerEnv(gym.Env):
         return image
 
     def _info(self, footstep: bool, step_length: float, fell: bool) -> dict[str, Any]:
+        stance, hip = float(self.state[0]), float(self.state[1])
         info = {
             "footstep": footstep,
             "segment_end": footstep,
             "step_length": step_length,
             "distance": self.distance,
             "fell": fell,
+            "swing_foot_height": swing_foot_height(stance, hip),
         }
         if footstep:
             info["heel_strike_time"] = float(self._outcome[HEEL_STRIKE_TIME])
@@ -469,9 +660,8 @@ class SimplestWalkerEnv(gym.Env):
         state = np.array(state, dtype=np.float64)
         if state.shape != (4,) or not np.all(np.isfinite(state)):
             raise ValueError(f"state must be 4 finite numbers [phi_st, phi_h, phi_st', phi_h'], got {state!r}")
-        if not self.observation_space.contains(state):
+        if np.any(np.abs(state) > self._state_high):
             raise ValueError(
-                f"state {state} lies outside the observation bounds {self.observation_space.low} to "
-                f"{self.observation_space.high}"
+                f"state {state} lies outside the state bounds {-self._state_high} to {self._state_high}"
             )
         return state

@@ -1,5 +1,6 @@
 """Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
 
+import math
 import pathlib
 from typing import Any, Literal, Optional, Union
 
@@ -27,6 +28,7 @@ SIGMAS = {
     "average_best": kernels.SIGMA_AVERAGE_BEST,
 }
 REPLAY_TRIGGERS = ("episode", "segment")
+REPLAY_UNITS = ("episode", "segment")
 RESIDUAL_ACTIONS = ("taken", "next")
 
 
@@ -35,20 +37,31 @@ def _check_choice(name: str, value: Any, options) -> None:
         raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
 
 
+def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
+
+
 class ER(TileQAlgorithm):
     """Experience replay with the Sarsa update (thesis Alg. 7-8) and its variants (Alg. 9-14).
 
-    Every transition is stored in trajectories; a trajectory closes at the end of an episode and wherever the env sets
+    Every transition is stored in trajectories. A trajectory is a whole episode (``replay_unit="episode"``, Alg. 7:
+    D_e closes at the episode's end) or, with ``replay_unit="segment"``, also closes wherever the env sets
     ``info["segment_end"]`` (the simplest walker's footsteps). At each replay trigger, ``n_replays`` trajectories (or
     ``replays_per_stored_trajectory`` times the number stored) are drawn uniformly and replayed from their last sample to
-    their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'.
+    their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'. The episode in
+    progress is one of the stored trajectories (Alg. 8 line 2 draws e' from {1, ..., e}, the current episode e
+    included); its last sample bootstraps from the latest s'. At an episode's end it is empty, so this matters only for
+    replays triggered mid-episode (the walker's footsteps).
 
     Between replays the agent acts epsilon-greedily on the current Q, or learns online with Sarsa(lambda) if
     ``online_lambda`` is given (the thesis's LEO setup).
 
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
-    :param replay_trigger: "episode" replays every ``replay_every`` episodes; "segment" at every closed trajectory
-        (each footstep and each fall for the walker).
+    :param replay_trigger: "episode" replays every ``replay_every`` episodes; "segment" at every episode end and every
+        ``info["segment_end"]`` (each footstep and each fall for the walker: thesis 4.2.2, "after every step or fall").
+    :param replay_unit: what a stored trajectory is: "episode" (the thesis's Alg. 7-8) or "segment" (closed also at
+        each ``info["segment_end"]``: the walker's footstep-to-footstep stretches, our earlier reading).
     :param replay_every: episodes between replay phases for the "episode" trigger.
     :param n_replays: trajectories replayed per phase.
     :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead.
@@ -70,6 +83,7 @@ class ER(TileQAlgorithm):
         env: Union[GymEnv, str, None] = None,
         buffer_size: int = 1_000_000,
         replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
         replay_every: int = 1,
         n_replays: int = 100,
         replays_per_stored_trajectory: Optional[float] = None,
@@ -82,23 +96,11 @@ class ER(TileQAlgorithm):
         **kwargs,
     ):
         self.buffer_size = buffer_size
-        _check_choice("replay_trigger", replay_trigger, REPLAY_TRIGGERS)
-        _check_choice("replay_order", replay_order, REPLAY_ORDERS)
-        _check_choice("target", target, TARGETS)
-        _check_choice("sigma", sigma, SIGMAS)
         self.replay_trigger = replay_trigger
+        self.replay_unit = replay_unit
         self.replay_order = replay_order
         self.target = target
         self.sigma = sigma
-        if replay_every < 1:
-            raise ValueError(f"replay_every must be at least 1 episode, got {replay_every}")
-        if n_replays < 0 or (replays_per_stored_trajectory is not None and replays_per_stored_trajectory < 0):
-            raise ValueError("the number of replays cannot be negative")
-        if residual_zeta is not None and not 0.0 <= residual_zeta <= 1.0:
-            raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9), got {residual_zeta}")
-        _check_choice("residual_action", residual_action, RESIDUAL_ACTIONS)
-        if residual_action == "next" and target == "expected_sarsa":
-            raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
         self.residual_action = residual_action
         self.replay_every = replay_every
         self.n_replays = n_replays
@@ -113,6 +115,26 @@ class ER(TileQAlgorithm):
     def online_lambda(self) -> Optional[float]:
         return self.trace_lambda
 
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        _check_choice("replay_trigger", self.replay_trigger, REPLAY_TRIGGERS)
+        _check_choice("replay_unit", self.replay_unit, REPLAY_UNITS)
+        _check_choice("replay_order", self.replay_order, REPLAY_ORDERS)
+        _check_choice("target", self.target, TARGETS)
+        _check_choice("sigma", self.sigma, SIGMAS)
+        _check_choice("residual_action", self.residual_action, RESIDUAL_ACTIONS)
+        _check_integer("buffer_size", self.buffer_size, minimum=1)
+        _check_integer("replay_every", self.replay_every, minimum=1, unit=" episode")
+        _check_integer("n_replays", self.n_replays, minimum=0)
+        x = self.replays_per_stored_trajectory
+        if x is not None and not (isinstance(x, (int, float)) and math.isfinite(x) and x >= 0):
+            raise ValueError(f"replays_per_stored_trajectory must be a finite number >= 0 or None, got {x!r}")
+        zeta = self.residual_zeta
+        if zeta is not None and not (isinstance(zeta, (int, float)) and 0.0 <= zeta <= 1.0):
+            raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9) or None, got {zeta!r}")
+        if self.residual_action == "next" and self.target == "expected_sarsa":
+            raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
+
     def _setup_model(self) -> None:
         super()._setup_model()
         self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
@@ -125,28 +147,37 @@ class ER(TileQAlgorithm):
         super()._seed_generators(seed)
         self.seed_replay(seed)
 
+    def _end_episode_at_reset(self) -> None:
+        """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last
+        real s_{t+1} (replay bootstraps there), never joined to the next episode; no replay is triggered."""
+        super()._end_episode_at_reset()
+        if self.replay_buffer is not None:
+            self.replay_buffer.truncate_open_trajectory()
+
     def seed_replay(self, seed: Optional[int]) -> None:
         """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones."""
         self.replay_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_REPLAY)
 
     def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
-        self.replay_buffer.add(obs, self._slots, action, reward)
-        if not (done or info.get("segment_end", False)):
+        self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
+        segment_end = bool(info.get("segment_end", False))
+        if not (done or segment_end):
             return
-        self.replay_buffer.close_trajectory(next_obs, terminated)
+        if done or self.replay_unit == "segment":
+            self.replay_buffer.close_trajectory(next_obs, terminated)
         episode_trigger = done and (self._episode_num + 1) % self.replay_every == 0
         if self.replay_trigger == "segment" or episode_trigger:
             self.replay(self._replays_per_phase())
 
     def _replays_per_phase(self) -> int:
         if self.replays_per_stored_trajectory is not None:
-            return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_trajectories))
+            return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_stored_trajectories))
         return self.n_replays
 
     def replay(self, n_trajectories: int) -> dict[str, float]:
         """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean |delta|."""
         buffer = self.replay_buffer
-        if buffer.n_trajectories == 0 or n_trajectories <= 0:
+        if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}
         coder = self.policy.tile_coder
         updates, sum_abs_delta, last_delta, status = kernels.replay_phase(
@@ -169,6 +200,7 @@ class ER(TileQAlgorithm):
             self.action_rng,
             self._q_scratch,
             self._w_scratch,
+            *self.policy.initial_arguments,
         )
         self.replay_updates += updates
         self.replay_phases += 1
@@ -187,14 +219,23 @@ class ER(TileQAlgorithm):
         """Save the trajectories and the visit vector w."""
         save_to_pkl(path, self.replay_buffer, self.verbose)
 
-    def load_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
-        """Load a buffer saved by save_replay_buffer; its tile coding must match this model's."""
+    def load_replay_buffer(self, path: Union[str, pathlib.Path], truncate_last_traj: bool = True) -> None:
+        """Load a buffer saved by save_replay_buffer; its tile coding must match this model's.
+
+        :param truncate_last_traj: as in SB3: if True (the default, which rl-zoo always passes), the episode that was
+            in progress when the buffer was saved is over: its open trajectory is closed as truncated at its last
+            s_{t+1}. If False, it stays open, to be continued by ``learn(reset_num_timesteps=False)`` on an env that
+            was not reset since; any env reset (a ``learn()`` that resets, ``set_env``, a freshly loaded model) closes
+            it as truncated all the same, so it is never joined to another episode.
+        """
         buffer = load_from_pkl(path, self.verbose)
         if not isinstance(buffer, TrajectoryReplayBuffer):
             raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
         if buffer.tile_coder.config() != self.policy.tile_coder.config():
             raise ValueError("The replay buffer was stored with a different tile coding than this model's")
         buffer.tile_coder = self.policy.tile_coder
+        if truncate_last_traj:
+            buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
 
 

@@ -16,8 +16,8 @@ def chain_coder() -> TileCoder:
 
 
 def add_chain(buffer, states, actions, rewards, next_state, terminated):
-    for s, a, r in zip(states, actions, rewards):
-        buffer.add(np.array([s], float), buffer.tile_coder.slots(np.array([s], float)), a, r)
+    for s, a, r, s_next in zip(states, actions, rewards, [*states[1:], next_state]):
+        buffer.add(np.array([s], float), buffer.tile_coder.slots(np.array([s], float)), a, r, np.array([s_next], float))
     buffer.close_trajectory(np.array([next_state], float), terminated)
 
 
@@ -58,7 +58,7 @@ def test_trajectory_longer_than_the_buffer_is_an_error():
 def test_visit_vector_marks_stored_state_actions():
     coder = TileCoder([1.0], [3], n_tilings=4, memory_size=2**12)
     buffer = TrajectoryReplayBuffer(10, coder)
-    buffer.add(np.array([0.5]), coder.slots(np.array([0.5])), 2, 0.0)
+    buffer.add(np.array([0.5]), coder.slots(np.array([0.5])), 2, 0.0, np.array([0.7]))
     expected = np.zeros(coder.n_weights, np.uint8)
     expected[coder.feature_indices(np.array([0.5]), 2)] = 1
     np.testing.assert_array_equal(buffer.visits, expected)
@@ -68,7 +68,7 @@ def test_pickle_round_trip_keeps_everything_and_is_compact():
     buffer = TrajectoryReplayBuffer(10_000, chain_coder())
     add_chain(buffer, [0, 1, 2], [0, 1, 0], [-1, -1, 5], 3, True)
     add_chain(buffer, [5, 6], [1, 0], [1, 2], 7, False)
-    buffer.add(np.array([9.0]), buffer.tile_coder.slots(np.array([9.0])), 1, 0.5)  # an open trajectory
+    buffer.add(np.array([9.0]), buffer.tile_coder.slots(np.array([9.0])), 1, 0.5, np.array([9.5]))  # open
     data = pickle.dumps(buffer)
     assert len(data) < 50_000
     again = pickle.loads(data)
@@ -96,7 +96,7 @@ def replay_once(buffer, order):
         theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
         coder.columns_are_actions, 1, order,
         kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, False, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions),
+        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions), *kernels.ZERO_INITIAL,
     )
     return [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(5)]
 
@@ -108,3 +108,25 @@ def test_reversed_replay_backs_up_the_final_reward_in_one_pass():
     add_chain(buffer, [0, 1, 2, 3, 4], [0] * 5, [0, 0, 0, 0, 10], 5, terminated=True)
     assert replay_once(buffer, kernels.ORDER_REVERSED) == [10, 10, 10, 10, 10]
     assert replay_once(buffer, kernels.ORDER_FORWARD) == [0, 0, 0, 0, 10]
+
+
+def test_the_open_episode_is_replayed_and_bootstraps_from_its_latest_state():
+    """Alg. 8 line 2 draws e' from {1, ..., e}: the episode in progress is replayable, its last sample bootstrapping
+    from the latest s'. Chain 0 -> 1 -> 2 -> 3 (rewards 0, 0, 5), still open at s' = 3, where Q(3, 0) = 2."""
+    buffer = TrajectoryReplayBuffer(100, chain_coder())
+    for s, r in zip([0, 1, 2], [0.0, 0.0, 5.0]):
+        buffer.add(np.array([float(s)]), buffer.tile_coder.slots(np.array([float(s)])), 0, r, np.array([s + 1.0]))
+    assert buffer.n_trajectories == 0 and buffer.n_stored_trajectories == 1
+    coder = buffer.tile_coder
+    theta = np.zeros(coder.n_weights)
+    theta[coder.feature_indices(np.array([3.0]), 0)] = 2.0
+    kernels.replay_phase(
+        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
+        coder.columns_are_actions, 1, kernels.ORDER_REVERSED,
+        kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, False, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
+        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions), *kernels.ZERO_INITIAL,
+    )
+    # alpha 1, gamma 1, reversed: Q(2) = 5 + Q(3) = 7, then Q(1) = 0 + 7, Q(0) = 7 (not terminal: s' = 3 bootstraps)
+    assert [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(3)] == [7.0, 7.0, 7.0]
+    buffer.close_trajectory(np.array([3.0]), terminated=False)
+    assert buffer.n_stored_trajectories == 1  # the same episode, now closed

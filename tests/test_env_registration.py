@@ -11,16 +11,17 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import sb3_er_envs
 
-ALL_IDS = ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0", "sb3_er/SimplestWalker-v0", "sb3_er/Leo-v0"]
+ALL_IDS = ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0", "sb3_er/SimplestWalker-v0", "sb3_er/CompassWalker-v0",
+           "sb3_er/Leo-v0"]
 
 
 def make(env_id, **kwargs):
     if env_id == "sb3_er/Leo-v0":
-        pytest.importorskip("dm_control", reason="LEO needs the dmc extra")
+        pytest.importorskip("sb3_er_envs.leo.leo", reason="LEO needs the dmc extra")
     return gymnasium.make(env_id, **kwargs)
 
 
-def test_the_four_ids_are_registered_without_a_wrapper_time_limit():
+def test_the_ids_are_registered_without_a_wrapper_time_limit():
     assert sorted(sb3_er_envs.ENV_IDS) == sorted(ALL_IDS)
     for env_id in ALL_IDS:
         spec = gymnasium.spec(env_id)

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import sb3_er_envs  # noqa: F401  (registers the ids)
-from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT, SimplestWalkerEnv, impact_manifold_state
+from sb3_er_envs.simplest_walker import GRL_TILE_WIDTHS, GARCIA_FIXED_POINT, SimplestWalkerEnv, impact_manifold_state
 
 SLOPE = 0.004
 ZERO = 7  # index of hip acceleration 0 among the 15 levels
@@ -51,8 +51,47 @@ def reference_impact(x):
     return matrix @ x
 
 
+def reference_control_step(before, dt, h=1e-5):
+    """(heel-strike time, end state) of one control step with zero hip action from ``before``, by fine RK4 steps of
+    Eq. 4.3 with the heel strike interpolated inside its fine step and Eq. 4.4 applied there (one heel strike)."""
+    x = np.array(before, dtype=float)
+    t = 0.0
+    while True:
+        x_next = reference_step(x, 0.0, h)
+        gap, gap_next = x[1] - 2 * x[0], x_next[1] - 2 * x_next[0]
+        if gap < 0.0 <= gap_next and x_next[0] < 0.0:
+            fraction = -gap / (gap_next - gap)
+            strike_time = t + fraction * h
+            x = reference_impact(reference_step(x, 0.0, fraction * h))
+            break
+        x, t = x_next, t + h
+        assert t < dt, "no heel strike in this control step"
+    remaining = dt - strike_time
+    n = int(round(remaining / h))
+    for _ in range(n):
+        x = reference_step(x, 0.0, remaining / n)
+    return strike_time, x
+
+
+PHYSICAL = dict(fall="hip", observation="thesis", start="impact")
+"""Most tests here check the simulation itself: the hip-on-slope fall, the state of Eq. 4.2 as the observation and
+starts on the impact manifold make its facts visible. The defaults are tested on their own."""
+
+
 def walker(**kwargs):
-    return SimplestWalkerEnv(**kwargs)
+    return SimplestWalkerEnv(**{**PHYSICAL, **kwargs})
+
+
+def test_defaults_are_the_mechanisms_of_the_code_the_thesis_ran_with_the_thesis_numbers():
+    env = SimplestWalkerEnv()
+    assert (env.reward, env.fall, env.observation, env.start) == ("schuitema", "angles", "grl", "grl")
+    assert env.action_space.n == 15 and env.fall_reward == -50.0  # the thesis's numbers
+    np.testing.assert_array_equal(env.tile_widths, [0.10, 0.10, 0.11, 0.21])  # Table 4.2
+    assert env.initial_state_variation == 0.2
+    observation, _ = env.reset(seed=0)
+    s = env.state  # GRL's start: each of Garcia's values times U[0.8, 1.2]
+    assert np.all(np.abs(s / GARCIA_FIXED_POINT - 1.0) <= 0.2 + 1e-12)
+    np.testing.assert_allclose(observation, [s[0], s[1] - 2 * s[0], s[2], s[3] - 2 * s[2]])
 
 
 def step_until_footstep(env, max_steps=40):
@@ -147,25 +186,11 @@ def test_heel_strike_is_located_inside_the_control_step():
     strike_time = info["heel_strike_time"]
     assert 0.0 < strike_time < env.dt
 
-    h = 1e-5
-    x = before.copy()
-    t = 0.0
-    while True:
-        x_next = reference_step(x, 0.0, h)
-        gap, gap_next = x[1] - 2 * x[0], x_next[1] - 2 * x_next[0]
-        if gap < 0.0 <= gap_next and x_next[0] < 0.0:
-            fraction = -gap / (gap_next - gap)
-            reference_time = t + fraction * h
-            x = reference_impact(reference_step(x, 0.0, fraction * h))
-            break
-        x, t = x_next, t + h
+    reference_time, x = reference_control_step(before, env.dt)
     assert strike_time == pytest.approx(reference_time, abs=1e-7)
-    remaining = env.dt - reference_time
-    n = int(round(remaining / h))
-    for _ in range(n):
-        x = reference_step(x, 0.0, remaining / n)
     np.testing.assert_allclose(env.state, x, atol=1e-8)
 
+    h = 1e-5
     # An impact moved to the end of the control step would land measurably elsewhere.
     x = before.copy()
     for _ in range(int(round(env.dt / h))):
@@ -201,6 +226,7 @@ def pendulum_fall_time(stance_angle, stance_rate):
     return float(np.sum(np.abs(np.diff(angles)) / middles))
 
 
+@pytest.mark.parametrize("reading", ["schuitema", "literal"])
 @pytest.mark.parametrize(
     "start, side",
     [
@@ -208,8 +234,8 @@ def pendulum_fall_time(stance_angle, stance_rate):
         (np.array([0.15, 0.30, 0.3, 0.0]), 1.0),  # rotating backwards: falls back over the heel
     ],
 )
-def test_fall_ends_the_episode_with_minus_50(start, side):
-    env = walker()
+def test_fall_ends_the_episode_with_minus_50(start, side, reading):
+    env = walker(reward=reading)
     env.reset(options={"state": start})
     rewards = []
     for _ in range(env.max_episode_steps):
@@ -227,8 +253,8 @@ def test_fall_ends_the_episode_with_minus_50(start, side):
         env.step(ZERO)
 
 
-def test_rewards_pay_50_per_unit_step_length_and_minus_1_per_step():
-    env = walker()
+def test_literal_reading_pays_50_per_unit_step_length_and_minus_1_per_step():
+    env = walker(reward="literal")
     env.reset(options={"state": GARCIA_FIXED_POINT})
     total = 0.0
     for step in range(env.max_episode_steps):
@@ -308,11 +334,15 @@ def test_random_hip_actions_make_the_walker_fall():
     assert falls == 5
 
 
-def test_gymnasium_and_sb3_env_checkers_pass():
+@pytest.mark.parametrize("reading", ["schuitema", "literal"])
+@pytest.mark.parametrize("fall", ["hip", "angles"])
+@pytest.mark.parametrize("observation", ["thesis", "grl"])
+def test_gymnasium_and_sb3_env_checkers_pass(reading, fall, observation):
+    options = dict(reward=reading, fall=fall, observation=observation)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        gymnasium_check_env(gym.make("sb3_er/SimplestWalker-v0", render_mode="rgb_array").unwrapped)
-        sb3_check_env(walker())
+        gymnasium_check_env(gym.make("sb3_er/SimplestWalker-v0", render_mode="rgb_array", **options).unwrapped)
+        sb3_check_env(walker(**options))
 
 
 def test_render_draws_legs_on_the_slope():
@@ -338,6 +368,11 @@ def test_render_draws_legs_on_the_slope():
         ({"initial_state_variation": 0.5}, "initial_state_variation"),
         ({"slope": -0.1}, "slope"),
         ({"render_mode": "human"}, "render_mode"),
+        ({"reward": "thesis"}, "reward must be one of 'schuitema', 'literal'"),
+        ({"fall": "torso"}, "fall must be one of 'angles', 'hip'"),
+        ({"observation": "state"}, "observation must be one of 'thesis', 'grl'"),
+        ({"observation": None}, "observation must be one of"),
+        ({"step_reward_cap": math.nan}, "step_reward_cap"),
     ],
 )
 def test_bad_parameters_are_named(kwargs, message):
@@ -359,3 +394,224 @@ def test_bad_actions_and_states_are_named():
         env.reset(options={"stance": 0.1})
     with pytest.raises(ValueError, match="energy"):
         impact_manifold_state(0.15, 0.5)
+
+
+# --- Reward readings -------------------------------------------------------------------------------------------------
+
+
+def passive_walk(env, steps):
+    """Zero hip action from Garcia's fixed point: per control step (state before, reward, state after, info)."""
+    env.reset(options={"state": GARCIA_FIXED_POINT})
+    records = []
+    for _ in range(steps):
+        before = env.state.copy()
+        _, reward, terminated, truncated, info = env.step(ZERO)
+        assert not terminated
+        records.append((before, reward, env.state.copy(), dict(info, post_impact_state=env.post_impact_state.copy())))
+        if truncated:
+            break
+    return records
+
+
+def test_schuitema_footstep_reward_replaces_minus_1_and_reads_the_stance_angle_at_the_end_of_the_step():
+    """Hand computation: integrate the control step of a footstep with fine RK4 steps, apply Eq. 4.4 at the heel
+    strike, integrate to the end of the control step and pay min(50 * 4 sin(phi_st), 30) from that end state."""
+    env = walker()
+    records = passive_walk(env, 400)
+    footsteps = [r for r in records if r[3]["footstep"]]
+    assert all(reward == -1.0 for _, reward, _, info in records if not info["footstep"])
+    capped = [r for r in footsteps if 200.0 * math.sin(r[2][0]) > 30.0]
+    uncapped = [r for r in footsteps if 200.0 * math.sin(r[2][0]) < 29.0]
+    assert capped and uncapped  # the heel strike drifts through the control step from footstep to footstep
+    for before, reward, _, _ in (capped[0], uncapped[0]):
+        _, end = reference_control_step(before, env.dt)
+        assert reward == pytest.approx(min(50.0 * 4.0 * math.sin(end[0]), 30.0), abs=1e-5)
+    assert capped[0][1] == 30.0
+    _, reward, _, info = uncapped[0]
+    # Not read right after the impact, and not added to the step's -1.
+    assert abs(reward - 200.0 * math.sin(info["post_impact_state"][0])) > 0.1
+    assert 24.0 < reward < 30.0
+
+
+def test_schuitema_reward_parameters():
+    env = walker(step_reward=25.0, step_reward_cap=math.inf, time_reward=-2.0)
+    records = passive_walk(env, 100)
+    assert any(info["footstep"] for *_, info in records)
+    for _, reward, after, info in records:
+        assert reward == (pytest.approx(100.0 * math.sin(after[0]), rel=1e-12) if info["footstep"] else -2.0)
+    assert walker().step_reward_cap == 30.0
+
+
+def test_literal_reading_caps_only_when_asked():
+    assert walker(reward="literal").step_reward_cap == math.inf
+    for _, reward, _, info in passive_walk(walker(reward="literal", step_reward_cap=10.0), 100):
+        assert reward == (9.0 if info["footstep"] else -1.0)
+
+
+@pytest.mark.parametrize("reading", ["schuitema", "literal"])
+def test_passive_walking_earns_a_positive_return_per_footstep_only_under_schuitemas_reward(reading):
+    """Garcia's passive gait takes a footstep every 19 or 20 control steps (period about 3.85). After the impact the
+    new stance angle 0.1534 shrinks by at most 0.2 * 0.17 before the control step ends, so Schuitema's footstep pays
+    between 200 sin(0.1194) = 23.8 and the cap 30, and a footstep's segment (18 or 19 steps of -1, then the footstep)
+    returns between 23.8 - 19 = 4.8 and 30 - 18 = 12. Literally, a footstep of 2 sin(0.1534) = 0.3055 pays
+    -1 + 15.27, and the segment returns -19 + 15.27 or -20 + 15.27: walking loses."""
+    records = passive_walk(walker(reward=reading), 500)
+    segments, segment_return, segment_steps = [], 0.0, 0
+    for _, reward, _, info in records:
+        segment_return += reward
+        segment_steps += 1
+        if info["footstep"]:
+            segments.append((segment_steps, segment_return))
+            segment_return, segment_steps = 0.0, 0
+    assert len(segments) >= 25
+    step_length = 2.0 * math.sin(0.1534)
+    for steps, ret in segments:
+        assert steps in (19, 20)
+        if reading == "schuitema":
+            assert 200.0 * math.sin(0.1534 - 0.2 * 0.17) - (steps - 1) <= ret <= 30.0 - (steps - 1)
+            assert ret > 0.0
+        else:
+            assert ret == pytest.approx(-steps + 50.0 * step_length, abs=0.05)
+            assert ret < 0.0
+
+
+def test_a_dive_beats_walking_only_under_the_literal_reading():
+    """A constant hip action of -0.51 throws the swing leg far forward: one long step, then a fall. Literally that
+    returns about -5 against about -118 for 100 s of passive walking; under Schuitema's reward the dive is worse."""
+    returns = {}
+    for reading in ("schuitema", "literal"):
+        for label, action in (("dive", 4), ("walk", ZERO)):
+            env = walker(reward=reading)
+            env.reset(options={"state": GARCIA_FIXED_POINT})
+            total, footsteps = 0.0, 0
+            while True:
+                _, reward, terminated, truncated, info = env.step(action)
+                total += reward
+                footsteps += info["footstep"]
+                if terminated or truncated:
+                    break
+            if label == "dive":
+                assert terminated and footsteps == 1 and info["distance"] > 1.0
+            returns[reading, label] = total
+    assert returns["literal", "dive"] > returns["literal", "walk"]
+    assert returns["literal", "walk"] == pytest.approx(-500.0 + 50.0 * 7.64, abs=1.0)
+    assert returns["schuitema", "walk"] > 0.0 > returns["schuitema", "dive"]
+
+
+# --- Fall criteria ---------------------------------------------------------------------------------------------------
+
+
+def gap(state):
+    return state[1] - 2.0 * state[0]
+
+
+@pytest.mark.parametrize(
+    "state, falls",
+    [
+        ([0.40, 0.80, 0.05, 0.10], True),  # stance leg beyond pi/8, rotating further back
+        ([-0.41, -0.82, -0.05, -0.10], True),  # ... and forward
+        ([0.10, 1.10, 0.0, 0.0], True),  # legs 0.9 from symmetric (gap beyond pi/4)
+        ([0.10, -0.70, 0.0, 0.0], True),  # ... the other way
+        ([0.10, 0.90, 0.0, 1.0], True),  # gap 0.7 inside at the start, opening to about 0.89 by the step's end
+        ([0.10, 1.05, 0.0, -1.5], False),  # gap 0.85 outside at the start, closing to about 0.53: checked at the end
+        ([0.30, 0.80, 0.0, 0.0], False),  # inside both limits
+    ],
+)
+def test_grl_fall_angles_are_checked_at_the_end_of_the_control_step(state, falls):
+    env = walker(fall="angles")
+    env.reset(options={"state": state})
+    _, reward, terminated, truncated, info = env.step(ZERO)
+    end = env.state
+    assert (abs(end[0]) > math.pi / 8 or abs(gap(end)) > math.pi / 4) == falls
+    assert terminated == info["fell"] == falls and not truncated
+    assert reward == (-50.0 if falls else -1.0)
+    hip_env = walker(fall="hip")
+    hip_env.reset(options={"state": state})
+    _, _, terminated, _, _ = hip_env.step(ZERO)
+    assert not terminated  # the hip is far from the slope
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    stance=st.floats(-0.5, 0.5),
+    leg_gap=st.floats(-1.2, 1.2),
+    stance_rate=st.floats(-1.0, 1.0),
+    gap_rate=st.floats(-3.0, 3.0),
+)
+def test_grl_fall_is_the_angle_test_on_the_end_state(stance, leg_gap, stance_rate, gap_rate):
+    state = [stance, leg_gap + 2.0 * stance, stance_rate, gap_rate + 2.0 * stance_rate]
+    env = walker(fall="angles", fall_reward=-7.0)
+    env.reset(options={"state": state})
+    _, reward, terminated, _, _ = env.step(ZERO)
+    end = env.state
+    expected = abs(end[0]) > math.pi / 8 or abs(gap(end)) > math.pi / 4
+    assert terminated == expected
+    assert (reward == -7.0) == expected
+
+
+def test_hip_on_the_slope_is_a_fall_under_both_criteria():
+    for fall in ("hip", "angles"):
+        env = walker(fall=fall)
+        env.reset(options={"state": [1.4, 2.8, 1.5, 0.0]})  # rotating back hard: the hip hits the slope in the step
+        _, reward, terminated, _, info = env.step(ZERO)
+        assert terminated and info["fell"] and reward == -50.0
+        assert env.state[0] == pytest.approx(math.pi / 2, abs=1e-12)
+
+
+# --- Observations and info -------------------------------------------------------------------------------------------
+
+
+def test_grl_observation_coordinates_by_hand():
+    env = walker(observation="grl")
+    np.testing.assert_array_equal(env.tile_widths, [0.10, 0.10, 0.11, 0.21])  # Table 4.2's, whichever coordinates
+    grl = walker(observation="grl", tile_widths=GRL_TILE_WIDTHS)
+    np.testing.assert_array_equal(grl.tile_widths, [0.0838, 0.1047, 0.1111, 0.2222])
+    assert env.wrap_periods is None
+    np.testing.assert_allclose(env.observation_space.high, [math.pi / 2, 2 * math.pi, 5.0, 60.0])
+    observation, _ = env.reset(options={"state": [0.12, 0.31, -0.2, 0.4]})
+    np.testing.assert_allclose(observation, [0.12, 0.07, -0.2, 0.8], rtol=0, atol=1e-15)
+    observation, _ = env.reset(options={"state": GARCIA_FIXED_POINT})
+    np.testing.assert_allclose(observation, [0.1534, 0.0, -0.1561, -0.0073 + 0.3122], rtol=0, atol=1e-15)
+    for _ in range(60):
+        observation, _, _, _, info = env.step(ZERO)
+        s = env.state
+        np.testing.assert_allclose(observation, [s[0], s[1] - 2 * s[0], s[2], s[3] - 2 * s[2]], rtol=0, atol=1e-15)
+        if info["footstep"]:
+            assert abs(observation[1]) < 0.05  # legs symmetric at the heel strike, a little apart by the step's end
+    thesis = walker()
+    assert thesis.wrap_periods is None
+    np.testing.assert_array_equal(thesis.tile_widths, [0.10, 0.10, 0.11, 0.21])
+    observation, _ = thesis.reset(options={"state": [0.12, 0.31, -0.2, 0.4]})
+    np.testing.assert_array_equal(observation, [0.12, 0.31, -0.2, 0.4])
+
+
+@pytest.mark.parametrize("observation", ["thesis", "grl"])
+def test_rates_beyond_the_bounds_are_clipped(observation):
+    env = walker(observation=observation)
+    env.reset(options={"state": [0.0, 0.2, -4.99, 0.0]})  # about to fall forward fast
+    observation_values, *_ = env.step(14)
+    s = env.state
+    assert s[2] < -5.0 and env.observation_space.contains(observation_values)
+    hip, hip_rate = (s[1], s[3]) if observation == "thesis" else (s[1] - 2 * s[0], s[3] - 2 * s[2])
+    np.testing.assert_allclose(observation_values, [s[0], hip, -5.0, hip_rate], rtol=0, atol=1e-15)
+
+
+def test_swing_foot_height_from_the_geometry_of_two_unit_legs():
+    def height(state):
+        stance, hip = state[0], state[1]
+        hip_point = np.array([-math.sin(stance), math.cos(stance)])  # stance foot at the origin, y along the normal
+        swing_angle = stance - hip  # absolute angle of the swing leg
+        foot = hip_point + np.array([math.sin(swing_angle), -math.cos(swing_angle)])
+        return foot[1]
+
+    env = walker()
+    _, info = env.reset(options={"state": [0.1, 0.5, 0.0, 0.0]})
+    assert info["swing_foot_height"] == pytest.approx(math.cos(0.1) - math.cos(0.4), rel=1e-12)
+    _, info = env.reset(options={"state": GARCIA_FIXED_POINT})
+    assert info["swing_foot_height"] == pytest.approx(0.0, abs=1e-15)  # legs symmetric: both feet on the slope
+    heights = []
+    for _ in range(40):
+        _, _, _, _, info = env.step(ZERO)
+        assert info["swing_foot_height"] == pytest.approx(height(env.state), abs=1e-14)
+        heights.append(info["swing_foot_height"])
+    assert min(heights) < 0.001 < 0.01 < max(heights)  # grazes the slope at mid-stance, swings clear before landing

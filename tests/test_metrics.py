@@ -102,10 +102,10 @@ def test_summary_table_puts_the_thesis_numbers_beside_ours():
     er_sigma_falls = table[(table.algorithm == "ER-σ") & (table.metric == "Falls")].iloc[0]
     assert er_sigma_falls.difference_with_sarsa_lambda == "-50 %"
     assert er_sigma_falls.thesis_average == "44"
-    assert er_sigma_falls.thesis_difference == "-41 %"
+    assert er_sigma_falls.thesis_difference == "-41 %"  # computed from 44 and 74, as printed
     text = markdown_table(walker, table)
     assert "| ER-σ | Rise time [s] | 100 | -50 % | 500 | -67 % |" in text
-    assert text.count("\n") == 1 + 3 * 2  # header, rule, three metrics for each of two algorithms
+    assert text.count("\n") == 1 + 4 * 2  # header, rule, four metrics for each of two algorithms
 
 
 def test_no_gait_shows_na_and_a_rise_time_beyond_the_run():
@@ -147,3 +147,40 @@ def test_rise_time_is_invariant_to_positive_affine_rescaling(curve, scale, shift
     threshold = curve[0] + 0.9 * (curve.max() - curve[0])
     if np.min(np.abs(curve - threshold)) > 1e-6 * (1 + np.abs(curve).max()):
         assert rescaled == original
+
+
+def test_thesis_differences_are_computed_from_the_thesis_averages():
+    from sb3_er.experiments.summary import thesis_difference
+
+    walker, leo = EXPERIMENTS["walker"], EXPERIMENTS["leo"]
+    # (150 - 74) / 74 = +103 %, printed +51 %; (140 - 74) / 74 = +89 %, printed +48 %
+    assert thesis_difference(walker, "er", "falls") == "+103 % (printed +51 %)"
+    assert thesis_difference(walker, "residual_er", "falls") == "+89 % (printed +48 %)"
+    assert thesis_difference(walker, "er_sigma", "falls") == "-41 %"  # (44 - 74) / 74 agrees with the print
+    assert thesis_difference(leo, "er", "falls") == ">+63 % (printed >+93 %)"  # (6170 - 3792) / 3792
+    assert thesis_difference(walker, "sarsa_lambda", "falls") == "-"
+
+
+def test_settling_time_does_not_move_with_the_run_length_once_the_plateau_is_reached():
+    from sb3_er.experiments.metrics import settling_time
+
+    # cost 1000 + 9000 exp(-x/10): within 10 % of the plateau's cost 1000 when 9000 exp(-x/10) <= 100, x >= 10 ln 90
+    for horizon in (100, 200, 400):
+        x = np.arange(horizon + 1, dtype=float)
+        returns = -(1000.0 + 9000.0 * np.exp(-x / 10.0))
+        assert settling_time(x, returns) == np.ceil(10 * np.log(90))  # 45, whatever the horizon
+    # a plateau with one lucky evaluation at x = 150: the thesis's rise time (90 % of the best value) moves from 12 to
+    # 18 when the run is long enough to contain it (100 (1 - exp(-x/5)) >= 97.2 -> x >= 17.9), the settling time stays
+    x = np.arange(201, dtype=float)
+    distance = 100.0 * (1.0 - np.exp(-x / 5.0))
+    distance[150] += 8.0
+    assert (rise_time(x[:101], distance[:101]), rise_time(x, distance)) == (12.0, 18.0)
+    assert settling_time(x[:101], distance[:101]) == settling_time(x, distance) == 12.0  # 5 ln 10 = 11.5
+
+
+def test_settling_time_of_a_curve_that_never_settles_or_has_no_plateau():
+    from sb3_er.experiments.metrics import settling_time
+
+    assert np.isnan(settling_time([0.0, 1.0, 2.0], [0.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="tolerance"):
+        settling_time([0.0, 1.0], [1.0, 2.0], tolerance=1.5)

@@ -75,12 +75,21 @@ def test_learning_rate_schedule():
 
 def test_replay_schedule_segment_trigger_and_stored_multiple():
     env = LineWalkEnv(segment_every=5)
-    model = ER("TileQ", env, replay_trigger="segment", n_replays=3, seed=0, **SMALL)
+    model = ER("TileQ", env, replay_trigger="segment", replay_unit="segment", n_replays=3, seed=0, **SMALL)
     model.learn(200)
     buffer = model.replay_buffer
     lengths = [len(t["rewards"]) for t in buffer.trajectories()]
     assert max(lengths) <= 5
     assert model.replay_phases == buffer.n_trajectories  # one phase per closed trajectory
+
+    whole = ER("TileQ", LineWalkEnv(segment_every=5), replay_trigger="segment", n_replays=3, seed=0, **SMALL)
+    whole.learn(200)  # the default unit: whole episodes, replayed at every segment end and episode end
+    episodes = whole.replay_buffer.trajectories()
+    assert len(episodes) == whole._episode_num and sum(len(t["rewards"]) for t in episodes) + (
+        whole.replay_buffer.open_length) == 200
+    ends = sum(1 for t in episodes for step in range(1, len(t["rewards"]) + 1) if step % 5 == 0 or step == len(
+        t["rewards"])) + whole.replay_buffer.open_length // 5
+    assert whole.replay_phases == ends
     model = ER("TileQ", LineWalkEnv(), replays_per_stored_trajectory=2.0, replay_every=2, seed=0, **SMALL)
     model.learn(400)
     assert model.replay_phases == model._episode_num // 2

@@ -56,8 +56,9 @@ def test_replay_buffer_round_trip_with_visits(tmp_path):
     model = ERSigma("TileQ", LineWalkEnv(segment_every=7), seed=0, **KWARGS).learn(500)
     model.save_replay_buffer(tmp_path / "buffer")
     fresh = ERSigma("TileQ", LineWalkEnv(), seed=0, **KWARGS)
-    fresh.load_replay_buffer(tmp_path / "buffer.pkl")
+    fresh.load_replay_buffer(tmp_path / "buffer.pkl", truncate_last_traj=False)  # exactly as saved, open episode too
     assert fresh.replay_buffer.n_trajectories == model.replay_buffer.n_trajectories
+    assert fresh.replay_buffer.open_length == model.replay_buffer.open_length
     np.testing.assert_array_equal(fresh.replay_buffer.visits, model.replay_buffer.visits)
     assert fresh.replay_buffer.visits.any()
 

@@ -29,13 +29,13 @@ def q(theta, coder, s, a) -> float:
 
 def one_transition_buffer(coder, s, a, r, s_next, terminated=False):
     buffer = TrajectoryReplayBuffer(8, coder)
-    buffer.add(np.array([s]), coder.slots(np.array([s])), a, r)
+    buffer.add(np.array([s]), coder.slots(np.array([s])), a, r, np.array([s_next]))
     buffer.close_trajectory(np.array([s_next]), terminated)
     return buffer
 
 
 def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGMA_NONE, zeta=0.0, epsilon=0.0,
-               residual_next_action=False):
+               residual_next_action=False, initial=kernels.ZERO_INITIAL):
     coder = buffer.tile_coder
     q_scratch = np.zeros(coder.n_actions)
     w_scratch = np.zeros(coder.n_actions)
@@ -43,7 +43,7 @@ def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGM
         theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
         coder.columns_are_actions, 1,
         kernels.ORDER_REVERSED, target, sigma, zeta, residual_next_action, ALPHA / coder.n_tilings, GAMMA, epsilon,
-        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch,
+        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch, *initial,
     )
 
 

@@ -3,7 +3,8 @@
 * :class:`LeoEnv`: the Gymnasium environment ``sb3_er/Leo-v0``;
 * :mod:`sb3_er_envs.leo.leo`: the dm_control domain (``Physics``, the ``LeoWalk`` task, ``walk()``) and ``leo.xml``;
 * :class:`ObservingGait`: Erik Schuitema's hand-made gait, a working walking policy to compare with;
-* :func:`save_episode_video`: write an episode as a GIF or MP4 to look at a gait.
+* :func:`save_episode_video`: write an episode as a GIF or MP4 to look at a gait;
+* :class:`RenderingUnavailable`: what rendering raises on a machine without a working OpenGL backend.
 
 dm_control and MuJoCo are imported on first use of any of these names, so that ``import sb3_er_envs`` works without
 them; a missing installation raises an ImportError that names the extra to install.
@@ -20,6 +21,7 @@ _EXPORTS = {
     "walk": "leo",
     "ObservingGait": "gait",
     "save_episode_video": "video",
+    "RenderingUnavailable": "_gl",
 }
 
 __all__ = list(_EXPORTS)

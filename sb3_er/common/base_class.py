@@ -6,19 +6,22 @@ import time
 from typing import Any, ClassVar, Optional, TypeVar, Union
 
 import numpy as np
+import gymnasium as gym
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import safe_mean
-from stable_baselines3.common.vec_env import DummyVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
 from sb3_er.common.policies import TileQPolicy, action_nvec
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
 DEFAULT_TILES_PER_DIMENSION = 10
+#: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
+PLACEHOLDER_BOUND = 1e30
 
 ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
 
@@ -32,6 +35,35 @@ def _to_builtin(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def is_fall(info: dict[str, Any], terminated: bool) -> bool:
+    """Whether an episode's end counts as a fall: ``info["fell"]`` where the env reports it (the walkers, LEO, the
+    pendulum), else any ``terminated`` end (a goal then counts too, so envs with goals should report ``fell``)."""
+    return bool(info["fell"]) if "fell" in info else terminated
+
+
+def default_tile_widths(observation_space: spaces.Box, tiles_per_dimension: int) -> list[float]:
+    """Tile widths splitting each bounded observation dimension into ``tiles_per_dimension`` tiles.
+
+    Bounds that are infinite, or placeholders for infinity (magnitude >= 1e30, such as +-float32 max), cannot be
+    split: those dimensions need explicit widths and the ValueError names them. A dimension whose bounds coincide
+    (a constant) gets width 1, one tile for its only value.
+    """
+    if int(tiles_per_dimension) != tiles_per_dimension or tiles_per_dimension < 1:
+        raise ValueError(f"tiles_per_dimension must be a positive integer, got {tiles_per_dimension!r}")
+    low, high = observation_space.low.astype(np.float64), observation_space.high.astype(np.float64)
+    bounded = np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
+    unbounded = np.flatnonzero(~bounded)
+    if unbounded.size:
+        raise ValueError(
+            f"Observation dimensions {unbounded.tolist()} are unbounded (bounds {low[unbounded].tolist()} to "
+            f"{high[unbounded].tolist()}; magnitudes of 1e30 or more, such as +-float32 max, count as unbounded) and "
+            "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
+            "attribute"
+        )
+    widths = (high - low) / tiles_per_dimension
+    return np.where(widths > 0.0, widths, 1.0).tolist()
 
 
 class DivergenceError(ArithmeticError):
@@ -96,13 +128,18 @@ class TileQAlgorithm(BaseAlgorithm):
         self.falls = 0
         self._td_error_sum = 0.0
         self._td_error_count = 0
-        self._check_hyperparameters()
         if self.env is not None:
             self._check_spaces(self.observation_space, self.action_space)
+            self._check_env_wrappers(self.env)
         if _init_setup_model:
             self._setup_model()
 
     def _check_hyperparameters(self) -> None:
+        """Validate every hyperparameter; runs wherever a model is built, loaded (``load(..., **kwargs)``) or rebuilt."""
+        learning_rate = self.learning_rate(1.0) if callable(self.learning_rate) else self.learning_rate
+        if not (isinstance(learning_rate, (int, float, np.floating)) and math.isfinite(learning_rate)
+                and learning_rate >= 0.0):
+            raise ValueError(f"learning_rate (alpha) must be a finite number >= 0, got {learning_rate!r}")
         if not 0.0 <= self.gamma <= 1.0:
             raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
         if not 0.0 <= self.exploration_rate <= 1.0:
@@ -111,6 +148,24 @@ class TileQAlgorithm(BaseAlgorithm):
             raise ValueError(f"the trace decay lambda must be in [0, 1], got {self.trace_lambda}")
         if not 0.0 < self.trace_cutoff < 1.0:
             raise ValueError(f"trace_cutoff must be in (0, 1), got {self.trace_cutoff}")
+
+    @staticmethod
+    def _check_env_wrappers(env: VecEnv) -> None:
+        """Refuse wrappers that rescale observations: tile widths are in the env's raw observation units."""
+        normalize = unwrap_vec_wrapper(env, VecNormalize)
+        normalized = normalize is not None and normalize.norm_obs
+        try:
+            normalized = normalized or any(env.env_is_wrapped(gym.wrappers.NormalizeObservation))
+        except (AttributeError, NotImplementedError):
+            pass
+        if normalized:
+            raise ValueError(
+                "The env normalises observations (VecNormalize with norm_obs=True, rl-zoo's `normalize: true`, or "
+                "gymnasium's NormalizeObservation), but tile widths are in the env's raw observation units: tiles "
+                "would shrink to a tiny fraction of their width and drift as the running statistics change, and "
+                "learning silently fails. Remove the observation normalisation (VecNormalize(norm_obs=False) keeps "
+                "reward normalisation), or tile the raw observations with suitable tile_widths."
+            )
 
     @staticmethod
     def _check_spaces(observation_space: spaces.Space, action_space: spaces.Space) -> None:
@@ -127,12 +182,11 @@ class TileQAlgorithm(BaseAlgorithm):
             )
 
     def _env_attribute(self, name: str) -> Any:
-        if self.env is None:
+        """An optional attribute of the (first) env, None when absent. Probed with ``has_attr``: a SubprocVecEnv's
+        ``get_attr`` of a missing attribute kills its worker."""
+        if self.env is None or not self.env.has_attr(name):
             return None
-        try:
-            return self.env.get_attr(name)[0]
-        except AttributeError:
-            return None
+        return self.env.get_attr(name)[0]
 
     def _resolve_policy_kwargs(self) -> dict[str, Any]:
         """Explicit tile-coding settings, defaults taken from the env, so that save/load rebuilds the same coder."""
@@ -142,21 +196,17 @@ class TileQAlgorithm(BaseAlgorithm):
             if kwargs.get(name) is None:
                 kwargs[name] = self._env_attribute(name)
         if kwargs.get("tile_widths") is None:
-            low, high = self.observation_space.low.astype(np.float64), self.observation_space.high.astype(np.float64)
-            unbounded = np.flatnonzero(~(np.isfinite(low) & np.isfinite(high)))
-            if unbounded.size:
-                raise ValueError(
-                    f"Observation dimensions {unbounded.tolist()} are unbounded and no tile widths were given: pass "
-                    "policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` attribute"
-                )
-            kwargs["tile_widths"] = ((high - low) / tiles_per_dimension).tolist()
+            kwargs["tile_widths"] = default_tile_widths(self.observation_space, tiles_per_dimension)
         return {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
 
     def _setup_model(self) -> None:
+        self._check_hyperparameters()
         self._setup_lr_schedule()
         BaseAlgorithm.set_random_seed(self, self.seed)  # not ours: load() has just restored their states
         self.policy_kwargs = self._resolve_policy_kwargs()
         self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
+        if self.policy.initial_value_seed is not None:  # keep the drawn seed: a reloaded model rebuilds the same start
+            self.policy_kwargs["initial_value_seed"] = self.policy.initial_value_seed
         coder = self.policy.tile_coder
         self._slots = np.zeros(coder.n_tilings, dtype=np.int64)
         self._next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
@@ -239,15 +289,17 @@ class TileQAlgorithm(BaseAlgorithm):
 
         :param log_interval: log every this many episodes.
         """
+        if self.env is None:
+            raise ValueError("This model has no environment: pass env= to load() or call set_env() before learn()")
+        if reset_num_timesteps or self._last_obs is None:
+            # _setup_learn resets the env: the episode in progress ends here, unfinished (see _end_episode_at_reset).
+            self._end_episode_at_reset()
         total_timesteps, callback = self._setup_learn(
             total_timesteps, callback, reset_num_timesteps, tb_log_name or type(self).__name__, progress_bar
         )
         if reset_num_timesteps:
             self.falls = 0
         self._single_env = self.env.envs[0] if type(self.env) is DummyVecEnv else None
-        self._next_action = -1
-        if self.trace_lambda is not None:
-            kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
         callback.on_training_start(locals(), globals())
         callback.on_rollout_start()
         while self.num_timesteps < total_timesteps:
@@ -257,25 +309,43 @@ class TileQAlgorithm(BaseAlgorithm):
         callback.on_training_end()
         return self
 
+    def _end_episode_at_reset(self) -> None:
+        """The env is about to be reset with an episode in progress (a new ``learn()``, ``set_env``, ``load``): forget
+        the pending a_{k+1} and the eligibility trace, so nothing of the old episode reaches the new one. Subclasses
+        close what they store of it (ER: the open trajectory, as truncated)."""
+        self._next_action = -1
+        if self.trace_lambda is not None:
+            kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
+
+    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        """SB3's ``set_env``, refusing observation-normalising wrappers. With ``force_reset`` (the default) the next
+        ``learn()`` resets the new env and the episode in progress ends, unfinished."""
+        super().set_env(env, force_reset)
+        self._check_env_wrappers(self.env)
+
     def _select_action(self, obs: np.ndarray) -> int:
         action = kernels.select_action(
             self.policy.theta_array, obs, *self.policy.tile_coder.kernel_arguments, self.exploration_rate,
             self.action_rng, self._slots, self._q_scratch,
         )
         if action < 0:
-            raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {obs.tolist()}")
+            raise ValueError(self.policy.tile_coder.bad_observation_message(obs, f" at step {self.num_timesteps}"))
         return action
 
     def _step_env(self, callback: BaseCallback, log_interval: int) -> bool:
-        """One interaction step; False if a callback asked to stop."""
+        """One interaction step; False if a callback asked to stop.
+
+        The transition is learned and stored even when the callback stops training, so that the env, ``_last_obs``
+        and the stored trajectory stay in step and a later ``learn(reset_num_timesteps=False)`` continues the
+        episode exactly where it was.
+        """
         obs = np.asarray(self._last_obs[0], dtype=np.float64)
         action = self._next_action if self._next_action >= 0 else self._select_action(obs)
-        env_action = self.policy.to_env_actions(np.array([action]))
-        new_obs, rewards, dones, infos = self._vec_env_step(env_action)
+        actions = self.policy.to_env_actions(np.array([action]))  # the env's format, as SB3's callbacks read it
+        new_obs, rewards, dones, infos = self._vec_env_step(actions)
         self.num_timesteps += 1
         callback.update_locals(locals())
-        if not callback.on_step():
-            return False
+        continue_training = callback.on_step()
         self._update_info_buffer(infos, dones)
         info, done, reward = infos[0], bool(dones[0]), float(rewards[0])
         if not math.isfinite(reward):
@@ -287,7 +357,7 @@ class TileQAlgorithm(BaseAlgorithm):
         self._after_transition(obs, action, reward, next_obs, terminated, done, info)
         if done:
             self._episode_num += 1
-            self.falls += int(terminated)
+            self.falls += is_fall(info, terminated)
             self._next_action = -1
             if self.trace_lambda is not None:
                 kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
@@ -297,15 +367,15 @@ class TileQAlgorithm(BaseAlgorithm):
             self._slots, self._next_slots = self._next_slots, self._slots
         self._last_obs = new_obs
         self._update_current_progress_remaining(self.num_timesteps, self._total_timesteps)
-        return True
+        return continue_training
 
-    def _vec_env_step(self, env_action: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+    def _vec_env_step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
         """VecEnv.step; for a plain one-env DummyVecEnv the same results without its per-step deep copy of infos
         (and with the env's float64 reward, where DummyVecEnv's buffer would round it to float32)."""
         single = self._single_env
         if single is None:
-            return self.env.step(env_action)
-        obs, reward, terminated, truncated, info = single.step(env_action[0])
+            return self.env.step(actions)
+        obs, reward, terminated, truncated, info = single.step(actions[0])
         done = terminated or truncated
         info["TimeLimit.truncated"] = truncated and not terminated
         if done:
@@ -323,7 +393,7 @@ class TileQAlgorithm(BaseAlgorithm):
             self.gamma * self.trace_lambda, self.trace_cutoff, self.exploration_rate, self.action_rng,
         )
         if status == kernels.STATUS_BAD_OBSERVATION:
-            raise ValueError(f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}")
+            raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
         if status == kernels.STATUS_TRACE_FULL:
             raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
         if not math.isfinite(delta):
@@ -348,7 +418,7 @@ class TileQAlgorithm(BaseAlgorithm):
         if self._td_error_count:
             self.logger.record("train/td_error", self._td_error_sum / self._td_error_count)
             self._td_error_sum, self._td_error_count = 0.0, 0
-        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.theta_array)
+        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.theta_array, *self.policy.initial_arguments)
         self.logger.record("train/weights_abs_mean", weights_abs_mean)
         self.logger.record("train/memory_fill", memory_fill)
         self.logger.record("train/learning_rate", self.current_learning_rate)

@@ -18,6 +18,11 @@ class TrajectoryReplayBuffer:
     evicted oldest first. ``visits`` is w of Eq. 5.1-5.2: one byte per weight, set for the features of every stored
     (s_t, a_t); eviction does not clear it (a feature once visited stays visited).
 
+    The open trajectory (the episode in progress) also keeps the s_{t+1} of its latest transition, so that when its
+    episode is cut off without an end of its own (the env reset by a new ``learn()``, ``set_env`` or ``load``; SB3's
+    ``truncate_last_traj``), :meth:`truncate_open_trajectory` closes it as truncated: replay bootstraps from that real
+    s_{t+1} and never joins the cut episode to the next one.
+
     :param capacity: maximum number of stored transitions.
     :param tile_coder: the policy's tile coder; w shares its weight layout.
     """
@@ -38,6 +43,8 @@ class TrajectoryReplayBuffer:
         self.trajectory_terminated = np.zeros(self.capacity, dtype=np.bool_)
         self.trajectory_next_obs = np.zeros((self.capacity, n_dims), dtype=np.float64)
         self.trajectory_next_slots = np.zeros((self.capacity, n_tilings), dtype=np.int64)
+        self.open_next_obs = np.zeros(n_dims, dtype=np.float64)
+        self.open_next_slots = np.zeros(n_tilings, dtype=np.int64)
         self.visits = np.zeros(tile_coder.n_weights, dtype=np.uint8)
         self.oldest_trajectory = 0
         self.write_row = 0
@@ -50,11 +57,17 @@ class TrajectoryReplayBuffer:
         return self.n_transitions - self.open_length
 
     @property
+    def n_stored_trajectories(self) -> int:
+        """Closed trajectories, plus the open one when it holds transitions (replay draws from all of them)."""
+        return self.n_trajectories + (1 if self.open_length else 0)
+
+    @property
     def open_trajectory(self) -> int:
         return (self.oldest_trajectory + self.n_trajectories) % self.capacity
 
-    def add(self, obs: np.ndarray, slots: np.ndarray, action: int, reward: float) -> None:
-        """Append (s_t, a_t, r_{t+1}) to the open trajectory and mark phi(s_t, a_t) as visited (Eq. 5.2)."""
+    def add(self, obs: np.ndarray, slots: np.ndarray, action: int, reward: float, next_obs: np.ndarray) -> None:
+        """Append (s_t, a_t, r_{t+1}) to the open trajectory, remember s_{t+1} and mark phi(s_t, a_t) as visited
+        (Eq. 5.2)."""
         if self.n_transitions == self.capacity:
             self._evict_oldest_trajectory()
         p = (self.write_row + self.open_length) % self.capacity
@@ -63,6 +76,7 @@ class TrajectoryReplayBuffer:
         self.actions[p] = action
         self.rewards[p] = reward
         self.transition_trajectory[p] = self.open_trajectory
+        self.open_next_obs[:] = next_obs
         self.open_length += 1
         self.n_transitions += 1
         coder = self.tile_coder
@@ -83,6 +97,10 @@ class TrajectoryReplayBuffer:
         self.open_length = 0
         return True
 
+    def truncate_open_trajectory(self) -> bool:
+        """Close the open trajectory as truncated at its latest s_{t+1} (its episode was cut off); False if empty."""
+        return self.close_trajectory(self.open_next_obs.copy(), terminated=False)
+
     def _evict_oldest_trajectory(self) -> None:
         if self.n_trajectories == 0:
             raise ValueError(
@@ -95,7 +113,9 @@ class TrajectoryReplayBuffer:
         self.n_trajectories -= 1
 
     def replay_arguments(self) -> tuple:
-        """The buffer's arrays and counters in the order of ``kernels.replay_phase``."""
+        """The buffer's arrays and counters in the order of ``kernels.replay_phase``, the open trajectory included."""
+        if self.open_length:
+            self.open_next_slots[:] = self.tile_coder.slots(self.open_next_obs)
         return (
             self.slots,
             self.actions,
@@ -107,7 +127,11 @@ class TrajectoryReplayBuffer:
             self.trajectory_next_slots,
             self.oldest_trajectory,
             self.n_trajectories,
-            self.n_closed_transitions,
+            self._oldest_row(),
+            self.n_transitions,
+            self.open_trajectory,
+            self.open_length,
+            self.open_next_slots,
         )
 
     def trajectories(self) -> list[dict[str, Any]]:
@@ -145,6 +169,7 @@ class TrajectoryReplayBuffer:
             "trajectory_next_obs": self.trajectory_next_obs[trajectories],
             "trajectory_next_slots": self.trajectory_next_slots[trajectories],
             "open_length": self.open_length,
+            "open_next_obs": self.open_next_obs,
             "visits": self.visits,
         }
 
@@ -167,4 +192,8 @@ class TrajectoryReplayBuffer:
         self.transition_trajectory[n - state["open_length"] : n] = m
         self.visits[:] = state["visits"]
         self.n_trajectories, self.n_transitions, self.open_length = m, n, state["open_length"]
+        if "open_next_obs" in state:
+            self.open_next_obs[:] = state["open_next_obs"]
+        else:  # saved before the open trajectory kept its s_{t+1}: it cannot be closed, so drop it
+            self.n_transitions, self.open_length = n - state["open_length"], 0
         self.write_row = (n - state["open_length"]) % self.capacity

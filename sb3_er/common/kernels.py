@@ -12,6 +12,9 @@ the thesis). Conventions shared by all kernels:
   passed in as ``step_size``.
 - Random numbers come from a xoshiro256** generator whose 4-word state array is passed in (``new_rng_state`` seeds
   one); a NumPy Generator would cost ~20 us per kernel call to unbox. Kernels allocate nothing.
+- Initial weights are ``initial_low + initial_span * u_i`` with u_i in [0, 1) a counter-based hash of
+  (``initial_seed``, i) (:func:`initial_weight`), so any weight's initial value can be recomputed where it is needed
+  (ER-sigma at unvisited features, the statistics of touched weights) without storing a second table.
 """
 
 import numba as nb
@@ -22,6 +25,9 @@ TARGET_SARSA, TARGET_Q_LEARNING, TARGET_EXPECTED_SARSA = 0, 1, 2
 SIGMA_NONE, SIGMA_WORST, SIGMA_AVERAGE, SIGMA_BEST, SIGMA_AVERAGE_WORST, SIGMA_AVERAGE_BEST = -1, 0, 1, 2, 3, 4
 
 STATUS_OK, STATUS_DIVERGED, STATUS_TRACE_FULL, STATUS_BAD_OBSERVATION = 0, 1, 2, 3
+
+#: (initial_low, initial_span, initial_seed) of all-zero initial weights, the thesis's theta <- 0.
+ZERO_INITIAL = (0.0, 0.0, np.uint64(0))
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -93,12 +99,17 @@ def hash_tile(tiling, coords_hash):
     return _mix64(coords_hash ^ (np.uint64(tiling) * _GOLDEN))
 
 
+#: Largest |x / width| a tile coordinate may have: beyond it the int64 coordinate would overflow.
+MAX_TILE_COORDINATE = 2.0**62
+
+
 @nb.njit(cache=True)
 def state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
-    """Hashed state-tile slot of obs in each tiling; False if obs has a NaN or infinite entry."""
+    """Hashed state-tile slot of obs in each tiling; False if an entry of obs is NaN, infinite or so large that its
+    tile coordinate would overflow (|x / width| >= MAX_TILE_COORDINATE)."""
     n_dims = obs.shape[0]
     for d in range(n_dims):
-        if not np.isfinite(obs[d]):
+        if not abs(obs[d] * inv_widths[d]) < MAX_TILE_COORDINATE:
             return False
     for k in range(offsets.shape[0]):
         h = _GOLDEN
@@ -138,25 +149,52 @@ def all_q_values(theta, slots, stride, action_columns, columns_are_actions, out_
 
 
 @nb.njit(inline="always", cache=True)
-def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, columns_are_actions, out_q, out_w):
-    """Q(s, .) and W(s, .) = w . phi(s, .) (Eq. 5.1-5.2, how many active features of (s, a) were ever visited) in one
-    pass over the same rows."""
+def initial_weight(i, initial_low, initial_span, initial_seed):
+    """The initial value of weight i: initial_low + initial_span * u_i, u_i uniform in [0, 1) (splitmix64 of the
+    seed and i: a counter-based generator, so the value is recomputed rather than stored)."""
+    if initial_span == 0.0:
+        return initial_low
+    u = np.float64(_mix64(initial_seed ^ (np.uint64(i) * _GOLDEN)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return initial_low + initial_span * u
+
+
+@nb.njit(cache=True)
+def fill_initial_weights(theta, initial_low, initial_span, initial_seed):
+    """theta_i <- its initial value (Alg. 7-14 line 1 with a user-chosen initialisation instead of 0)."""
+    for i in range(theta.shape[0]):
+        theta[i] = initial_weight(i, initial_low, initial_span, initial_seed)
+
+
+@nb.njit(inline="always", cache=True)
+def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, columns_are_actions, out_q, out_w,
+                                  initial_low, initial_span, initial_seed):
+    """Q_v(s, .) and W(s, .) = w . phi(s, .) (Eq. 5.1-5.2: how many active features of (s, a) were ever visited) in
+    one pass over the same rows.
+
+    Q_v(s, a) is Q(s, a) without the initial values of its unvisited features: sum_k theta_k - sum_{k unvisited}
+    theta_init_k, the value carried by experience (and by updates that reached unvisited features). With zero initial
+    weights (the thesis's Alg. 9-14, line 1) it is Q(s, a) itself.
+    """
     n_actions = np.uint64(out_q.shape[0])
+    has_initial = initial_low != 0.0 or initial_span != 0.0
     for a in range(n_actions):
         out_q[a] = 0.0
         out_w[a] = 0.0
     for k in range(slots.shape[0]):
-        row = theta[slots[k] * stride : (slots[k] + 1) * stride]
-        visited = visits[slots[k] * stride : (slots[k] + 1) * stride]
-        if columns_are_actions:
+        base = slots[k] * stride
+        row = theta[base : base + stride]
+        visited = visits[base : base + stride]
+        if columns_are_actions and not has_initial:
             for a in range(n_actions):
                 out_q[a] += row[a]
                 out_w[a] += visited[a]
         else:
             for a in range(n_actions):
-                column = np.uint64(action_columns[k, a])
+                column = np.uint64(a) if columns_are_actions else np.uint64(action_columns[k, a])
                 out_q[a] += row[column]
                 out_w[a] += visited[column]
+                if has_initial and visited[column] == 0:
+                    out_q[a] -= initial_weight(base + np.int64(column), initial_low, initial_span, initial_seed)
 
 
 @nb.njit(inline="always", cache=True)
@@ -252,7 +290,7 @@ def sarsa_lambda_step(
     The trace is sparse: ``trace_index[:n]`` holds the weights with a non-zero trace, ``trace_value[:n]`` their traces,
     ``trace_position[i]`` where weight i sits in that list (-1 if absent); ``trace_length[0]`` is n. Traces that decay
     below ``trace_cutoff`` are dropped. Returns (a_{k+1}, delta, status); a_{k+1} is -1 when s_{k+1} is terminal and
-    status reports a NaN or infinite s_{k+1} or a full trace list.
+    status reports an s_{k+1} that cannot be tiled (NaN, infinite, too large) or a full trace list.
     """
     n_tilings = slots.shape[0]
     q_sa = q_value(theta, slots, stride, action_columns, action)
@@ -316,10 +354,10 @@ def clear_trace(trace_index, trace_position, trace_length):
 
 @nb.njit(inline="always", cache=True)
 def sigma_of_state(q, w, sigma_kind):
-    """sigma(s') from the visited actions at s' (Appendix B; definition 4 is Alg. 10 line 6).
+    """sigma(s') from the visited actions at s' (Appendix B; definition 4 is Alg. 10 line 6), with q = Q_v(s', .).
 
-    Actions with W(s', a) = 0 are left out of the per-action ratios. When no action at s' was ever visited (the last
-    state of a truncated episode) there is nothing to judge s' by and sigma falls back to the initial value 0.
+    Actions with W(s', a) = 0 are left out of the per-action ratios. Callers handle the state where no action was
+    ever visited (0 is returned for it).
     """
     sum_q = 0.0
     sum_w = 0.0
@@ -348,21 +386,31 @@ def sigma_of_state(q, w, sigma_kind):
 
 @nb.njit(inline="always", cache=True)
 def next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
-                     sigma_kind, epsilon, rng, q, w):
+                     sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed):
     """The bootstrap value at s' and the action a' it belongs to, on sigma-adjusted values for ER-sigma.
 
     ER-sigma replaces the values of never-visited features by sigma(s') (Eq. 5.4, Alg. 10 lines 6-9):
-    Q~(s', a) = Q(s', a) + u(a) * N * sigma(s') with u(a) N = N - W(s', a) (Eq. 5.3).
+    Q~(s', a) = Q_v(s', a) + u(a) * N * sigma(s') with u(a) N = N - W(s', a) (Eq. 5.3), Q_v as in
+    :func:`all_q_values_and_visit_counts` (Q itself for zero initial weights, the thesis's setting). When no action at
+    s' was ever visited (the last state of an episode cut off by a time limit) there is nothing to judge s' by:
+    Q~ = Q, the initial values (0 in the thesis) and whatever generalisation put there.
     Sarsa draws a' epsilon-greedily (Alg. 8 line 6); Q-learning takes the max (Eq. 2.5); Expected Sarsa the
     expectation under the epsilon-greedy policy (a' is then the greedy action).
     """
     if sigma_kind == SIGMA_NONE:
         all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
     else:
-        all_q_values_and_visit_counts(theta, visits, next_slots, stride, action_columns, columns_are_actions, q, w)
-        sigma = sigma_of_state(q, w, sigma_kind)
+        all_q_values_and_visit_counts(theta, visits, next_slots, stride, action_columns, columns_are_actions, q, w,
+                                      initial_low, initial_span, initial_seed)
+        sum_w = 0.0
         for a in range(q.shape[0]):
-            q[a] += (n_tilings - w[a]) * sigma
+            sum_w += w[a]
+        if sum_w == 0.0:
+            all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
+        else:
+            sigma = sigma_of_state(q, w, sigma_kind)
+            for a in range(q.shape[0]):
+                q[a] += (n_tilings - w[a]) * sigma
     if target_kind == TARGET_SARSA:
         next_action = epsilon_greedy(q, epsilon, rng)
         return q[next_action], next_action
@@ -375,7 +423,7 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
 @nb.njit(inline="always", cache=True)
 def replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
                   columns_are_actions, target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma,
-                  epsilon, rng, q, w):
+                  epsilon, rng, q, w, initial_low, initial_span, initial_seed):
     """One replayed update of transition p; returns delta.
 
     theta <- theta + alpha delta phi(s_t, a_t)                                  (Alg. 8 line 7, Alg. 10 line 9)
@@ -392,7 +440,8 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
     residual_action = a
     if not terminal:
         value, next_action = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
-                                              n_tilings, target_kind, sigma_kind, epsilon, rng, q, w)
+                                              n_tilings, target_kind, sigma_kind, epsilon, rng, q, w, initial_low,
+                                              initial_span, initial_seed)
         target += gamma * value
         if residual_next_action:
             residual_action = next_action
@@ -417,47 +466,61 @@ def ring_index(i, capacity):
 def replay_phase(
     theta, visits, slots, actions, rewards, transition_trajectory,
     trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
-    oldest_trajectory, n_closed_trajectories, n_closed_transitions,
+    oldest_trajectory, n_closed_trajectories, first_row, n_transitions, open_trajectory, open_length, open_next_slots,
     stride, action_columns, columns_are_actions, n_replays, order, target_kind, sigma_kind, residual_zeta,
     residual_next_action, step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
+    initial_low, initial_span, initial_seed,
 ):
-    """Replay n_replays trajectories drawn uniformly from the closed ones (Alg. 8, 10, 12, 14 lines 1-3).
+    """Replay n_replays trajectories drawn uniformly from the stored ones (Alg. 8, 10, 12, 14 lines 1-3).
 
+    The stored trajectories are the closed ones and, when it holds transitions, the open one: the episode in progress,
+    as Alg. 8 line 2 draws e' "uniformly distributed over {1, ..., e}" with e the current episode. Its index is
+    ``open_trajectory``, its rows follow the closed rows in the ring, and its last transition bootstraps from
+    ``open_next_slots``, the tiles of its latest s_{t+1}. ``first_row`` is the oldest stored row and
+    ``n_transitions`` counts every stored transition, the open ones included.
     Reversed order replays each from its last sample to its first (t = k..1, the thesis default); forward replays in
-    temporal order; uniform replays as many transitions drawn uniformly from all closed transitions (Appendix A).
+    temporal order; uniform replays as many transitions drawn uniformly from all stored transitions (Appendix A).
     Trajectory picks use ``replay_rng`` and exploration ``action_rng``, so variants replay exactly the same trajectories.
     Returns (updates, sum of |delta|, last delta, status).
     """
     capacity = slots.shape[0]
     trajectory_capacity = trajectory_start.shape[0]
+    n_trajectories = n_closed_trajectories + (1 if open_length > 0 else 0)
+    open_start = ring_index(first_row + n_transitions - open_length, capacity)
     updates = 0
     sum_abs_delta = 0.0
     delta = 0.0
+    if n_trajectories == 0:
+        return updates, sum_abs_delta, delta, STATUS_OK
     for _ in range(n_replays):
-        j = ring_index(oldest_trajectory + random_integer(replay_rng, n_closed_trajectories), trajectory_capacity)
-        start = trajectory_start[j]
-        length = trajectory_length[j]
+        j = ring_index(oldest_trajectory + random_integer(replay_rng, n_trajectories), trajectory_capacity)
+        length = open_length if j == open_trajectory else trajectory_length[j]
         for step in range(length):
             if order == ORDER_UNIFORM:
-                first = trajectory_start[oldest_trajectory]
-                p = ring_index(first + random_integer(replay_rng, n_closed_transitions), capacity)
+                p = ring_index(first_row + random_integer(replay_rng, n_transitions), capacity)
                 jp = transition_trajectory[p]
-                t = ring_index(p - trajectory_start[jp] + capacity, capacity)
-                last = t == trajectory_length[jp] - 1
             else:
                 jp = j
+            if jp == open_trajectory:
+                start, jp_length, end_slots, end_terminal = open_start, open_length, open_next_slots, False
+            else:
+                start, jp_length = trajectory_start[jp], trajectory_length[jp]
+                end_slots, end_terminal = trajectory_next_slots[jp], trajectory_terminated[jp]
+            if order == ORDER_UNIFORM:
+                t = ring_index(p - start + capacity, capacity)
+            else:
                 t = length - 1 - step if order == ORDER_REVERSED else step
                 p = ring_index(start + t, capacity)
-                last = t == length - 1
-            if last:
-                next_slots = trajectory_next_slots[jp]
-                terminal = trajectory_terminated[jp]
+            if t == jp_length - 1:
+                next_slots = end_slots
+                terminal = end_terminal
             else:
                 next_slots = slots[ring_index(p + 1, capacity)]
                 terminal = False
             delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
                                   action_columns, columns_are_actions, target_kind, sigma_kind, residual_zeta,
-                                  residual_next_action, step_size, gamma, epsilon, action_rng, q_scratch, w_scratch)
+                                  residual_next_action, step_size, gamma, epsilon, action_rng, q_scratch, w_scratch,
+                                  initial_low, initial_span, initial_seed)
             updates += 1
             if not np.isfinite(delta):
                 return updates, sum_abs_delta, delta, STATUS_DIVERGED
@@ -466,17 +529,18 @@ def replay_phase(
 
 
 @nb.njit(cache=True)
-def weight_statistics(theta):
-    """(mean |theta| over the non-zero weights, share of non-zero weights) without a temporary array."""
+def weight_statistics(theta, initial_low, initial_span, initial_seed):
+    """(mean |theta| over the touched weights, share of touched weights): a weight is touched when it differs from its
+    initial value (:func:`initial_weight`). No temporary array."""
     total = 0.0
-    nonzero = 0
+    touched = 0
     for i in range(theta.shape[0]):
-        if theta[i] != 0.0:
+        if theta[i] != initial_weight(i, initial_low, initial_span, initial_seed):
             total += abs(theta[i])
-            nonzero += 1
-    if nonzero == 0:
+            touched += 1
+    if touched == 0:
         return 0.0, 0.0
-    return total / nonzero, nonzero / theta.shape[0]
+    return total / touched, touched / theta.shape[0]
 
 
 # --- Batch views, FQI, LSPI and Dyna (sb3_er.fqi, sb3_er.lspi, sb3_er.dyna; thesis chapter 3) ----------------------

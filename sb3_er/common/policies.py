@@ -14,6 +14,11 @@ from sb3_er.common import kernels
 from sb3_er.common.tile_coding import TileCoder
 
 
+def action_start(action_space: spaces.Space) -> np.ndarray:
+    """The first action of each action dimension (gymnasium's ``start``; 0 unless the space says otherwise)."""
+    return np.atleast_1d(np.asarray(getattr(action_space, "start", 0), dtype=np.int64)).reshape(-1)
+
+
 def action_nvec(action_space: spaces.Space) -> list[int]:
     """Choices per action dimension of a Discrete or MultiDiscrete space."""
     if isinstance(action_space, spaces.Discrete):
@@ -28,12 +33,36 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
     )
 
 
+def _initial_range(initial_value) -> tuple[float, float]:
+    """(low, high) of Q's initial values from a number or a (low, high) pair; ValueError naming the problem."""
+    values = np.atleast_1d(np.asarray(initial_value, dtype=np.float64)) if _is_numeric(initial_value) else None
+    if values is None or values.ndim != 1 or values.size not in (1, 2) or not np.all(np.isfinite(values)):
+        raise ValueError(f"initial_value must be a finite number or a (low, high) pair, got {initial_value!r}")
+    low, high = float(values[0]), float(values[-1])
+    if low > high:
+        raise ValueError(f"initial_value (low, high) needs low <= high, got {initial_value!r}")
+    return low, high
+
+
+def _is_numeric(value) -> bool:
+    try:
+        np.asarray(value, dtype=np.float64)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def _tileable(coder: TileCoder, obs: np.ndarray) -> bool:
+    return bool(np.all(np.abs(obs * coder.inv_widths) < kernels.MAX_TILE_COORDINATE))
+
+
 class TileQPolicy(BasePolicy):
     """Greedy policy of a binary tile-coded linear Q-function (thesis Eq. 2.8).
 
     The weights theta are a float64 CPU tensor registered as a buffer, so SB3's save/load and get/set_parameters work
     unchanged; the numba kernels update its NumPy view in place. MultiDiscrete actions are flattened in C order.
-    Exploration belongs to the algorithm: ``predict`` here is always greedy.
+    Exploration belongs to the algorithm: ``predict`` here is always greedy. Internally actions are flat indices
+    0..A-1; the env sees them shifted by the space's ``start`` (``Discrete(3, start=-1)`` receives -1, 0, 1).
 
     :param observation_space: a flat Box.
     :param action_space: Discrete or MultiDiscrete.
@@ -44,6 +73,14 @@ class TileQPolicy(BasePolicy):
     :param wrap_periods: per observation dimension a period or None.
     :param action_values: per action dimension the value of each choice (for action tiling).
     :param action_tile_widths: per action dimension a tile width over action_values; None keeps actions apart.
+    :param initial_value: where Q starts. A number c sets every weight to c / N, so that Q(s, a) = c everywhere; a pair
+        (low, high) draws each weight from U(low / N, high / N), so that Q starts in [low, high] (GRL's walker draws
+        its averaged weights from U[0, 1]: ``initial_value=(0, 1)`` here). Default 0, the thesis's Alg. 2-14 line 1.
+        Optimistic values explore; pessimistic ones (thesis Figure 5.5) trust only visited features. ER-sigma
+        replaces the initial values of unvisited features by sigma(s') (Eq. 5.4).
+    :param initial_value_seed: seed of the draw of (low, high) initial weights; None draws one from NumPy's global
+        generator (which the algorithm seeds with its ``seed``). The resolved seed is kept, so a reloaded model knows
+        every weight's initial value.
     """
 
     def __init__(
@@ -57,6 +94,8 @@ class TileQPolicy(BasePolicy):
         wrap_periods: Optional[Sequence[Optional[float]]] = None,
         action_values: Optional[Sequence[Sequence[float]]] = None,
         action_tile_widths: Optional[Sequence[float]] = None,
+        initial_value: Union[float, Sequence[float]] = 0.0,
+        initial_value_seed: Optional[int] = None,
     ):
         super().__init__(observation_space, action_space)
         if tile_widths is None:
@@ -74,12 +113,23 @@ class TileQPolicy(BasePolicy):
             raise ValueError(
                 f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape {observation_space.shape}"
             )
+        low, high = _initial_range(initial_value)
+        if low != high and initial_value_seed is None:
+            initial_value_seed = int(np.random.randint(0, 2**62))
+        self.initial_value = initial_value if low != high else low
+        self.initial_value_seed = None if low == high else int(initial_value_seed)
+        n = self.tile_coder.n_tilings
+        self.initial_arguments = (low / n, (high - low) / n, np.uint64(self.initial_value_seed or 0))
+        """Initial weights in kernel order: initial_low, initial_span (per weight) and initial_seed."""
         # NumPy allocates large arrays with transparent huge pages, which spares the random row reads TLB misses.
         self.register_buffer("theta", th.from_numpy(np.zeros(self.tile_coder.n_weights, dtype=np.float64)))
         self.theta_array = self.theta.numpy()
+        if low != 0.0 or high != 0.0:
+            kernels.fill_initial_weights(self.theta_array, *self.initial_arguments)
         self.action_table = np.stack(
             np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1
-        )
+        ) + action_start(action_space)
+        self._actions_are_indices = isinstance(action_space, spaces.Discrete) and int(action_space.start) == 0
         self._slots_scratch = np.zeros(self.tile_coder.n_tilings, dtype=np.int64)
         self._q_scratch = np.zeros(self.tile_coder.n_actions, dtype=np.float64)
 
@@ -95,8 +145,16 @@ class TileQPolicy(BasePolicy):
         data = super()._get_constructor_parameters()
         config = self.tile_coder.config()
         del config["action_nvec"]
-        data.update(config)
+        data.update(config, initial_value=self.initial_value, initial_value_seed=self.initial_value_seed)
         return data
+
+    def initial_weights(self, indices: np.ndarray) -> np.ndarray:
+        """The initial values of the weights at ``indices`` (any integer array shape)."""
+        indices = np.asarray(indices, dtype=np.int64)
+        out = np.empty(indices.size, dtype=np.float64)
+        for j, i in enumerate(indices.reshape(-1)):
+            out[j] = kernels.initial_weight(i, *self.initial_arguments)
+        return out.reshape(indices.shape)
 
     def _as_batch(self, observation) -> tuple[np.ndarray, bool]:
         obs = np.asarray(observation, dtype=np.float64)
@@ -111,14 +169,17 @@ class TileQPolicy(BasePolicy):
             self.theta_array, observations, *coder.kernel_arguments, self._slots_scratch, self._q_scratch, out
         )
         if not ok:
-            raise ValueError("Observation contains NaN or infinite values")
+            bad = next(row for row in observations if not _tileable(coder, row))
+            raise ValueError(coder.bad_observation_message(bad))
         return out
 
     def to_env_actions(self, flat_actions: np.ndarray) -> np.ndarray:
-        """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete."""
-        if isinstance(self.action_space, spaces.Discrete):
+        """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete,
+        shifted by the space's ``start``."""
+        if self._actions_are_indices:
             return flat_actions
-        return self.action_table[flat_actions]
+        table = self.action_table[flat_actions]
+        return table[:, 0] if isinstance(self.action_space, spaces.Discrete) else table
 
     def q_values(self, observations: np.ndarray) -> np.ndarray:
         """Q(s, .) for each observation: (B, D) -> (B, n_actions), MultiDiscrete actions flattened in C order."""
@@ -126,7 +187,8 @@ class TileQPolicy(BasePolicy):
         coder = self.tile_coder
         out = np.empty((batch.shape[0], coder.n_actions), dtype=np.float64)
         if not kernels.batch_q_values(self.theta_array, batch, *coder.kernel_arguments, self._slots_scratch, out):
-            raise ValueError("Observation contains NaN or infinite values")
+            bad = next(row for row in batch if not _tileable(coder, row))
+            raise ValueError(coder.bad_observation_message(bad))
         return out
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = False):

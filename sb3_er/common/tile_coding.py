@@ -55,17 +55,24 @@ class TileCoder:
         self.tile_widths = np.asarray(tile_widths, dtype=np.float64).reshape(-1)
         self.n_dims = self.tile_widths.shape[0]
         self.action_nvec = np.asarray(action_nvec, dtype=np.int64).reshape(-1)
+        for name, value in (("n_tilings", n_tilings), ("memory_size", memory_size)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer, float)) or value != int(value) \
+                    or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
         self.n_tilings = int(n_tilings)
         self.n_actions = int(np.prod(self.action_nvec))
-        if self.n_tilings < 1:
-            raise ValueError(f"n_tilings must be at least 1, got {n_tilings}")
-        if not np.all(np.isfinite(self.tile_widths)) or np.any(self.tile_widths <= 0):
-            raise ValueError(f"tile_widths must be finite and positive, got {self.tile_widths.tolist()}")
+        with np.errstate(divide="ignore", over="ignore"):
+            inverse = 1.0 / self.tile_widths
+        if not np.all(np.isfinite(self.tile_widths)) or np.any(self.tile_widths <= 0) or not np.all(np.isfinite(inverse)):
+            raise ValueError(f"tile_widths must be finite and positive (and not subnormal), got {self.tile_widths.tolist()}")
         self.wrap_periods = self._check_wrap_periods(wrap_periods)
         self.wrap_tiles = np.zeros(self.n_dims, dtype=np.int64)
         self.inv_widths = 1.0 / self.tile_widths
         for d, period in enumerate(self.wrap_periods):
             if period is not None:
+                if not period / self.tile_widths[d] < kernels.MAX_TILE_COORDINATE:
+                    raise ValueError(f"wrap period {period} of dimension {d} holds too many tiles of width "
+                                     f"{self.tile_widths[d]} (at most 2^62)")
                 self.wrap_tiles[d] = max(1, int(round(period / self.tile_widths[d])))
                 self.inv_widths[d] = self.wrap_tiles[d] / period
         self.offsets = tiling_offsets(self.n_tilings, self.n_dims)
@@ -118,8 +125,10 @@ class TileCoder:
                 f"action_tile_widths needs one width per action dimension ({len(self.action_nvec)}), "
                 f"got {self.action_tile_widths.tolist()}"
             )
-        if np.any(self.action_tile_widths <= 0):
-            raise ValueError(f"action_tile_widths must be positive, got {self.action_tile_widths.tolist()}")
+        if not np.all(np.isfinite(self.action_tile_widths)) or np.any(self.action_tile_widths <= 0):
+            raise ValueError(f"action_tile_widths must be finite and positive, got {self.action_tile_widths.tolist()}")
+        if not all(np.all(np.isfinite(v)) for v in self.action_values):
+            raise ValueError("action_values must be finite")
         choice = np.stack(np.unravel_index(flat, self.action_nvec), axis=1)
         values = np.stack([self.action_values[j][choice[:, j]] for j in range(len(self.action_nvec))], axis=1)
         offsets = tiling_offsets(self.n_tilings, self.n_dims + len(self.action_nvec))[:, self.n_dims :]
@@ -147,6 +156,18 @@ class TileCoder:
             "action_tile_widths": None if self.action_tile_widths is None else self.action_tile_widths.tolist(),
         }
 
+    def bad_observation_message(self, obs: np.ndarray, where: str = "") -> str:
+        """Why ``obs`` cannot be tiled: NaN or infinite entries, or entries so far out that a tile coordinate would
+        overflow (|x / width| >= 2^62)."""
+        obs = np.asarray(obs, dtype=np.float64).reshape(-1)
+        if not np.all(np.isfinite(obs)):
+            problem = f"NaN or infinite values in dimensions {np.flatnonzero(~np.isfinite(obs)).tolist()}"
+        else:
+            huge = np.flatnonzero(~(np.abs(obs * self.inv_widths) < kernels.MAX_TILE_COORDINATE))
+            problem = (f"values too large for their tile widths in dimensions {huge.tolist()} "
+                       f"(|x / width| must stay below 2^62)")
+        return f"Observation {obs.tolist()}{where} cannot be tiled: {problem}"
+
     def coordinates(self, obs: np.ndarray) -> np.ndarray:
         """Integer tile coordinates (N, D) of one observation, before hashing."""
         obs = np.asarray(obs, dtype=np.float64).reshape(self.n_dims)
@@ -160,7 +181,7 @@ class TileCoder:
         out = np.empty(self.n_tilings, dtype=np.int64)
         obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(self.n_dims)
         if not kernels.state_slots(obs, self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, out):
-            raise ValueError(f"Observation contains NaN or infinite values: {obs.tolist()}")
+            raise ValueError(self.bad_observation_message(obs))
         return out
 
     def feature_indices(self, obs: np.ndarray, action: int) -> np.ndarray:

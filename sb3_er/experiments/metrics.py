@@ -69,6 +69,32 @@ def rise_time(abscissa, mean_curve, end: float | None = None, fraction: float = 
     return float(x[reached[0]]) if reached.size else float("nan")
 
 
+def settling_time(abscissa, mean_curve, tolerance: float = 0.1, plateau_points: int = 10) -> float:
+    """First abscissa at which the mean curve comes within ``tolerance`` of its final plateau (our second rise time).
+
+    The plateau is the mean of the last ``plateau_points`` points. A curve of distances (plateau > 0) has settled at
+    the first point >= (1 - tolerance) * plateau; a curve of returns that are costs (plateau < 0) at the first point
+    whose cost is <= (1 + tolerance) * the plateau's cost. Unlike the thesis's rise time, it does not measure from the
+    first value nor from the best value, so once a run is long enough to reach its plateau, a longer run leaves it
+    unchanged (the thesis's rise time moves with the run length whenever the mean curve still creeps up at its end).
+    NaN when the plateau is 0.
+    """
+    x = np.asarray(abscissa, dtype=float)
+    curve = _as_seed_matrix(mean_curve)[0]
+    if x.shape != curve.shape:
+        raise ValueError(f"abscissa has shape {x.shape} but the curve has shape {curve.shape}")
+    if not 0.0 <= tolerance < 1.0:
+        raise ValueError(f"tolerance must lie in [0, 1), got {tolerance}")
+    if int(plateau_points) != plateau_points or plateau_points < 1:
+        raise ValueError(f"plateau_points must be a positive integer, got {plateau_points}")
+    plateau = float(np.mean(curve[-int(plateau_points):]))
+    if plateau == 0.0 or np.isnan(plateau):
+        return float("nan")
+    threshold = plateau * (1.0 - tolerance) if plateau > 0 else plateau * (1.0 + tolerance)
+    reached = np.flatnonzero(curve >= threshold)
+    return float(x[reached[0]]) if reached.size else float("nan")
+
+
 def relative_difference(value: float, reference: float) -> float:
     """Difference with a reference in percent of the reference's magnitude (the thesis tables' last column)."""
     if reference == 0 or np.isnan(reference):
@@ -78,7 +104,8 @@ def relative_difference(value: float, reference: float) -> float:
 
 @dataclass(frozen=True)
 class CurveSummary:
-    """Thesis-table figures of one algorithm: rise time, end performance (with its CI) and final falls (with CI)."""
+    """Thesis-table figures of one algorithm: rise time, end performance (with its CI), final falls (with CI), and our
+    horizon-free settling time (:func:`settling_time`)."""
 
     rise_time: float
     end_performance: float
@@ -86,6 +113,7 @@ class CurveSummary:
     falls: float | None
     falls_ci: float | None
     n_seeds: int
+    settling_time: float = float("nan")
 
 
 def summarize_curves(
@@ -108,6 +136,7 @@ def summarize_curves(
         falls, falls_ci = float(falls_mean), float(falls_half)
     return CurveSummary(
         rise_time=rise_time(abscissa, mean, end, fraction),
+        settling_time=settling_time(abscissa, mean),
         end_performance=end,
         end_performance_ci=end_ci,
         falls=falls,
