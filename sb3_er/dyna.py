@@ -166,18 +166,6 @@ class Dyna(BufferedTileQAlgorithm):
         buffer_size: int = 1_000_000,
         **kwargs,
     ):
-        if planning_steps < 0:
-            raise ValueError(f"planning_steps cannot be negative, got {planning_steps}")
-        if target not in TARGETS:
-            raise ValueError(f"target must be one of {list(TARGETS)}, got {target!r}")
-        if planning_actions not in PLANNING_ACTIONS:
-            raise ValueError(f"planning_actions must be one of {list(PLANNING_ACTIONS)}, got {planning_actions!r}")
-        if n_neighbors < 1:
-            raise ValueError(f"n_neighbors must be at least 1, got {n_neighbors}")
-        if not (np.isfinite(model_radius) and model_radius > 0):
-            raise ValueError(f"model_radius must be positive and finite (in tile widths), got {model_radius}")
-        if model_refit_every < 1:
-            raise ValueError(f"model_refit_every must be at least 1 step, got {model_refit_every}")
         self.planning_steps = planning_steps
         self.target = target
         self.planning_actions = planning_actions
@@ -187,6 +175,22 @@ class Dyna(BufferedTileQAlgorithm):
         self.planning_updates = 0
         self.model_fits = 0
         super().__init__(policy, env, buffer_size=buffer_size, **kwargs)
+
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        if not (isinstance(self.planning_steps, int) and self.planning_steps >= 0):
+            raise ValueError(f"planning_steps cannot be negative and must be an integer, got {self.planning_steps!r}")
+        if self.target not in TARGETS:
+            raise ValueError(f"target must be one of {list(TARGETS)}, got {self.target!r}")
+        if self.planning_actions not in PLANNING_ACTIONS:
+            raise ValueError(f"planning_actions must be one of {list(PLANNING_ACTIONS)}, got {self.planning_actions!r}")
+        if not (isinstance(self.n_neighbors, int) and self.n_neighbors >= 1):
+            raise ValueError(f"n_neighbors must be an integer of at least 1, got {self.n_neighbors!r}")
+        radius = self.model_radius
+        if not (isinstance(radius, (int, float)) and np.isfinite(radius) and radius > 0):
+            raise ValueError(f"model_radius must be positive and finite (in tile widths), got {self.model_radius!r}")
+        if not (isinstance(self.model_refit_every, int) and self.model_refit_every >= 1):
+            raise ValueError(f"model_refit_every must be an integer of at least 1 step, got {self.model_refit_every!r}")
 
     def _setup_model(self) -> None:
         super()._setup_model()
@@ -278,9 +282,7 @@ class Dyna(BufferedTileQAlgorithm):
         self._plan_position = start + count
         self.planning_updates += updates
         if status == kernels.STATUS_BAD_OBSERVATION:
-            raise ValueError(
-                f"Observation contains NaN or infinite values at step {self.num_timesteps}: {next_obs.tolist()}"
-            )
+            raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
         if status == kernels.STATUS_DIVERGED:
             where = "the direct update" if updates == 0 else f"planning update {updates}"
             self._raise_divergence(delta, where)

@@ -16,12 +16,13 @@ class FQI(FittedTileQAlgorithm):
     terminal) over the whole database, each followed by a least-squares projection of T onto the tile features
     (Alg. 6, Eq. 3.8-3.9):
 
-        theta <- argmin_theta  sum_d (T_d - phi(s_d, a_d) . theta)^2 + ridge * ||theta||^2
+        theta <- argmin_theta  sum_d (T_d - phi(s_d, a_d) . theta)^2 + ridge * ||theta - theta_0||^2
 
-    over the f weights the data touches; every other weight is 0 (its initial value), so Q depends on the data alone.
+    over the f weights the data touches, the ridge pulling towards the initial weights theta_0 (the policy's
+    ``initial_value``, 0 by default); every other weight keeps its initial value, so Q depends on the data alone.
     The fit runs every ``fit_every`` episodes; in between the agent acts epsilon-greedily on Q without learning.
 
-    Solver: the ridge normal equations (Phi^T Phi + ridge I) theta = Phi^T T by conjugate gradients
+    Solver: the ridge normal equations (Phi^T Phi + ridge I) theta = Phi^T T + ridge theta_0 by conjugate gradients
     (``scipy.sparse.linalg.cg``), matrix-free (two numba passes over the (n, N) active columns per product, never
     forming the f x f matrix) and Jacobi-preconditioned by the feature counts. A direct sparse factorisation does not
     scale: on the pendulum's data (150,000 transitions, 16 tilings) f reaches 380,000 and SuperLU's fill explodes.
@@ -30,7 +31,7 @@ class FQI(FittedTileQAlgorithm):
     fit converges over the sweeps (raise solver_iterations for an exact projection per sweep). Sweeps continue
     across fits (the first sweep of a fit bootstraps from the weights of the previous fit), so the optimisation
     horizon (thesis 3.5.4: E sweeps = an E-step horizon) grows by ``n_iterations`` with every fit; set
-    ``warm_start=False`` for Ernst's restart from Q_0 = 0 at every fit.
+    ``warm_start=False`` for Ernst's restart from the initial Q_0 at every fit.
 
     Cost per sweep: O(n N A) for the targets plus O(n N) per CG iteration (thesis 3.5.4: O(nEi)).
 
@@ -47,7 +48,7 @@ class FQI(FittedTileQAlgorithm):
         is shrunk by about c N / (c N + lambda) with N tilings.
     :param solver_iterations: maximum conjugate-gradient iterations per sweep.
     :param solver_tolerance: CG stops when ||residual|| <= solver_tolerance * ||Phi^T T||.
-    :param warm_start: start each fit's sweeps from the current Q (True) or from Q = 0 (False, Ernst et al.).
+    :param warm_start: start each fit's sweeps from the current Q (True) or from the initial Q (False, Ernst et al.).
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
     ``learning_rate`` is not used. Other parameters (gamma, exploration_rate, policy_kwargs, ...) as in TileQAlgorithm.
     """
@@ -65,23 +66,27 @@ class FQI(FittedTileQAlgorithm):
         buffer_size: int = 1_000_000,
         **kwargs,
     ):
-        if solver_iterations < 1:
-            raise ValueError(f"solver_iterations must be at least 1, got {solver_iterations}")
-        if not 0.0 < solver_tolerance < 1.0:
-            raise ValueError(f"solver_tolerance must be in (0, 1), got {solver_tolerance}")
         self.solver_iterations = solver_iterations
         self.solver_tolerance = solver_tolerance
         self.warm_start = warm_start
         super().__init__(policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge,
                          buffer_size=buffer_size, **kwargs)
 
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        if not (isinstance(self.solver_iterations, int) and self.solver_iterations >= 1):
+            raise ValueError(f"solver_iterations must be an integer of at least 1, got {self.solver_iterations!r}")
+        if not (isinstance(self.solver_tolerance, float) and 0.0 < self.solver_tolerance < 1.0):
+            raise ValueError(f"solver_tolerance must be in (0, 1), got {self.solver_tolerance!r}")
+
     def _fit(self, data: Transitions) -> dict[str, float]:
         coder = self.policy.tile_coder
         theta = self.policy.theta_array
         features = TileFeatures(coder, data.slots, data.actions)
         columns, f, n = features.columns, features.n_features, len(data)
-        x = theta[features.touched].copy() if self.warm_start else np.zeros(f)
-        self._reset_weights(theta, features.touched, x)
+        prior = self._initial_values(features.touched)
+        x = theta[features.touched].copy() if self.warm_start else prior.copy()
+        self._reset_weights(features.touched, x)
 
         normal = LinearOperator((f, f), matvec=lambda v: _normal_product(v, columns, self.ridge), dtype=np.float64)
         inverse_diagonal = 1.0 / (features.counts + self.ridge)
@@ -102,6 +107,7 @@ class FQI(FittedTileQAlgorithm):
                 bellman_error = float(np.mean(np.abs(targets - fitted)))
             # Alg. 6 line 3: the ridge least-squares projection of the targets onto the tile features
             kernels.features_transpose_dot(targets, columns, rhs)
+            rhs += self.ridge * prior
             counter = _Counter()
             x, _ = cg(normal, rhs, x0=x, rtol=self.solver_tolerance, maxiter=self.solver_iterations,
                       M=preconditioner, callback=counter)

@@ -8,7 +8,7 @@ from scipy.sparse.linalg import splu
 from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
-from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary
+from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary, weight_indices
 from sb3_er.common.policies import TileQPolicy
 
 DEFAULT_MAX_FEATURES = 30_000
@@ -21,13 +21,14 @@ class LSPI(FittedTileQAlgorithm):
     Phi'_pi (n, f) the features phi(s'_d, pi(s'_d)) of the greedy policy pi at the next states (a zero row where s'_d
     is terminal), LSTD-Q (Lagoudakis and Parr 2003, Eq. 10-11) solves
 
-        (A + ridge I) w = b,   A = Phi^T (Phi - gamma Phi'_pi),   b = Phi^T r,
+        (A + ridge I) w = b + ridge theta_0,   A = Phi^T (Phi - gamma Phi'_pi),   b = Phi^T (r + gamma u),
 
-    sets theta = w on the touched weights (0 elsewhere, the initial value; next-state features outside the touched
-    set therefore count with weight 0), and makes pi greedy on the new Q. It stops when pi no longer changes on the
-    database's non-terminal next states, or after ``n_iterations`` evaluations. The first pi is greedy on the current
-    Q (all ties at Q = 0 go to the lowest action index). The fit runs every ``fit_every`` episodes; in between the agent
-    acts epsilon-greedily on Q without learning.
+    sets theta = w on the touched weights and makes pi greedy on the new Q. Weights outside the touched set keep
+    their initial values theta_0 (the policy's ``initial_value``, 0 by default; the ridge pulls towards them too), so
+    next-state features outside the set are constants: u_d sums their initial weights in phi(s'_d, pi(s'_d)). It
+    stops when pi no longer changes on the database's non-terminal next states, or after ``n_iterations``
+    evaluations. The first pi is greedy on the current Q (ties go to the lowest action index). The fit runs every
+    ``fit_every`` episodes; in between the agent acts epsilon-greedily on Q without learning.
 
     Solver: a direct sparse LU factorisation (SuperLU via ``scipy.sparse.linalg.splu``) with a symmetric minimum-degree
     ordering and diagonal pivots (A's pattern is nearly symmetric and its diagonal dominant); if that solution's
@@ -59,12 +60,15 @@ class LSPI(FittedTileQAlgorithm):
         buffer_size: int = 1_000_000,
         **kwargs,
     ):
-        if max_features < 1:
-            raise ValueError(f"max_features must be at least 1, got {max_features}")
         self.max_features = max_features
         self.policy_iterations = 0
         super().__init__(policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge,
                          buffer_size=buffer_size, **kwargs)
+
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        if not (isinstance(self.max_features, int) and self.max_features >= 1):
+            raise ValueError(f"max_features must be an integer of at least 1, got {self.max_features!r}")
 
     def _too_large(self, n_features: int, n_transitions: int) -> ValueError:
         return ValueError(
@@ -85,7 +89,7 @@ class LSPI(FittedTileQAlgorithm):
             raise self._too_large(f, n)
         phi = features.matrix()
         phi_t = phi.T.tocsr()
-        b = phi_t @ data.rewards
+        prior = self._initial_values(features.touched)
         regulariser = self.ridge * sp.identity(f, format="csc")
         next_values = np.empty(n)
         policy = np.empty(n, dtype=np.int64)
@@ -93,15 +97,17 @@ class LSPI(FittedTileQAlgorithm):
         kernels.greedy_next_values(theta, data.next_slots, data.terminal, coder.stride, coder.action_columns,
                                    coder.columns_are_actions, self._q_scratch, next_values, policy)
         w = theta[features.touched].copy()
-        self._reset_weights(theta, features.touched, w)
+        self._reset_weights(features.touched, w)
         bellman_error = float(np.mean(np.abs(data.rewards + self.gamma * next_values - phi @ w)))
         changed = n
         iterations = 0
         for _ in range(self.n_iterations):
             # LSTD-Q for the fixed greedy policy pi (policy evaluation)
-            phi_next = features.matrix(features.columns_of(data.next_slots, policy))
+            next_columns = features.columns_of(data.next_slots, policy)
+            phi_next = features.matrix(next_columns)
             a = (phi_t @ (phi - self.gamma * phi_next)).tocsc() + regulariser
-            w = self._solve(a, b, n)
+            b = phi_t @ (data.rewards + self.gamma * self._outside_values(data.next_slots, policy, next_columns))
+            w = self._solve(a, b + self.ridge * prior, n)
             theta[features.touched] = w
             iterations += 1
             # policy improvement: greedy at every next state of the database
@@ -120,6 +126,16 @@ class LSPI(FittedTileQAlgorithm):
             "policy_iterations": iterations,
             "policy_changes": changed,
         }
+
+    def _outside_values(self, next_slots: np.ndarray, policy: np.ndarray, next_columns: np.ndarray) -> np.ndarray:
+        """u (n,): per transition, the sum of the weights of phi(s', pi(s')) outside the touched set, which hold their
+        initial values during the fit (0 when the initial value is 0)."""
+        low, span, _ = self.policy.initial_arguments
+        outside = (next_columns < 0) & (policy >= 0)[:, None]
+        if (low == 0.0 and span == 0.0) or not outside.any():
+            return np.zeros(next_slots.shape[0])
+        indices = weight_indices(self.policy.tile_coder, next_slots, np.maximum(policy, 0))
+        return np.where(outside, self.policy.theta_array[indices], 0.0).sum(axis=1)
 
     def _solve(self, a: sp.csc_matrix, b: np.ndarray, n_transitions: int) -> np.ndarray:
         """w = a^-1 b by sparse LU: diagonal pivots on a symmetric ordering first, partial pivoting if that is poor."""

@@ -63,7 +63,7 @@ def chain_database(model, n_states: int, repeats=lambda s, a: 1) -> TrajectoryRe
             s_next, r, terminal = chain_step(n_states, s, a)
             for _ in range(repeats(s, a)):
                 obs = np.array([float(s)])
-                buffer.add(obs, coder.slots(obs), a, r)
+                buffer.add(obs, coder.slots(obs), a, r, np.array([float(s_next)]))
                 buffer.close_trajectory(np.array([float(s_next)]), terminal)
     return buffer
 
@@ -87,6 +87,7 @@ def random_database(model, n: int, seed: int, low: float = 0.0, high: float = 5.
     terminal = np.arange(n) % 4 == 3
     buffer = TrajectoryReplayBuffer(10 * n, coder)
     for i in range(n):
-        buffer.add(observations[i], coder.slots(observations[i]), int(actions[i]), float(rewards[i]))
+        buffer.add(observations[i], coder.slots(observations[i]), int(actions[i]), float(rewards[i]),
+                   next_observations[i])
         buffer.close_trajectory(next_observations[i], bool(terminal[i]))
     return buffer, (observations, actions, rewards, next_observations, terminal)

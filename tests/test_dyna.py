@@ -222,3 +222,15 @@ def test_zoo_config_and_sampler_build_the_algorithm(env_id):
     Dyna("TileQ", env_id, seed=0, **zoo.model_kwargs("dyna", env_id)).learn(150)
     trial = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0)).ask()
     Dyna("TileQ", env_id, **zoo.SAMPLERS["dyna"](trial, 0, 1, {})).learn(50)
+
+
+def test_an_env_reset_closes_the_open_episode_as_truncated():
+    """A new learn() resets the env: the episode in progress is stored as truncated at its last s' (as ER does)."""
+    model = Dyna("TileQ", ChainEnv(max_steps=50), exploration_rate=1.0, policy_kwargs=ONE_HOT, seed=1)
+    model.learn(7)
+    buffer = model.replay_buffer
+    open_length, closed = buffer.open_length, buffer.n_trajectories
+    assert open_length > 0
+    model.learn(1)
+    cut = buffer.trajectories()[closed]
+    assert len(cut["rewards"]) == open_length and not cut["terminated"]

@@ -18,12 +18,15 @@ EXACT = dict(ridge=1e-10, solver_iterations=200, solver_tolerance=1e-13)
 ONE_HOT = dict(n_tilings=1, memory_size=2**12)
 
 
-def test_one_sweep_is_the_dense_ridge_least_squares_fit():
-    """T = r + gamma max_a Q0(s', a) (Eq. 3.1, T = r when terminal), then theta = (Phi^T Phi + lambda I)^-1 Phi^T T over
-    the touched weights (Alg. 6 line 3), with two overlapping tilings."""
+@pytest.mark.parametrize("initial_value", [0.0, 4.0, (-1.0, 2.0)])
+def test_one_sweep_is_the_dense_ridge_least_squares_fit(initial_value):
+    """T = r + gamma max_a Q0(s', a) (Eq. 3.1, T = r when terminal), then theta = (Phi^T Phi + lambda I)^-1
+    (Phi^T T + lambda theta_0) over the touched weights (Alg. 6 line 3), the others at their initial values theta_0,
+    with two overlapping tilings."""
     ridge = 0.3
+    tiles = dict(n_tilings=2, memory_size=2**12, initial_value=initial_value, initial_value_seed=9)
     model = FQI("TileQ", ChainEnv(), gamma=GAMMA, n_iterations=1, ridge=ridge, solver_iterations=500,
-                solver_tolerance=1e-14, policy_kwargs=dict(n_tilings=2, memory_size=2**12), seed=0)
+                solver_tolerance=1e-14, policy_kwargs=tiles, seed=0)
     buffer, (obs, actions, rewards, next_obs, terminal) = random_database(model, 60, seed=1)
     model.replay_buffer = buffer
     coder = model.policy.tile_coder
@@ -32,13 +35,15 @@ def test_one_sweep_is_the_dense_ridge_least_squares_fit():
 
     phi = dense_features(coder, obs, actions)
     touched = np.flatnonzero(phi.sum(axis=0))
-    q0 = np.zeros(coder.n_weights)
-    q0[touched] = theta0[touched]  # Q depends on the data alone: untouched weights are 0
+    initial = model.policy.initial_weights(np.arange(coder.n_weights))
+    q0 = initial.copy()
+    q0[touched] = theta0[touched]  # Q depends on the data alone: untouched weights hold their initial values
     next_q = np.stack([dense_features(coder, next_obs, np.full(len(obs), a)) @ q0 for a in range(coder.n_actions)], 1)
     targets = rewards + GAMMA * np.where(terminal, 0.0, next_q.max(axis=1))
     x = phi[:, touched]
-    expected = np.zeros(coder.n_weights)
-    expected[touched] = np.linalg.solve(x.T @ x + ridge * np.eye(len(touched)), x.T @ targets)
+    expected = initial.copy()
+    normal = x.T @ x + ridge * np.eye(len(touched))
+    expected[touched] = np.linalg.solve(normal, x.T @ targets + ridge * initial[touched])
 
     stats = model.fit()
     np.testing.assert_allclose(model.policy.theta_array, expected, rtol=1e-7, atol=1e-9)
@@ -112,7 +117,9 @@ def test_stored_transitions_match_the_buffers_trajectories():
     coder = model.policy.tile_coder
     np.testing.assert_array_equal(data.next_slots, [coder.slots(o) for o in next_obs])
     with_open = stored_transitions(buffer, include_open=True)
-    assert len(with_open) == len(data) + max(buffer.open_length - 1, 0)
+    assert len(with_open) == len(data) + buffer.open_length
+    if buffer.open_length:
+        np.testing.assert_array_equal(with_open.next_observations[-1], buffer.open_next_obs)
 
 
 def test_fits_every_fit_every_episodes_and_acts_between():
@@ -158,7 +165,7 @@ def test_save_load_round_trip(tmp_path):
     for name in ("fit_every", "n_iterations", "ridge", "solver_iterations", "warm_start", "gamma", "fits"):
         assert getattr(loaded, name) == getattr(model, name)
     assert loaded.replay_buffer.n_transitions == 0
-    loaded.load_replay_buffer(tmp_path / "buffer.pkl")
+    loaded.load_replay_buffer(tmp_path / "buffer.pkl", truncate_last_traj=False)  # the same data, episode still open
     assert loaded.replay_buffer.n_transitions == model.replay_buffer.n_transitions
     model.fit()
     loaded.fit()

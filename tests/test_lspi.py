@@ -16,12 +16,14 @@ GAMMA = 0.9
 ONE_HOT = dict(n_tilings=1, memory_size=2**12)
 
 
-def test_lstdq_matches_a_dense_solve():
-    """One policy evaluation: pi greedy on the starting Q at s', A = Phi^T (Phi - gamma Phi'_pi) + lambda I and
-    b = Phi^T r over the touched weights (next-state weights outside them count as 0), w = A^-1 b."""
+@pytest.mark.parametrize("initial_value", [0.0, -3.0, (-1.0, 2.0)])
+def test_lstdq_matches_a_dense_solve(initial_value):
+    """One policy evaluation: pi greedy on the starting Q at s'; over the touched weights, with every other weight
+    at its initial value theta_0, w solves Phi^T (Phi w - gamma Phi'_pi theta') + lambda (w - theta_0) = Phi^T r,
+    where theta' is w on the touched weights and theta_0 elsewhere."""
     ridge = 0.2
-    model = LSPI("TileQ", ChainEnv(), gamma=GAMMA, n_iterations=1, ridge=ridge,
-                 policy_kwargs=dict(n_tilings=2, memory_size=2**12), seed=0)
+    tiles = dict(n_tilings=2, memory_size=2**12, initial_value=initial_value, initial_value_seed=5)
+    model = LSPI("TileQ", ChainEnv(), gamma=GAMMA, n_iterations=1, ridge=ridge, policy_kwargs=tiles, seed=0)
     buffer, (obs, actions, rewards, next_obs, terminal) = random_database(model, 80, seed=3)
     model.replay_buffer = buffer
     coder = model.policy.tile_coder
@@ -30,15 +32,18 @@ def test_lstdq_matches_a_dense_solve():
 
     phi = dense_features(coder, obs, actions)
     touched = np.flatnonzero(phi.sum(axis=0))
-    q0 = np.zeros(coder.n_weights)
+    initial = model.policy.initial_weights(np.arange(coder.n_weights))
+    untouched = np.setdiff1d(np.arange(coder.n_weights), touched)
+    q0 = initial.copy()
     q0[touched] = theta0[touched]
     next_phi = [dense_features(coder, next_obs, np.full(len(obs), a)) for a in range(coder.n_actions)]
     greedy = np.argmax(np.stack([p @ q0 for p in next_phi], axis=1), axis=1)
     phi_next = np.where(terminal[:, None], 0.0, np.choose(greedy[:, None], next_phi))
     x, x_next = phi[:, touched], phi_next[:, touched]
+    constant_next = phi_next[:, untouched] @ initial[untouched]
     a = x.T @ (x - GAMMA * x_next) + ridge * np.eye(len(touched))
-    expected = np.zeros(coder.n_weights)
-    expected[touched] = np.linalg.solve(a, x.T @ rewards)
+    expected = initial.copy()
+    expected[touched] = np.linalg.solve(a, x.T @ (rewards + GAMMA * constant_next) + ridge * initial[touched])
 
     stats = model.fit()
     np.testing.assert_allclose(model.policy.theta_array, expected, rtol=1e-9, atol=1e-10)
@@ -98,7 +103,7 @@ def test_save_load_round_trip(tmp_path):
     np.testing.assert_array_equal(loaded.policy.theta_array, model.policy.theta_array)
     for name in ("fit_every", "n_iterations", "ridge", "max_features", "gamma", "fits", "policy_iterations"):
         assert getattr(loaded, name) == getattr(model, name)
-    loaded.load_replay_buffer(tmp_path / "buffer.pkl")
+    loaded.load_replay_buffer(tmp_path / "buffer.pkl", truncate_last_traj=False)  # the same data, episode still open
     model.fit()
     loaded.fit()
     np.testing.assert_array_equal(loaded.policy.theta_array, model.policy.theta_array)

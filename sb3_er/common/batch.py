@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
 
+from sb3_er.common import kernels
 from sb3_er.common.base_class import DivergenceError, TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryReplayBuffer
 from sb3_er.common.tile_coding import TileCoder
@@ -47,12 +48,13 @@ def stored_transitions(buffer: TrajectoryReplayBuffer, include_open: bool = Fals
     """Every closed transition of the buffer as arrays (copies), oldest first.
 
     s'_d is s_{d+1} of the next row inside a trajectory and the trajectory's stored last observation at its end.
-    ``include_open`` adds the open trajectory's transitions whose s' is already stored (all but its last).
+    ``include_open`` adds the open trajectory (the episode in progress), its last s' being the buffer's
+    ``open_next_obs``; its transitions are not terminal.
     """
     capacity = buffer.capacity
     n_trajectories = buffer.n_trajectories
     first = int(buffer.trajectory_start[buffer.oldest_trajectory]) if n_trajectories else buffer.write_row
-    n_open = max(buffer.open_length - 1, 0) if include_open else 0
+    n_open = buffer.open_length if include_open else 0
     n = buffer.n_closed_transitions + n_open
     rows = (first + np.arange(n)) % capacity
     next_rows = (rows + 1) % capacity
@@ -65,6 +67,9 @@ def stored_transitions(buffer: TrajectoryReplayBuffer, include_open: bool = Fals
         next_observations[ends] = buffer.trajectory_next_obs[trajectories]
         next_slots[ends] = buffer.trajectory_next_slots[trajectories]
         terminal[ends] = buffer.trajectory_terminated[trajectories]
+    if n_open:
+        next_observations[n - 1] = buffer.open_next_obs
+        next_slots[n - 1] = buffer.tile_coder.slots(buffer.open_next_obs)
     return Transitions(buffer.observations[rows], buffer.slots[rows], buffer.actions[rows], buffer.rewards[rows],
                        next_observations, next_slots, terminal)
 
@@ -129,6 +134,11 @@ class TileFeatures:
         return matrix
 
 
+def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
+    if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= minimum):
+        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
+
+
 class BufferedTileQAlgorithm(TileQAlgorithm):
     """A TileQAlgorithm that keeps every transition in a TrajectoryReplayBuffer (the database D of thesis 3.5.3).
 
@@ -139,19 +149,29 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
     """
 
     def __init__(self, policy, env, buffer_size: int = 1_000_000, **kwargs):
-        if buffer_size < 1:
-            raise ValueError(f"buffer_size must be at least 1, got {buffer_size}")
         self.buffer_size = buffer_size
         self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
         super().__init__(policy, env, **kwargs)
+
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        _check_integer("buffer_size", self.buffer_size, minimum=1)
 
     def _setup_model(self) -> None:
         super()._setup_model()
         self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
 
+    def _end_episode_at_reset(self) -> None:
+        """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last real
+        s_{t+1} (as ER does), never joined to the next episode; no fit is triggered."""
+        super()._end_episode_at_reset()
+        if self.replay_buffer is not None:
+            self.replay_buffer.truncate_open_trajectory()
+
     def _store_transition(self, obs, action, reward, next_obs, terminated, done, info) -> bool:
-        """Add (s_k, a_k, r_{k+1}); close the trajectory at s_{k+1} if it ends here. Returns whether it closed."""
-        self.replay_buffer.add(obs, self._slots, action, reward)
+        """Add (s_k, a_k, r_{k+1}, s_{k+1}); close the trajectory at s_{k+1} if it ends here. Returns whether it
+        closed."""
+        self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
         if done or info.get("segment_end", False):
             return self.replay_buffer.close_trajectory(next_obs, terminated)
         return False
@@ -165,14 +185,20 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
         """Save the stored transitions (and the visit vector w)."""
         save_to_pkl(path, self.replay_buffer, self.verbose)
 
-    def load_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
-        """Load a buffer saved by save_replay_buffer (of any algorithm of this package); its tile coding must match."""
+    def load_replay_buffer(self, path: Union[str, pathlib.Path], truncate_last_traj: bool = True) -> None:
+        """Load a buffer saved by save_replay_buffer (of any algorithm of this package); its tile coding must match.
+
+        :param truncate_last_traj: as in SB3 and ER: close the episode that was in progress when the buffer was saved
+            as truncated (True, the default), or keep it open to be continued without an env reset.
+        """
         buffer = load_from_pkl(path, self.verbose)
         if not isinstance(buffer, TrajectoryReplayBuffer):
             raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
         if buffer.tile_coder.config() != self.policy.tile_coder.config():
             raise ValueError("The replay buffer was stored with a different tile coding than this model's")
         buffer.tile_coder = self.policy.tile_coder
+        if truncate_last_traj:
+            buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
         self._on_buffer_replaced()
 
@@ -192,12 +218,6 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
     """
 
     def __init__(self, policy, env, fit_every: int = 5, n_iterations: int = 20, ridge: float = 1.0, **kwargs):
-        if fit_every < 1:
-            raise ValueError(f"fit_every must be at least 1 episode, got {fit_every}")
-        if n_iterations < 1:
-            raise ValueError(f"n_iterations must be at least 1, got {n_iterations}")
-        if not (np.isfinite(ridge) and ridge > 0.0):
-            raise ValueError(f"ridge must be positive and finite (it keeps the systems regular), got {ridge}")
         self.fit_every = fit_every
         self.n_iterations = n_iterations
         self.ridge = ridge
@@ -205,6 +225,13 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         self.fit_seconds = 0.0
         self._fit_stats: dict[str, float] = {}
         super().__init__(policy, env, **kwargs)
+
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        _check_integer("fit_every", self.fit_every, minimum=1, unit=" episode")
+        _check_integer("n_iterations", self.n_iterations, minimum=1)
+        if not (isinstance(self.ridge, (int, float)) and np.isfinite(self.ridge) and self.ridge > 0.0):
+            raise ValueError(f"ridge must be positive and finite (it keeps the systems regular), got {self.ridge!r}")
 
     def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
         self._store_transition(obs, action, reward, next_obs, terminated, done, info)
@@ -239,10 +266,20 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         for name, value in self._fit_stats.items():
             self.logger.record(f"train/{name}", value)
 
-    @staticmethod
-    def _reset_weights(theta: np.ndarray, touched: np.ndarray, values: np.ndarray) -> None:
-        """theta <- values on the touched weights and 0 elsewhere: Q is a function of the data alone."""
-        theta.fill(0.0)
+    def _initial_values(self, indices: np.ndarray) -> np.ndarray:
+        """theta_0 (the policy's initial weights, 0 by default) at the weight ``indices`` (f,)."""
+        out = np.empty(indices.shape[0])
+        kernels.initial_weights_at(indices, *self.policy.initial_arguments, out)
+        return out
+
+    def _reset_weights(self, touched: np.ndarray, values: np.ndarray) -> None:
+        """theta <- values on the touched weights and theta_0 elsewhere: Q is a function of the data alone."""
+        theta = self.policy.theta_array
+        low, span, _ = self.policy.initial_arguments
+        if low == 0.0 and span == 0.0:
+            theta.fill(0.0)
+        else:
+            kernels.fill_initial_weights(theta, *self.policy.initial_arguments)
         theta[touched] = values
 
 

@@ -667,3 +667,10 @@ def dyna_step(
             return planned, updates, sum_abs_delta, STATUS_DIVERGED
         sum_abs_delta += abs(planned)
     return delta, updates, sum_abs_delta, STATUS_OK
+
+
+@nb.njit(cache=True)
+def initial_weights_at(indices, initial_low, initial_span, initial_seed, out):
+    """out[j] <- the initial value of weight indices[j] (:func:`initial_weight`), for a whole index array at once."""
+    for j in range(indices.shape[0]):
+        out[j] = initial_weight(indices[j], initial_low, initial_span, initial_seed)
