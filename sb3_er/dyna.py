@@ -13,7 +13,7 @@ from sb3_er.common.tile_coding import TileCoder
 
 TARGETS = {"sarsa": kernels.TARGET_SARSA, "q_learning": kernels.TARGET_Q_LEARNING}
 PLANNING_ACTIONS = ("stored", "uniform")
-RNG_STREAM_PLANNING = 100  # spawn key of the planning generator (kernels.RNG_STREAM_* are 0-2)
+RNG_STREAM_PLANNING = kernels.RNG_STREAM_PLANNING  # spawn key of the planning generator
 
 
 class NearestNeighbourModel:

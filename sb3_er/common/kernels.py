@@ -46,6 +46,7 @@ def _mix64(h):
 
 
 RNG_STREAM_ACTIONS, RNG_STREAM_REPLAY, RNG_STREAM_PREDICT = 0, 1, 2
+RNG_STREAM_PLANNING = 100  # Dyna's planning picks
 
 
 def new_rng_state(seed=None, stream: int = RNG_STREAM_ACTIONS) -> np.ndarray:
