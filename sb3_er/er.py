@@ -80,10 +80,11 @@ class ER(TileQAlgorithm):
         it (default 0: every transition with a non-zero error; in the reward's units).
     :param predecessors: which transitions prioritized sweeping re-queues after replaying one, (s, a, r, s'):
         "tiles" (default), the stored transitions whose s' shares a tile with s (their targets moved: predecessors
-        under function approximation, found through an index from tile slots to transitions built each phase), or
-        "trajectory", only the previous transition of its trajectory (cheaper; exact predecessors of the data).
+        under function approximation, found through an index from tile slots to transitions built each phase), the
+        previous transition of its trajectory first; or "trajectory", only that one (cheaper).
     :param max_predecessors: at most this many distinct predecessors re-queued per replayed transition (default
-        16), the newest stored first; bounds the cost of an update (each predecessor costs a |delta| evaluation).
+        4), after the trajectory's own the newest stored first; bounds the cost of an update, as each predecessor
+        costs a |delta| evaluation (about 1 + max_predecessors evaluations per update).
     :param prioritized_updates: updates per prioritized phase; None (default) matches the other orders' budget,
         the trajectories to replay times the mean length of a stored trajectory.
     :param target: "sarsa" (thesis), "q_learning" or "expected_sarsa" (thesis 7.2, future work).
@@ -117,7 +118,7 @@ class ER(TileQAlgorithm):
         online_lambda: Optional[float] = None,
         priority_threshold: float = 0.0,
         predecessors: Literal["tiles", "trajectory"] = "tiles",
-        max_predecessors: int = 16,
+        max_predecessors: int = 4,
         prioritized_updates: Optional[int] = None,
         replay_buffer_kwargs: Optional[dict[str, Any]] = None,
         **kwargs,
@@ -237,7 +238,7 @@ class ER(TileQAlgorithm):
         if self.replay_order == "prioritized":
             n_updates = self.prioritized_updates
             if n_updates is None:
-                n_updates = int(round(n_trajectories * buffer.n_transitions / buffer.n_stored_trajectories))
+                n_updates = round(n_trajectories * buffer.n_transitions / buffer.n_stored_trajectories)
             updates, sum_abs_delta, last_delta, status, evaluations = kernels.prioritized_phase(
                 self.policy.theta_array, buffer.visits, *buffer.replay_arguments(), coder.stride,
                 coder.action_columns, coder.columns_are_actions, int(n_updates), float(self.priority_threshold),

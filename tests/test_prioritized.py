@@ -6,10 +6,10 @@ import heapq
 
 import numpy as np
 import pytest
+from chain_mdp import ChainEnv
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from chain_mdp import ChainEnv
 from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma
 from sb3_er.common import kernels
 from sb3_er.common.buffers import TrajectoryReplayBuffer
@@ -91,7 +91,7 @@ def chain_model(order, seed=0, **kwargs):
     reach the goal (time limits) and one straight walk from state 0 to the goal."""
     env = ChainEnv(n_states=N_STATES)
     model = ER("TileQ", env, replay_order=order, learning_rate=1.0, gamma=GAMMA, exploration_rate=0.0,
-               target="q_learning", policy_kwargs=dict(n_tilings=1, memory_size=2**10), seed=seed, **kwargs)
+               target="q_learning", policy_kwargs={"n_tilings": 1, "memory_size": 2**10}, seed=seed, **kwargs)
     coder = model.policy.tile_coder
     buffer = TrajectoryReplayBuffer(1000, coder)
     rng = np.random.default_rng(1)
@@ -207,8 +207,8 @@ def test_prioritized_learns_the_chain():
 def test_save_load_continues_exactly(tmp_path):
     """The settings, the generators and (with save_replay_buffer) the database survive save/load: a reloaded model
     continues exactly as the original (the queue is rebuilt at every phase, so there is nothing else to keep)."""
-    settings_ = dict(replay_order="prioritized", predecessors="trajectory", priority_threshold=0.01,
-                     max_predecessors=4, prioritized_updates=50, n_replays=2, seed=3)
+    settings_ = {"replay_order": "prioritized", "predecessors": "trajectory", "priority_threshold": 0.01,
+                     "max_predecessors": 4, "prioritized_updates": 50, "n_replays": 2, "seed": 3}
     model = ER("TileQ", ChainEnv(n_states=8), **settings_).learn(200)
     model.save(tmp_path / "model")
     model.save_replay_buffer(tmp_path / "buffer")
@@ -225,10 +225,10 @@ def test_save_load_continues_exactly(tmp_path):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(predecessors="model"), "predecessors must be one of"),
-        (dict(priority_threshold=-1.0), "priority_threshold"),
-        (dict(max_predecessors=-1), "max_predecessors"),
-        (dict(prioritized_updates=2.5), "prioritized_updates"),
+        ({"predecessors": "model"}, "predecessors must be one of"),
+        ({"priority_threshold": -1.0}, "priority_threshold"),
+        ({"max_predecessors": -1}, "max_predecessors"),
+        ({"prioritized_updates": 2.5}, "prioritized_updates"),
     ],
 )
 def test_bad_settings_are_refused(kwargs, message):

@@ -6,9 +6,9 @@ import pickle
 import numpy as np
 import pandas as pd
 import pytest
+from chain_mdp import ChainEnv
 from stable_baselines3.common.logger import configure
 
-from chain_mdp import ChainEnv
 from sb3_er import ER, FQI, TileCoder
 from sb3_er.common.buffers import TrajectoryReplayBuffer
 
@@ -98,8 +98,8 @@ def test_pickle_keeps_the_open_trajectory_and_the_counts():
 def test_pruned_share_reaches_the_logger(tmp_path):
     """ER with replay_buffer_kwargs=dict(prune="coverage") logs train/buffer_fill and train/pruned_share (to every
     output format, TensorBoard included); on the chain, whose states are soon all covered, some trajectories go."""
-    model = ER("TileQ", ChainEnv(n_states=5), replay_buffer_kwargs=dict(prune="coverage", prune_threshold=0.8),
-               n_replays=2, exploration_rate=0.3, policy_kwargs=dict(memory_size=2**12), seed=0)
+    model = ER("TileQ", ChainEnv(n_states=5), replay_buffer_kwargs={"prune": "coverage", "prune_threshold": 0.8},
+               n_replays=2, exploration_rate=0.3, policy_kwargs={"memory_size": 2**12}, seed=0)
     model.set_logger(configure(str(tmp_path), ["csv"]))
     model.learn(1500, log_interval=10)
     model.dump_logs()
@@ -111,10 +111,10 @@ def test_pruned_share_reaches_the_logger(tmp_path):
 
 
 def test_batch_methods_take_the_option_and_bad_options_are_refused():
-    model = FQI("TileQ", ChainEnv(), replay_buffer_kwargs=dict(prune="coverage"))
+    model = FQI("TileQ", ChainEnv(), replay_buffer_kwargs={"prune": "coverage"})
     assert model.replay_buffer.prune == "coverage"
-    for kwargs, message in [(dict(prune="evenly"), "prune must be one of"), (dict(prune_threshold=0.0),
+    for kwargs, message in [({"prune": "evenly"}, "prune must be one of"), ({"prune_threshold": 0.0},
                                                                              "prune_threshold"),
-                            (dict(size=3), "unknown")]:
+                            ({"size": 3}, "unknown")]:
         with pytest.raises(ValueError, match=message):
             ER("TileQ", ChainEnv(), replay_buffer_kwargs=kwargs)

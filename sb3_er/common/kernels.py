@@ -777,11 +777,11 @@ def prioritized_phase(
     2. Up to ``n_updates`` times: pop the transition with the largest |delta| and replay it with the update of
        :func:`replay_update` (Alg. 8 line 7; ER-sigma, residual and the other targets as in the other orders).
     3. Its predecessors get their |delta| recomputed and are queued (or re-prioritised, or taken out when it fell to
-       the threshold or below). ``predecessors == PREDECESSORS_TILES``: the transitions q whose s'_q shares a tile
-       slot with s_p (the update moved Q(s'_q, .), so their targets changed), found through the index of
-       :func:`build_predecessor_index`, newest first, taking the p's tilings in turn, at most ``max_predecessors``
-       distinct ones per update. ``PREDECESSORS_TRAJECTORY``: the previous transition of p's trajectory, whose s'
-       is s_p.
+       the threshold or below). First the previous transition of p's trajectory, whose s' is s_p; that is all for
+       ``predecessors == PREDECESSORS_TRAJECTORY``. ``PREDECESSORS_TILES`` goes on to the other transitions q whose
+       s'_q shares a tile slot with s_p (the update moved Q(s'_q, .), so their targets changed), found through the
+       index of :func:`build_predecessor_index`, newest first, taking p's tilings in turn: at most
+       ``max_predecessors`` distinct ones per update in all.
     The queue ends the phase early when no transition's |delta| exceeds the threshold. Exploration draws a' from
     ``action_rng`` as in the other orders. Arrays after ``initial_seed`` are the workspace (see sb3_er.er).
     Returns (updates, sum of |delta|, last delta, status, priority evaluations).
@@ -837,17 +837,19 @@ def prioritized_phase(
         # the predecessors of p, each once per update (stamped with this update's number)
         stamp_counter[0] += 1
         mark = stamp_counter[0]
-        if predecessors == PREDECESSORS_TRAJECTORY:
-            if t > 0 and max_predecessors > 0:
-                _requeue(ring_index(p + capacity - 1, capacity), theta, visits, slots, actions, rewards,
-                         transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
-                         trajectory_next_slots, open_trajectory, open_start, open_length, open_next_slots, stride,
-                         action_columns, columns_are_actions, priority_target, sigma_kind, gamma, epsilon,
-                         action_rng, q_scratch, w_scratch, initial_low, initial_span, initial_seed, threshold,
-                         heap_rows, heap_keys, heap_position, heap_size)
-                evaluations += 1
-            continue
         examined = 0
+        if t > 0 and max_predecessors > 0:  # the previous transition of p's trajectory: its s' is s_p
+            q_row = ring_index(p + capacity - 1, capacity)
+            stamp[q_row] = mark
+            _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
+                     trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory, open_start,
+                     open_length, open_next_slots, stride, action_columns, columns_are_actions, priority_target,
+                     sigma_kind, gamma, epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
+                     initial_seed, threshold, heap_rows, heap_keys, heap_position, heap_size)
+            evaluations += 1
+            examined += 1
+        if predecessors == PREDECESSORS_TRAJECTORY:
+            continue
         depth = 0
         more = True
         while more and examined < max_predecessors:  # depth-th newest row of each of p's tile lists in turn
