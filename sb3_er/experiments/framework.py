@@ -44,6 +44,7 @@ from sb3_er.experiments.metrics import mean_confidence_interval
 from sb3_er.experiments.protocols import EpisodeReturnProtocol
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, run_csv_path
 from sb3_er.experiments.specs import Analysis
+from sb3_er.experiments.summary import _format_number, _format_with_ci
 
 WINDOW = 10
 """Learning episodes averaged for the level and the end performance."""
@@ -285,26 +286,8 @@ def summarize_runs(frames: dict[int, pd.DataFrame], level: float) -> dict:
     }
 
 
-def _number(value: float) -> str:
-    if value is None or not math.isfinite(value):
-        return "NA"
-    magnitude = abs(value)
-    if magnitude >= 1e5:
-        return f"{value:.3g}"
-    if magnitude >= 100:
-        return f"{value:,.0f}"
-    if magnitude >= 1:
-        return f"{value:.1f}"
-    return f"{value:.3g}"
-
-
 def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" + ("" if n == 1 else "s")
-
-
-def _with_ci(value: float, half: float) -> str:
-    text = _number(value)
-    return text if text == "NA" or not math.isfinite(half) else f"{text} ± {_number(half)}"
 
 
 def thesis_table_markdown() -> str:
@@ -333,10 +316,10 @@ def measured_table_markdown(problem: Problem, table: pd.DataFrame) -> str:
             measured = ["no finished run"] * 5
         else:
             reached = f" ({row['reached']}/{row['seeds']})"
-            measured = [_with_ci(row["samples_to_level"], row["samples_to_level_ci95"]) + reached,
-                        _with_ci(row["end_performance"], row["end_performance_ci95"]),
-                        _number(row["updates_per_episode"]), _number(row["cpu_s_per_episode"]),
-                        _number(row["wall_s_per_episode"])]
+            measured = [_format_with_ci(row["samples_to_level"], row["samples_to_level_ci95"]) + reached,
+                        _format_with_ci(row["end_performance"], row["end_performance_ci95"]),
+                        _format_number(row["updates_per_episode"]), _format_number(row["cpu_s_per_episode"]),
+                        _format_number(row["wall_s_per_episode"])]
         if row.get("diverged"):
             measured[1] += f" ({row['diverged']} diverged)"
         lines.append(f"| {method.label} | {update} | {operator} | {iteration} | {complexity} | "
