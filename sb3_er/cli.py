@@ -10,6 +10,10 @@ from sb3_er.experiments.specs import ANALYSES, EXPERIMENTS
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
+# The analyses, and the framework experiment (thesis Table 3.1, sb3_er.experiments.framework), which runs three envs.
+ANALYSIS_NAMES = (*ANALYSES, "framework")
+FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
+FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -30,9 +34,9 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         "write per-run CSVs, a summary table beside the thesis's numbers and figures.",
     )
     parser.add_argument(
-        "experiment", choices=[*EXPERIMENTS, *ANALYSES],
+        "experiment", choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
         help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
-        "(Figure 5.5)",
+        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar)",
     )
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds per algorithm (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
@@ -45,7 +49,8 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         "--budget", type=float, default=None,
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
-        "learning time (default 5000); pessimistic: long-replay phases (default 30)",
+        "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
+        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200)",
     )
     parser.add_argument(
         "--jobs", type=int, default=None,
@@ -82,6 +87,10 @@ def _reproduce_parser() -> argparse.ArgumentParser:
                           "average_best best)")
     analyses.add_argument("--initial-value", type=float, default=None,
                           help="pessimistic: the pessimistic initial Q (default -50, the cliff's reward)")
+    analyses.add_argument("--problems", nargs="+", default=None, choices=FRAMEWORK_PROBLEMS,
+                          help="framework: the problems to run (default all three)")
+    analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
+                          help="framework: the methods to run (default all seven)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
         help="resume next to finished runs made by other code (version, git commit) or another configuration, or "
@@ -95,6 +104,7 @@ ANALYSIS_OPTIONS = {
     "replay-order": {"database_episodes": "database_episodes", "eval_every": "eval_every"},
     "sigma": {"sigmas": "sigmas", "algo_kwargs": "algo_kwargs"},
     "pessimistic": {"initial_value": "initial_value"},
+    "framework": {"problems": "problems", "methods": "methods"},
 }
 
 
@@ -102,14 +112,15 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
     """The keyword arguments of the chosen analysis's own options; a parser error (exit 2) for an option given to an
     experiment or analysis that has no use for it."""
     own = ANALYSIS_OPTIONS.get(args.experiment, {"algo_kwargs": "algo_kwargs"})
-    given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs")
+    given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs",
+                                      "problems", "methods")
              if (value := getattr(args, dest)) not in (None, [])}
-    if args.experiment in ANALYSES and args.algos is not None:
+    if args.experiment in ANALYSIS_NAMES and args.algos is not None:
         given["algos"] = args.algos
     foreign = sorted(f"--{dest.replace('_', '-')}" for dest in given if dest not in own)
     if foreign:
         parser.error(f"{', '.join(foreign)} does not apply to {args.experiment}")
-    if args.experiment not in ANALYSES:
+    if args.experiment not in ANALYSIS_NAMES:
         return {}
     return {keyword: dict(given[dest]) if dest == "algo_kwargs" else given[dest]
             for dest, keyword in own.items() if dest in given}
@@ -134,7 +145,7 @@ def reproduce_command(argv: Sequence[str]) -> None:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
     options = _analysis_options(parser, args)
     try:
-        if args.experiment in ANALYSES:
+        if args.experiment in ANALYSIS_NAMES:
             from sb3_er.experiments.analyses import command
 
             result = command(args.experiment)(
@@ -173,7 +184,8 @@ def reproduce_command(argv: Sequence[str]) -> None:
     print(f"table:   {result.table_markdown}  and  {result.table_csv}")
     for figure in result.figures:
         print(f"figure:  {figure}")
-    print(f"per-run CSVs: {result.out_dir / 'runs'}")
+    runs = result.out_dir / "runs"
+    print(f"per-run CSVs: {runs if runs.is_dir() else result.out_dir / '<problem>' / 'runs'}")
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -184,7 +196,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(
             "usage: sb3-er {reproduce,train,enjoy,optimize} ...\n\n"
             "  reproduce EXPERIMENT   run a thesis experiment (gridworld, pendulum, walker, leo) or analysis\n"
-            "                         (replay-order, sigma, pessimistic); see reproduce -h\n"
+            "                         (replay-order, sigma, pessimistic, framework); see reproduce -h\n"
             "  train --algo A --env E rl-zoo training with the thesis hyperparameters from zoo_configs/\n"
             "  enjoy --algo A --env E rl-zoo enjoy of a trained agent (-f FOLDER, --no-render)\n"
             "  optimize --algo A --env E  rl-zoo optuna search (--n-trials N, --n-timesteps T)\n\n"

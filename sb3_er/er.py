@@ -13,7 +13,13 @@ from sb3_er.common.base_class import TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryReplayBuffer
 from sb3_er.common.policies import TileQPolicy
 
-REPLAY_ORDERS = {"reversed": kernels.ORDER_REVERSED, "forward": kernels.ORDER_FORWARD, "uniform": kernels.ORDER_UNIFORM}
+REPLAY_ORDERS = {
+    "reversed": kernels.ORDER_REVERSED,
+    "forward": kernels.ORDER_FORWARD,
+    "uniform": kernels.ORDER_UNIFORM,
+    "prioritized": kernels.ORDER_PRIORITIZED,
+}
+PREDECESSORS = {"tiles": kernels.PREDECESSORS_TILES, "trajectory": kernels.PREDECESSORS_TRAJECTORY}
 TARGETS = {
     "sarsa": kernels.TARGET_SARSA,
     "q_learning": kernels.TARGET_Q_LEARNING,
@@ -65,7 +71,22 @@ class ER(TileQAlgorithm):
     :param replay_every: episodes between replay phases for the "episode" trigger.
     :param n_replays: trajectories replayed per phase.
     :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead.
-    :param replay_order: "reversed" (thesis default), "forward" or "uniform" samples (Appendix A).
+    :param replay_order: "reversed" (thesis default), "forward" or "uniform" samples (Appendix A), or "prioritized":
+        prioritized sweeping (Moore and Atkeson 1993; thesis 3.2 and 7.2), which replays single transitions by their
+        |delta| from a priority queue and re-queues the predecessors of each replayed one (see
+        ``kernels.prioritized_phase``). A phase makes as many updates as the other orders would on average
+        (``prioritized_updates``), fewer when no |delta| exceeds ``priority_threshold``.
+    :param priority_threshold: theta of prioritized sweeping: a transition is queued only while its |delta| exceeds
+        it (default 0: every transition with a non-zero error; in the reward's units).
+    :param predecessors: which transitions prioritized sweeping re-queues after replaying one, (s, a, r, s'):
+        "tiles" (default), the stored transitions whose s' shares a tile with s (their targets moved: predecessors
+        under function approximation, found through an index from tile slots to transitions built each phase), the
+        previous transition of its trajectory first; or "trajectory", only that one (cheaper).
+    :param max_predecessors: at most this many distinct predecessors re-queued per replayed transition (default
+        4), after the trajectory's own the newest stored first; bounds the cost of an update, as each predecessor
+        costs a |delta| evaluation (about 1 + max_predecessors evaluations per update).
+    :param prioritized_updates: updates per prioritized phase; None (default) matches the other orders' budget,
+        the trajectories to replay times the mean length of a stored trajectory.
     :param target: "sarsa" (thesis), "q_learning" or "expected_sarsa" (thesis 7.2, future work).
     :param sigma: ER-sigma's sigma(s') (Appendix B): "worst", "average", "best", "average_worst" (definition 4, the
         thesis's choice), "average_best"; None is vanilla ER.
@@ -74,6 +95,8 @@ class ER(TileQAlgorithm):
     :param residual_action: the action of the residual term: "taken" (a_t, the thesis's Eq. 5.7 and Alg. 12) or
         "next" (a_{t+1}, Baird's residual gradient of the squared TD error; not with the expected-Sarsa target).
     :param online_lambda: lambda of Sarsa(lambda) between replays, or None to act without online learning.
+    :param replay_buffer_kwargs: keyword arguments of the TrajectoryReplayBuffer, e.g. ``dict(prune="coverage",
+        prune_threshold=0.9)`` for the pruned database of thesis 3.5.3.
     Other parameters (learning_rate, gamma, exploration_rate, trace_cutoff, policy_kwargs, ...) as in TileQAlgorithm.
     """
 
@@ -87,12 +110,17 @@ class ER(TileQAlgorithm):
         replay_every: int = 1,
         n_replays: int = 100,
         replays_per_stored_trajectory: Optional[float] = None,
-        replay_order: Literal["reversed", "forward", "uniform"] = "reversed",
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
         target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
         sigma: Optional[str] = None,
         residual_zeta: Optional[float] = None,
         residual_action: Literal["taken", "next"] = "taken",
         online_lambda: Optional[float] = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: Optional[int] = None,
+        replay_buffer_kwargs: Optional[dict[str, Any]] = None,
         **kwargs,
     ):
         self.buffer_size = buffer_size
@@ -106,6 +134,12 @@ class ER(TileQAlgorithm):
         self.n_replays = n_replays
         self.replays_per_stored_trajectory = replays_per_stored_trajectory
         self.residual_zeta = residual_zeta
+        self.priority_threshold = priority_threshold
+        self.predecessors = predecessors
+        self.max_predecessors = max_predecessors
+        self.prioritized_updates = prioritized_updates
+        self.replay_buffer_kwargs = replay_buffer_kwargs
+        self.priority_evaluations = 0
         self.replay_updates = 0
         self.replay_phases = 0
         self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
@@ -134,14 +168,24 @@ class ER(TileQAlgorithm):
             raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9) or None, got {zeta!r}")
         if self.residual_action == "next" and self.target == "expected_sarsa":
             raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
+        _check_choice("predecessors", self.predecessors, PREDECESSORS)
+        theta = self.priority_threshold
+        if isinstance(theta, bool) or not (isinstance(theta, (int, float)) and math.isfinite(theta) and theta >= 0):
+            raise ValueError(f"priority_threshold must be a finite number >= 0 (a |delta|), got {theta!r}")
+        _check_integer("max_predecessors", self.max_predecessors, minimum=0)
+        if self.prioritized_updates is not None:
+            _check_integer("prioritized_updates", self.prioritized_updates, minimum=0)
+        TrajectoryReplayBuffer.check_kwargs(self.replay_buffer_kwargs)
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
+        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder,
+                                                    **(self.replay_buffer_kwargs or {}))
         self._w_scratch = np.zeros(self.policy.tile_coder.n_actions, dtype=np.float64)
+        self._priority_workspace: Optional[dict[str, np.ndarray]] = None
 
     def _excluded_save_params(self) -> list[str]:
-        return super()._excluded_save_params() + ["_w_scratch"]
+        return super()._excluded_save_params() + ["_w_scratch", "_priority_workspace"]
 
     def _seed_generators(self, seed: Optional[int]) -> None:
         super()._seed_generators(seed)
@@ -175,20 +219,14 @@ class ER(TileQAlgorithm):
         return self.n_replays
 
     def replay(self, n_trajectories: int) -> dict[str, float]:
-        """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean |delta|."""
+        """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean
+        |delta|. Prioritized sweeping makes ``prioritized_updates`` updates, by default n_trajectories times the mean
+        length of a stored trajectory."""
         buffer = self.replay_buffer
         if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}
         coder = self.policy.tile_coder
-        updates, sum_abs_delta, last_delta, status = kernels.replay_phase(
-            self.policy.theta_array,
-            buffer.visits,
-            *buffer.replay_arguments(),
-            coder.stride,
-            coder.action_columns,
-            coder.columns_are_actions,
-            int(n_trajectories),
-            REPLAY_ORDERS[self.replay_order],
+        update_arguments = (
             TARGETS[self.target],
             SIGMAS[self.sigma],
             0.0 if self.residual_zeta is None else float(self.residual_zeta),
@@ -196,12 +234,25 @@ class ER(TileQAlgorithm):
             self.current_learning_rate / coder.n_tilings,
             self.gamma,
             self.exploration_rate,
-            self.replay_rng,
-            self.action_rng,
-            self._q_scratch,
-            self._w_scratch,
-            *self.policy.initial_arguments,
         )
+        if self.replay_order == "prioritized":
+            n_updates = self.prioritized_updates
+            if n_updates is None:
+                n_updates = round(n_trajectories * buffer.n_transitions / buffer.n_stored_trajectories)
+            updates, sum_abs_delta, last_delta, status, evaluations = kernels.prioritized_phase(
+                self.policy.theta_array, buffer.visits, *buffer.replay_arguments(), coder.stride,
+                coder.action_columns, coder.columns_are_actions, int(n_updates), float(self.priority_threshold),
+                PREDECESSORS[self.predecessors], int(self.max_predecessors), *update_arguments, self.action_rng,
+                self._q_scratch, self._w_scratch, *self.policy.initial_arguments, *self._priority_arrays(),
+            )
+            self.priority_evaluations += evaluations
+        else:
+            updates, sum_abs_delta, last_delta, status = kernels.replay_phase(
+                self.policy.theta_array, buffer.visits, *buffer.replay_arguments(), coder.stride,
+                coder.action_columns, coder.columns_are_actions, int(n_trajectories),
+                REPLAY_ORDERS[self.replay_order], *update_arguments, self.replay_rng, self.action_rng,
+                self._q_scratch, self._w_scratch, *self.policy.initial_arguments,
+            )
         self.replay_updates += updates
         self.replay_phases += 1
         if status == kernels.STATUS_DIVERGED:
@@ -210,10 +261,51 @@ class ER(TileQAlgorithm):
         self._td_error_count += updates
         return {"updates": updates, "td_error": sum_abs_delta / max(updates, 1)}
 
+    def _priority_arrays(self) -> tuple[np.ndarray, ...]:
+        """The workspace of ``kernels.prioritized_phase``, allocated here (the kernel allocates nothing) and grown with
+        the buffer: heap_rows, heap_keys, heap_position, heap_size, index_start, index_rows, stamp, stamp_counter.
+
+        Arrays indexed by a buffer row have one entry per row of the ring; the heap and the tile index grow in steps
+        of doubling with the stored transitions. Nothing of it is saved: the queue is rebuilt at every phase.
+        """
+        buffer = self.replay_buffer
+        coder = self.policy.tile_coder
+        space = self._priority_workspace
+        if space is None or space["heap_position"].shape[0] != buffer.capacity:
+            space = {
+                "heap_rows": np.zeros(0, dtype=np.int64),
+                "heap_keys": np.zeros(0, dtype=np.float64),
+                "heap_position": np.full(buffer.capacity, -1, dtype=np.int64),
+                "heap_size": np.zeros(1, dtype=np.int64),
+                "index_start": np.zeros(0, dtype=np.int64),
+                "index_rows": np.zeros(0, dtype=np.int64),
+                "stamp": np.zeros(buffer.capacity, dtype=np.int64),
+                "stamp_counter": np.zeros(1, dtype=np.int64),
+            }
+            self._priority_workspace = space
+        n = buffer.n_transitions
+        if space["heap_rows"].shape[0] < n:
+            size = min(buffer.capacity, max(n, 2 * space["heap_rows"].shape[0]))
+            space["heap_rows"] = np.zeros(size, dtype=np.int64)
+            space["heap_keys"] = np.zeros(size, dtype=np.float64)
+        if self.predecessors == "tiles":
+            if space["index_start"].shape[0] != coder.slot_mask + 2:
+                space["index_start"] = np.zeros(coder.slot_mask + 2, dtype=np.int64)
+            if space["index_rows"].shape[0] < n * coder.n_tilings:
+                rows = min(buffer.capacity, max(n, 2 * space["index_rows"].shape[0] // coder.n_tilings))
+                space["index_rows"] = np.zeros(rows * coder.n_tilings, dtype=np.int64)
+        elif space["index_start"].shape[0] == 0:
+            space["index_start"] = np.zeros(1, dtype=np.int64)
+        return tuple(space[name] for name in ("heap_rows", "heap_keys", "heap_position", "heap_size", "index_start",
+                                              "index_rows", "stamp", "stamp_counter"))
+
     def _record_train_metrics(self) -> None:
         super()._record_train_metrics()
         self.logger.record("train/replay_updates", self.replay_updates)
         self.logger.record("train/trajectories", self.replay_buffer.n_trajectories)
+        if self.replay_order == "prioritized":
+            self.logger.record("train/priority_evaluations", self.priority_evaluations)
+        self.replay_buffer.record_fill(self.logger)
 
     def save_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
         """Save the trajectories and the visit vector w."""
@@ -237,6 +329,7 @@ class ER(TileQAlgorithm):
         if truncate_last_traj:
             buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
+        self._priority_workspace = None
 
 
 class ERSigma(ER):

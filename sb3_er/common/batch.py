@@ -145,21 +145,27 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
     A trajectory closes at each episode end and wherever the env sets ``info["segment_end"]``, as in ER.
 
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
+    :param replay_buffer_kwargs: keyword arguments of the TrajectoryReplayBuffer, e.g. ``dict(prune="coverage")`` for
+        the pruned database of thesis 3.5.3.
     Other parameters as in TileQAlgorithm.
     """
 
-    def __init__(self, policy, env, buffer_size: int = 1_000_000, **kwargs):
+    def __init__(self, policy, env, buffer_size: int = 1_000_000,
+                 replay_buffer_kwargs: Optional[dict[str, Any]] = None, **kwargs):
         self.buffer_size = buffer_size
+        self.replay_buffer_kwargs = replay_buffer_kwargs
         self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
         super().__init__(policy, env, **kwargs)
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
         _check_integer("buffer_size", self.buffer_size, minimum=1)
+        TrajectoryReplayBuffer.check_kwargs(self.replay_buffer_kwargs)
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
+        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder,
+                                                    **(self.replay_buffer_kwargs or {}))
 
     def _end_episode_at_reset(self) -> None:
         """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last real
@@ -180,6 +186,7 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
         super()._record_train_metrics()
         self.logger.record("train/transitions", self.replay_buffer.n_transitions)
         self.logger.record("train/trajectories", self.replay_buffer.n_trajectories)
+        self.replay_buffer.record_fill(self.logger)
 
     def save_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
         """Save the stored transitions (and the visit vector w)."""
@@ -223,6 +230,7 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         self.ridge = ridge
         self.fits = 0
         self.fit_seconds = 0.0
+        self.sample_backups = 0
         self._fit_stats: dict[str, float] = {}
         super().__init__(policy, env, **kwargs)
 
@@ -253,6 +261,8 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
             )
         self.fits += 1
         self.fit_seconds += time.perf_counter() - start
+        # the Bellman operator applied to every sample once per sweep (FQI) or policy evaluation (LSPI)
+        self.sample_backups += len(data) * int(stats.get("policy_iterations", self.n_iterations))
         self._fit_stats = stats
         return stats
 

@@ -1,6 +1,7 @@
 """The trajectory replay buffer of experience replay (thesis Alg. 7 lines 10-12, Alg. 9 lines 10-13)."""
 
-from typing import Any
+import math
+from typing import Any, Optional
 
 import numpy as np
 
@@ -23,15 +24,33 @@ class TrajectoryReplayBuffer:
     ``truncate_last_traj``), :meth:`truncate_open_trajectory` closes it as truncated: replay bootstraps from that real
     s_{t+1} and never joins the cut episode to the next one.
 
+    A pruned database (thesis 3.5.3: "it might be beneficial to remove excess samples from the database [...] a
+    pruned database with evenly distributed samples"), ``prune="coverage"``: when a trajectory closes, it is dropped
+    if at least ``prune_threshold`` of its samples (s_t, a_t) were already covered by the data stored before it, all
+    N features of phi(s_t, a_t) visited (W(s_t, a_t) = N, Eq. 5.1). Its own earlier samples do not count towards
+    coverage, so a trajectory that lingers in new territory is kept. A dropped trajectory's transitions are never
+    replayed and the features only it visited are unmarked in w. ``n_pruned_trajectories`` and
+    :meth:`pruned_share` report what was dropped, :meth:`record_fill` logs it with the buffer's fill.
+
     :param capacity: maximum number of stored transitions.
     :param tile_coder: the policy's tile coder; w shares its weight layout.
+    :param prune: None (keep every trajectory, the thesis's ER) or "coverage".
+    :param prune_threshold: with ``prune="coverage"``, the share of covered samples (in (0, 1]) at which a trajectory
+        is dropped; default 0.9.
     """
 
-    def __init__(self, capacity: int, tile_coder: TileCoder):
+    PRUNE_OPTIONS = (None, "coverage")
+    DEFAULT_PRUNE_THRESHOLD = 0.9
+
+    def __init__(self, capacity: int, tile_coder: TileCoder, prune: Optional[str] = None,
+                 prune_threshold: float = DEFAULT_PRUNE_THRESHOLD):
         if capacity < 1:
             raise ValueError(f"buffer_size must be at least 1, got {capacity}")
+        self.check_kwargs({"prune": prune, "prune_threshold": prune_threshold})
         self.capacity = int(capacity)
         self.tile_coder = tile_coder
+        self.prune = prune
+        self.prune_threshold = float(prune_threshold)
         n_tilings, n_dims = tile_coder.n_tilings, tile_coder.n_dims
         self.observations = np.zeros((self.capacity, n_dims), dtype=np.float64)
         self.slots = np.zeros((self.capacity, n_tilings), dtype=np.int64)
@@ -51,6 +70,43 @@ class TrajectoryReplayBuffer:
         self.n_trajectories = 0
         self.n_transitions = 0
         self.open_length = 0
+        # the pruned database: features first visited by the open trajectory, and how many of its samples were covered
+        self.fresh = np.zeros(tile_coder.n_weights, dtype=np.uint8) if prune else np.zeros(0, dtype=np.uint8)
+        self.open_new_features = np.zeros(16 * tile_coder.n_tilings if prune else 0, dtype=np.int64)
+        self.n_open_new = 0
+        self.open_covered = 0
+        self.n_closed_total = 0
+        self.n_pruned_trajectories = 0
+        self.n_pruned_transitions = 0
+
+    @staticmethod
+    def check_kwargs(kwargs: Optional[dict[str, Any]]) -> None:
+        """ValueError for keyword arguments that this buffer does not take or whose values are out of range."""
+        kwargs = dict(kwargs or {})
+        unknown = sorted(set(kwargs) - {"prune", "prune_threshold"})
+        if unknown:
+            raise ValueError(f"replay_buffer_kwargs: unknown {unknown}; the trajectory buffer takes prune and "
+                             "prune_threshold")
+        prune = kwargs.get("prune")
+        if prune not in TrajectoryReplayBuffer.PRUNE_OPTIONS:
+            raise ValueError(f"prune must be one of {list(TrajectoryReplayBuffer.PRUNE_OPTIONS)}, got {prune!r}")
+        threshold = kwargs.get("prune_threshold", TrajectoryReplayBuffer.DEFAULT_PRUNE_THRESHOLD)
+        if isinstance(threshold, bool) or not (isinstance(threshold, (int, float)) and math.isfinite(threshold)
+                                               and 0.0 < threshold <= 1.0):
+            raise ValueError(f"prune_threshold must be a share in (0, 1], got {threshold!r}")
+
+    def pruned_share(self) -> float:
+        """The share of closed trajectories that pruning dropped (0 before any closed)."""
+        return self.n_pruned_trajectories / self.n_closed_total if self.n_closed_total else 0.0
+
+    def record_fill(self, logger) -> None:
+        """Log the buffer's fill (stored transitions / capacity) and, when pruning, the pruned share of trajectories
+        and of transitions as ``train/buffer_fill``, ``train/pruned_share`` and ``train/pruned_transitions_share``."""
+        logger.record("train/buffer_fill", self.n_transitions / self.capacity)
+        if self.prune:
+            logger.record("train/pruned_share", self.pruned_share())
+            seen = self.n_pruned_transitions + self.n_closed_transitions
+            logger.record("train/pruned_transitions_share", self.n_pruned_transitions / seen if seen else 0.0)
 
     @property
     def n_closed_transitions(self) -> int:
@@ -80,12 +136,34 @@ class TrajectoryReplayBuffer:
         self.open_length += 1
         self.n_transitions += 1
         coder = self.tile_coder
-        kernels.mark_visited(self.visits, slots, coder.stride, coder.action_columns, action)
+        if not self.prune:
+            kernels.mark_visited(self.visits, slots, coder.stride, coder.action_columns, action)
+            return
+        if self.n_open_new + coder.n_tilings > self.open_new_features.shape[0]:
+            self.open_new_features = np.concatenate([self.open_new_features, np.zeros_like(self.open_new_features)])
+        self.n_open_new, covered = kernels.mark_visited_tracked(
+            self.visits, self.fresh, slots, coder.stride, coder.action_columns, action, self.open_new_features,
+            self.n_open_new)
+        self.open_covered += covered
 
     def close_trajectory(self, next_obs: np.ndarray, terminated: bool) -> bool:
-        """End the open trajectory at s_{t+1} = next_obs; returns False if it was empty."""
+        """End the open trajectory at s_{t+1} = next_obs; returns False if it was empty or pruning dropped it."""
         if self.open_length == 0:
             return False
+        if self.prune:
+            self.n_closed_total += 1
+            new = self.open_new_features[: self.n_open_new]
+            self.fresh[new] = 0
+            dropped = self.open_covered >= self.prune_threshold * self.open_length
+            if dropped:  # its rows are overwritten by the next trajectory; only it visited its new features
+                self.visits[new] = 0
+                self.n_pruned_trajectories += 1
+                self.n_pruned_transitions += self.open_length
+                self.n_transitions -= self.open_length
+            self.n_open_new, self.open_covered = 0, 0
+            if dropped:
+                self.open_length = 0
+                return False
         j = self.open_trajectory
         self.trajectory_start[j] = self.write_row
         self.trajectory_length[j] = self.open_length
@@ -171,6 +249,11 @@ class TrajectoryReplayBuffer:
             "open_length": self.open_length,
             "open_next_obs": self.open_next_obs,
             "visits": self.visits,
+            "prune": self.prune,
+            "prune_threshold": self.prune_threshold,
+            "open_new_features": self.open_new_features[: self.n_open_new].copy(),
+            "open_covered": self.open_covered,
+            "pruned": (self.n_closed_total, self.n_pruned_trajectories, self.n_pruned_transitions),
         }
 
     def _oldest_row(self) -> int:
@@ -179,7 +262,16 @@ class TrajectoryReplayBuffer:
         return self.write_row
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(state["capacity"], TileCoder(**state["tile_coder_config"]))
+        self.__init__(state["capacity"], TileCoder(**state["tile_coder_config"]), state.get("prune"),
+                      state.get("prune_threshold", self.DEFAULT_PRUNE_THRESHOLD))
+        if self.prune:
+            new = state["open_new_features"]
+            self.open_new_features = np.zeros(max(new.shape[0] * 2, 16 * self.tile_coder.n_tilings), dtype=np.int64)
+            self.open_new_features[: new.shape[0]] = new
+            self.n_open_new = new.shape[0]
+            self.fresh[new] = 1
+            self.open_covered = state["open_covered"]
+            self.n_closed_total, self.n_pruned_trajectories, self.n_pruned_transitions = state["pruned"]
         n, m = len(state["actions"]), len(state["trajectory_length"])
         for name in ("observations", "slots", "actions", "rewards"):
             getattr(self, name)[:n] = state[name]

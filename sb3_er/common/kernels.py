@@ -20,7 +20,8 @@ the thesis). Conventions shared by all kernels:
 import numba as nb
 import numpy as np
 
-ORDER_REVERSED, ORDER_FORWARD, ORDER_UNIFORM = 0, 1, 2
+ORDER_REVERSED, ORDER_FORWARD, ORDER_UNIFORM, ORDER_PRIORITIZED = 0, 1, 2, 3
+PREDECESSORS_TILES, PREDECESSORS_TRAJECTORY = 0, 1
 TARGET_SARSA, TARGET_Q_LEARNING, TARGET_EXPECTED_SARSA = 0, 1, 2
 SIGMA_NONE, SIGMA_WORST, SIGMA_AVERAGE, SIGMA_BEST, SIGMA_AVERAGE_WORST, SIGMA_AVERAGE_BEST = -1, 0, 1, 2, 3, 4
 
@@ -280,6 +281,28 @@ def mark_visited(visits, slots, stride, action_columns, action):
 
 
 @nb.njit(cache=True)
+def mark_visited_tracked(visits, fresh, slots, stride, action_columns, action, new_features, n_new):
+    """w <- w OR phi(s_k, a_k) (Eq. 5.2), for a pruned database (thesis 3.5.3): also whether (s_k, a_k) was covered
+    before its trajectory began, W(s_k, a_k) = N counting only features visited by earlier trajectories.
+
+    ``fresh`` flags the features first visited by the trajectory in progress and ``new_features[:n_new]`` lists
+    them (room for N more is the caller's job), so that a pruned trajectory's marks can be taken back. Returns
+    (n_new, covered).
+    """
+    covered = True
+    for k in range(slots.shape[0]):
+        i = slots[k] * stride + action_columns[k, action]
+        if visits[i] == 0 or fresh[i] != 0:
+            covered = False
+        if visits[i] == 0:
+            visits[i] = 1
+            fresh[i] = 1
+            new_features[n_new] = i
+            n_new += 1
+    return n_new, covered
+
+
+@nb.njit(cache=True)
 def sarsa_lambda_step(
     theta, trace_index, trace_value, trace_position, trace_length,
     slots, action, reward, terminated, next_obs, next_slots, q_scratch,
@@ -527,6 +550,332 @@ def replay_phase(
                 return updates, sum_abs_delta, delta, STATUS_DIVERGED
             sum_abs_delta += abs(delta)
     return updates, sum_abs_delta, delta, STATUS_OK
+
+
+# --- Prioritized sweeping (Moore and Atkeson 1993; thesis 3.2, 3.5.4 and 7.2) as a replay order of ER ----------------
+# The priority queue is a binary max-heap in preallocated arrays: ``heap_rows[i]`` is the stored row at heap node i,
+# ``heap_keys[i]`` its priority |delta|, ``heap_position[row]`` the node of a row (-1: not queued) and
+# ``heap_size[0]`` the number of queued rows. A node pops before its children: the higher priority first, on equal
+# priorities the lower row (so the order is that of Python's heapq on (-priority, row) pairs).
+
+
+@nb.njit(inline="always", cache=True)
+def _heap_before(heap_rows, heap_keys, i, j):
+    """Whether heap node i pops before node j."""
+    return heap_keys[i] > heap_keys[j] or (heap_keys[i] == heap_keys[j] and heap_rows[i] < heap_rows[j])
+
+
+@nb.njit(inline="always", cache=True)
+def _heap_swap(heap_rows, heap_keys, heap_position, i, j):
+    row_i, key_i = heap_rows[i], heap_keys[i]
+    heap_rows[i], heap_keys[i] = heap_rows[j], heap_keys[j]
+    heap_rows[j], heap_keys[j] = row_i, key_i
+    heap_position[heap_rows[i]] = i
+    heap_position[heap_rows[j]] = j
+
+
+@nb.njit(cache=True)
+def heap_sift_up(heap_rows, heap_keys, heap_position, i):
+    """Move node i towards the root while it pops before its parent."""
+    while i > 0:
+        parent = (i - 1) // 2
+        if not _heap_before(heap_rows, heap_keys, i, parent):
+            return
+        _heap_swap(heap_rows, heap_keys, heap_position, i, parent)
+        i = parent
+
+
+@nb.njit(cache=True)
+def heap_sift_down(heap_rows, heap_keys, heap_position, heap_size, i):
+    """Move node i towards the leaves while a child pops before it."""
+    size = heap_size[0]
+    while True:
+        first = i
+        for child in (2 * i + 1, 2 * i + 2):
+            if child < size and _heap_before(heap_rows, heap_keys, child, first):
+                first = child
+        if first == i:
+            return
+        _heap_swap(heap_rows, heap_keys, heap_position, i, first)
+        i = first
+
+
+@nb.njit(cache=True)
+def heap_set(heap_rows, heap_keys, heap_position, heap_size, row, priority):
+    """Queue `row` with `priority`, or change the priority of a queued row (Moore and Atkeson's "promote")."""
+    i = heap_position[row]
+    if i < 0:
+        i = heap_size[0]
+        heap_size[0] += 1
+        heap_rows[i] = row
+        heap_keys[i] = priority
+        heap_position[row] = i
+        heap_sift_up(heap_rows, heap_keys, heap_position, i)
+        return
+    old = heap_keys[i]
+    heap_keys[i] = priority
+    if priority > old:
+        heap_sift_up(heap_rows, heap_keys, heap_position, i)
+    else:
+        heap_sift_down(heap_rows, heap_keys, heap_position, heap_size, i)
+
+
+@nb.njit(cache=True)
+def heap_remove(heap_rows, heap_keys, heap_position, heap_size, row):
+    """Take `row` out of the queue (nothing if it is not queued)."""
+    i = heap_position[row]
+    if i < 0:
+        return
+    last = heap_size[0] - 1
+    if i != last:
+        _heap_swap(heap_rows, heap_keys, heap_position, i, last)
+    heap_size[0] = last
+    heap_position[row] = -1
+    if i != last:
+        heap_sift_down(heap_rows, heap_keys, heap_position, heap_size, i)
+        heap_sift_up(heap_rows, heap_keys, heap_position, i)
+
+
+@nb.njit(cache=True)
+def heap_pop(heap_rows, heap_keys, heap_position, heap_size):
+    """(row, priority) of the first node, taken out of the queue; the queue must not be empty."""
+    row, priority = heap_rows[0], heap_keys[0]
+    heap_remove(heap_rows, heap_keys, heap_position, heap_size, row)
+    return row, priority
+
+
+@nb.njit(cache=True)
+def heap_heapify(heap_rows, heap_keys, heap_position, heap_size):
+    """Order the first heap_size[0] nodes into a heap (Floyd's bottom-up construction, O(n))."""
+    for i in range(heap_size[0]):
+        heap_position[heap_rows[i]] = i
+    for i in range(heap_size[0] // 2 - 1, -1, -1):
+        heap_sift_down(heap_rows, heap_keys, heap_position, heap_size, i)
+
+
+@nb.njit(cache=True)
+def heap_clear(heap_rows, heap_position, heap_size):
+    """Empty the queue, leaving every heap_position at -1."""
+    for i in range(heap_size[0]):
+        heap_position[heap_rows[i]] = -1
+    heap_size[0] = 0
+
+
+@nb.njit(inline="always", cache=True)
+def transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
+                   trajectory_next_slots, open_trajectory, open_start, open_length, open_next_slots):
+    """(tiles of s_{t+1}, terminal, t) of stored row p: the next row's tiles inside a trajectory, the trajectory's
+    stored last s' at its end (the open trajectory's latest s', never terminal)."""
+    capacity = slots.shape[0]
+    j = transition_trajectory[p]
+    if j == open_trajectory:
+        start, length, end_slots, end_terminal = open_start, open_length, open_next_slots, False
+    else:
+        start, length = trajectory_start[j], trajectory_length[j]
+        end_slots, end_terminal = trajectory_next_slots[j], trajectory_terminated[j]
+    t = ring_index(p - start + capacity, capacity)
+    if t == length - 1:
+        return end_slots, end_terminal, t
+    return slots[ring_index(p + 1, capacity)], False, t
+
+
+@nb.njit(inline="always", cache=True)
+def transition_priority(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
+                        columns_are_actions, priority_target, sigma_kind, gamma, epsilon, rng, q, w, initial_low,
+                        initial_span, initial_seed):
+    """|delta| of stored transition p under the current theta, without an update: the priority of prioritized
+    sweeping. ``priority_target`` is never the sampled Sarsa target (the caller passes expected Sarsa instead), so
+    no random number is drawn and a priority does not depend on an exploratory draw."""
+    q_sa = 0.0
+    for k in range(slots.shape[1]):
+        q_sa += theta[slots[p, k] * stride + action_columns[k, actions[p]]]
+    target = rewards[p]
+    if not terminal:
+        value, _ = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
+                                    slots.shape[1], priority_target, sigma_kind, epsilon, rng, q, w, initial_low,
+                                    initial_span, initial_seed)
+        target += gamma * value
+    return abs(target - q_sa)
+
+
+@nb.njit(cache=True)
+def build_predecessor_index(slots, transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
+                            trajectory_next_slots, first_row, n_transitions, open_trajectory, open_start, open_length,
+                            open_next_slots, index_start, index_rows):
+    """The index from tile slots to the stored transitions whose s' has that tile (a counting sort).
+
+    Afterwards ``index_rows[index_start[c]:index_start[c + 1]]`` are the rows p, oldest first, with slot c among the
+    tiles of s'_p (terminal transitions have no s' and are left out). A row whose s' has slot c in two tilings (a
+    hash collision) is listed twice. ``index_start`` has one entry per slot plus one; ``index_rows`` room for
+    n_transitions * N rows.
+    """
+    capacity = slots.shape[0]
+    n_slots = index_start.shape[0] - 1
+    for c in range(n_slots + 1):
+        index_start[c] = 0
+    for i in range(n_transitions):
+        p = ring_index(first_row + i, capacity)
+        next_slots, terminal, _ = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
+                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
+                                                 open_start, open_length, open_next_slots)
+        if not terminal:
+            for k in range(next_slots.shape[0]):
+                index_start[next_slots[k] + 1] += 1
+    for c in range(n_slots):
+        index_start[c + 1] += index_start[c]
+    for i in range(n_transitions):  # index_start[c] runs through slot c's rows, ending at the start of c + 1
+        p = ring_index(first_row + i, capacity)
+        next_slots, terminal, _ = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
+                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
+                                                 open_start, open_length, open_next_slots)
+        if not terminal:
+            for k in range(next_slots.shape[0]):
+                index_rows[index_start[next_slots[k]]] = p
+                index_start[next_slots[k]] += 1
+    for c in range(n_slots, 0, -1):
+        index_start[c] = index_start[c - 1]
+    index_start[0] = 0
+
+
+@nb.njit(cache=True)
+def _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
+             trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory, open_start,
+             open_length, open_next_slots, stride, action_columns, columns_are_actions, priority_target, sigma_kind,
+             gamma, epsilon, rng, q, w, initial_low, initial_span, initial_seed, threshold, heap_rows, heap_keys,
+             heap_position, heap_size):
+    """Recompute the |delta| of predecessor q_row and queue it, re-prioritise it, or take it out of the queue when
+    it no longer exceeds the threshold."""
+    next_slots, terminal, _ = transition_end(q_row, slots, transition_trajectory, trajectory_start, trajectory_length,
+                                             trajectory_terminated, trajectory_next_slots, open_trajectory,
+                                             open_start, open_length, open_next_slots)
+    priority = transition_priority(theta, visits, slots, actions, rewards, q_row, next_slots, terminal, stride,
+                                   action_columns, columns_are_actions, priority_target, sigma_kind, gamma, epsilon,
+                                   rng, q, w, initial_low, initial_span, initial_seed)
+    if priority > threshold:
+        heap_set(heap_rows, heap_keys, heap_position, heap_size, q_row, priority)
+    else:
+        heap_remove(heap_rows, heap_keys, heap_position, heap_size, q_row)
+
+
+@nb.njit(cache=True)
+def prioritized_phase(
+    theta, visits, slots, actions, rewards, transition_trajectory,
+    trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
+    oldest_trajectory, n_closed_trajectories, first_row, n_transitions, open_trajectory, open_length, open_next_slots,
+    stride, action_columns, columns_are_actions, n_updates, threshold, predecessors, max_predecessors,
+    target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma, epsilon, action_rng,
+    q_scratch, w_scratch, initial_low, initial_span, initial_seed,
+    heap_rows, heap_keys, heap_position, heap_size, index_start, index_rows, stamp, stamp_counter,
+):
+    """One replay phase of prioritized sweeping over the stored transitions (Moore and Atkeson 1993, their Fig. 4
+    "prioritized sweeping" loop with the transitions of the database as its model; thesis 3.2: "Another possibility
+    is to use Prioritized Sweeping").
+
+    1. Every stored transition p is queued with priority |delta_p| (:func:`transition_priority`) if it exceeds
+       ``threshold``. The queue is built anew each phase: under function approximation every update moves the
+       errors of other transitions, so priorities kept from an earlier phase would be stale.
+    2. Up to ``n_updates`` times: pop the transition with the largest |delta| and replay it with the update of
+       :func:`replay_update` (Alg. 8 line 7; ER-sigma, residual and the other targets as in the other orders).
+    3. Its predecessors get their |delta| recomputed and are queued (or re-prioritised, or taken out when it fell to
+       the threshold or below). First the previous transition of p's trajectory, whose s' is s_p; that is all for
+       ``predecessors == PREDECESSORS_TRAJECTORY``. ``PREDECESSORS_TILES`` goes on to the other transitions q whose
+       s'_q shares a tile slot with s_p (the update moved Q(s'_q, .), so their targets changed), found through the
+       index of :func:`build_predecessor_index`, newest first, taking p's tilings in turn: at most
+       ``max_predecessors`` distinct ones per update in all.
+    The queue ends the phase early when no transition's |delta| exceeds the threshold. Exploration draws a' from
+    ``action_rng`` as in the other orders. Arrays after ``initial_seed`` are the workspace (see sb3_er.er).
+    Returns (updates, sum of |delta|, last delta, status, priority evaluations).
+    """
+    capacity = slots.shape[0]
+    n_tilings = slots.shape[1]
+    open_start = ring_index(first_row + n_transitions - open_length, capacity)
+    priority_target = TARGET_EXPECTED_SARSA if target_kind == TARGET_SARSA else target_kind
+    updates = 0
+    evaluations = 0
+    sum_abs_delta = 0.0
+    delta = 0.0
+    heap_clear(heap_rows, heap_position, heap_size)
+    if n_transitions == 0 or n_updates <= 0:
+        return updates, sum_abs_delta, delta, STATUS_OK, evaluations
+    if predecessors == PREDECESSORS_TILES:
+        build_predecessor_index(slots, transition_trajectory, trajectory_start, trajectory_length,
+                                trajectory_terminated, trajectory_next_slots, first_row, n_transitions,
+                                open_trajectory, open_start, open_length, open_next_slots, index_start, index_rows)
+    size = 0
+    for i in range(n_transitions):
+        p = ring_index(first_row + i, capacity)
+        next_slots, terminal, _ = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
+                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
+                                                 open_start, open_length, open_next_slots)
+        priority = transition_priority(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
+                                       action_columns, columns_are_actions, priority_target, sigma_kind, gamma,
+                                       epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
+                                       initial_seed)
+        evaluations += 1
+        if priority > threshold:
+            heap_rows[size] = p
+            heap_keys[size] = priority
+            size += 1
+    heap_size[0] = size
+    heap_heapify(heap_rows, heap_keys, heap_position, heap_size)
+
+    while updates < n_updates and heap_size[0] > 0:
+        p, _ = heap_pop(heap_rows, heap_keys, heap_position, heap_size)
+        next_slots, terminal, t = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
+                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
+                                                 open_start, open_length, open_next_slots)
+        delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
+                              columns_are_actions, target_kind, sigma_kind, residual_zeta, residual_next_action,
+                              step_size, gamma, epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
+                              initial_seed)
+        updates += 1
+        if not np.isfinite(delta):
+            heap_clear(heap_rows, heap_position, heap_size)
+            return updates, sum_abs_delta, delta, STATUS_DIVERGED, evaluations
+        sum_abs_delta += abs(delta)
+
+        # the predecessors of p, each once per update (stamped with this update's number)
+        stamp_counter[0] += 1
+        mark = stamp_counter[0]
+        examined = 0
+        if t > 0 and max_predecessors > 0:  # the previous transition of p's trajectory: its s' is s_p
+            q_row = ring_index(p + capacity - 1, capacity)
+            stamp[q_row] = mark
+            _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
+                     trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory, open_start,
+                     open_length, open_next_slots, stride, action_columns, columns_are_actions, priority_target,
+                     sigma_kind, gamma, epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
+                     initial_seed, threshold, heap_rows, heap_keys, heap_position, heap_size)
+            evaluations += 1
+            examined += 1
+        if predecessors == PREDECESSORS_TRAJECTORY:
+            continue
+        depth = 0
+        more = True
+        while more and examined < max_predecessors:  # depth-th newest row of each of p's tile lists in turn
+            more = False
+            for k in range(n_tilings):
+                begin, end = index_start[slots[p, k]], index_start[slots[p, k] + 1]
+                if end - begin <= depth:
+                    continue
+                more = True
+                q_row = index_rows[end - 1 - depth]
+                if stamp[q_row] == mark:
+                    continue
+                stamp[q_row] = mark
+                _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
+                         trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory,
+                         open_start, open_length, open_next_slots, stride, action_columns, columns_are_actions,
+                         priority_target, sigma_kind, gamma, epsilon, action_rng, q_scratch, w_scratch,
+                         initial_low, initial_span, initial_seed, threshold, heap_rows, heap_keys, heap_position,
+                         heap_size)
+                evaluations += 1
+                examined += 1
+                if examined >= max_predecessors:
+                    break
+            depth += 1
+    heap_clear(heap_rows, heap_position, heap_size)
+    return updates, sum_abs_delta, delta, STATUS_OK, evaluations
 
 
 @nb.njit(cache=True)

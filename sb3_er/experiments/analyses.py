@@ -21,6 +21,7 @@ COMMANDS = {
     "replay-order": "sb3_er.experiments.replay_order:reproduce_replay_order",
     "sigma": "sb3_er.experiments.sigma_study:reproduce_sigma",
     "pessimistic": "sb3_er.experiments.pessimistic:reproduce_pessimistic",
+    "framework": "sb3_er.experiments.framework:reproduce_framework",
 }
 
 

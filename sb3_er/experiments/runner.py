@@ -87,7 +87,7 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
-    kwargs = model_kwargs(job.algo, job.experiment.env_id)
+    kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
     accepted = accepted_parameters(algorithm_classes()[job.algo])
     kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted})
     return kwargs
@@ -109,6 +109,7 @@ class RunResult:
 TASKS = {
     "replay_order": "sb3_er.experiments.replay_order:replay_order_run",
     "pessimistic": "sb3_er.experiments.pessimistic:pessimistic_run",
+    "framework": "sb3_er.experiments.framework:framework_run",
 }
 """Runs that are no learning run under a protocol (see :class:`~sb3_er.experiments.specs.Analysis`): the task name
 of the job's experiment to ``module:function``. The function takes ``(job, env, report)`` (the env made from the

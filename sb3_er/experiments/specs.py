@@ -15,7 +15,9 @@ class Experiment:
     ``"walking"`` (greedy distance every ``eval_interval`` s of learning time over ``eval_runs`` runs, run length
     ``default_budget`` s of learning time). ``rise_time_scale`` converts the x axis to the table's rise-time unit.
     ``success_threshold`` is the performance that counts as a learned gait: a mean curve that never reaches it has no
-    end performance (the thesis's "NA").
+    end performance (the thesis's "NA"). ``zoo_configs``: the algorithms' settings start from their
+    ``zoo_configs/<algo>.yml`` entry for ``env_id`` (else from the class defaults, and the runs' ``algo_kwargs`` carry
+    every setting: the framework experiment's MountainCar).
     """
 
     name: str
@@ -35,6 +37,7 @@ class Experiment:
     has_falls: bool = False
     thesis_table: dict = field(default_factory=dict)
     thesis_caption: str = ""
+    zoo_configs: bool = True
 
     @property
     def budget_unit(self) -> str:
