@@ -129,7 +129,8 @@ def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_p
     assert records.read_record(run_csv_path(tmp_path, "er", 0))["git_commit"] == "a" * 40
     assert records.read_record(run_csv_path(tmp_path, "er", 1))["git_commit"] == "b" * 40
     summary = (tmp_path / "summary.md").read_text()
-    assert "commit aaaaaaaaaa (1 runs)" in summary and "commit bbbbbbbbbb (1 runs)" in summary
+    assert "code aaaaaaaaaa (1 runs; commit aaaaaaa)" in summary
+    assert "code bbbbbbbbbb (1 runs; commit bbbbbbb)" in summary
     assert "Mixed versions" in summary
 
 
@@ -141,6 +142,9 @@ def test_a_commit_that_leaves_the_code_alone_mixes_freely(tmp_path, monkeypatch)
         warnings.simplefilter("error", MixedVersionsWarning)
         resumed = reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
     assert (resumed.runs_done, resumed.runs_skipped) == (1, 1)
+    summary = (tmp_path / "summary.md").read_text()  # one code version made both runs, whatever the commits
+    assert "code cccccccccc (2 runs; commits aaaaaaa, bbbbbbb)" in summary
+    assert "Mixed versions" not in summary
 
 
 def test_without_a_code_hash_the_same_commit_warns_only_when_the_uncommitted_changes_differ(tmp_path, monkeypatch):

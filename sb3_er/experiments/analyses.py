@@ -95,15 +95,9 @@ def run_analysis_jobs(
 
 
 def code_line(jobs: list[RunJob]) -> str:
-    """Which code made the finished runs of `jobs`, e.g. ``"Code: sb3-er 0.1.0, commit 91bd149ab1 (60 runs)."``."""
-    counts: dict[str, int] = {}
-    for job in jobs:
-        if job.csv_path.is_file():
-            description = records.describe_code(records.read_record(job.csv_path))
-            counts[description] = counts.get(description, 0) + 1
-    versions = "; ".join(f"{description} ({count} runs)" for description, count in counts.items())
-    mixed = " **Mixed versions: the runs were made by different code.**" if len(counts) > 1 else ""
-    return f"Code: {versions}.{mixed}"
+    """Which code made the finished runs of `jobs`, e.g. ``"Code: sb3-er 0.1.0, code 1f4d0e44dc (60 runs; commit
+    91bd149)."`` (`records.code_versions_line`)."""
+    return records.code_versions_line([records.read_record(job.csv_path) for job in jobs if job.csv_path.is_file()])
 
 
 def env_reading(jobs: list[RunJob]) -> str:

@@ -351,6 +351,36 @@ def describe_code(record: dict[str, Any] | None) -> str:
     return f"sb3-er {record.get('sb3_er_version')}, {where}"
 
 
+def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
+    """The summary's line saying which code made the runs, grouped by the package's code hash (``code_sha256``),
+    which is what decides whether runs may be mixed: commits that change only documentation or results share it.
+
+    e.g. ``"Code: sb3-er 0.1.0, code 1f4d0e44dc (100 runs; commits dc32abd, 294af56 (dirty))."``; runs without a
+    record count as their own version, and more than one version adds a bold warning.
+    """
+    groups: dict[str, list[dict[str, Any] | None]] = {}
+    for record in run_records:
+        if record is None:
+            key = "no record"
+        elif record.get("code_sha256"):
+            key = f"code {record['code_sha256'][:10]}"
+        else:  # an older record without a code hash: its commit and uncommitted changes stand for the code
+            key = f"{describe_code(record).split(', ', 1)[1]}{(record.get('git_diff_sha256') or '')[:10]}"
+        groups.setdefault(key, []).append(record)
+    parts = []
+    for key, members in groups.items():
+        if key == "no record":
+            parts.append(f"unknown version (no record) ({len(members)} runs)")
+            continue
+        commits = list(dict.fromkeys(describe_code(record).split(", ", 1)[1] for record in members))
+        shown = ", ".join(c.removeprefix("commit ")[:7] + (" (dirty)" if c.endswith("(dirty)") else "")
+                          for c in commits[:4]) + (", ..." if len(commits) > 4 else "")
+        parts.append(f"sb3-er {members[0].get('sb3_er_version')}, {key} ({len(members)} runs; "
+                     f"{'commit' if len(commits) == 1 else 'commits'} {shown})")
+    mixed = " **Mixed versions: the runs were made by different code.**" if len(groups) > 1 else ""
+    return f"Code: {'; '.join(parts)}.{mixed}"
+
+
 class MixedVersionsError(ValueError):
     """Finished runs were made by other code or another configuration than the current one."""
 

@@ -80,16 +80,8 @@ def _code_versions_line(out_dir: Path, algos: Sequence[str], seeds: Sequence[int
     """Which code made the runs, e.g. "Code: sb3-er 0.1.0, commit 91bd149ab1 (40 runs)"."""
     from sb3_er.experiments.runner import run_csv_path
 
-    counts: dict[str, int] = {}
-    for algo in algos:
-        for seed in seeds:
-            csv_path = run_csv_path(out_dir, algo, seed)
-            if csv_path.is_file():
-                description = records.describe_code(records.read_record(csv_path))
-                counts[description] = counts.get(description, 0) + 1
-    versions = "; ".join(f"{description} ({count} runs)" for description, count in counts.items())
-    mixed = " **Mixed versions: the runs were made by different code.**" if len(counts) > 1 else ""
-    return f"Code: {versions}.{mixed}"
+    paths = [run_csv_path(out_dir, algo, seed) for algo in algos for seed in seeds]
+    return records.code_versions_line([records.read_record(path) for path in paths if path.is_file()])
 
 
 def reproduce(
