@@ -50,11 +50,9 @@ The 1001-step greedy test env of GRL's protocol::
 
 from __future__ import annotations
 
-import math
 
-import numpy as np
 
-from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT, SimplestWalkerEnv
+from sb3_er_envs.simplest_walker import GRL_TILE_WIDTHS, SimplestWalkerEnv
 
 LEARNING_EPISODE_STEPS = 500
 """GRL's learning episodes: time limit 100 at 0.2 per control step."""
@@ -97,6 +95,8 @@ class CompassWalkerEnv(SimplestWalkerEnv):
             reward="schuitema",
             fall="angles",
             observation="grl",
+            start="grl",
+            tile_widths=GRL_TILE_WIDTHS,
             step_reward=50.0,
             step_reward_cap=30.0,
             fall_reward=-100.0,
@@ -105,12 +105,3 @@ class CompassWalkerEnv(SimplestWalkerEnv):
             render_mode=render_mode,
         )
         self.max_episode_steps = int(episode_steps)
-
-    def sample_start_state(self, rng: np.random.Generator) -> np.ndarray:
-        """GRL's start: Garcia's four values each times U[1 - v, 1 + v], redrawn until the hip can reach phi_st = 0."""
-        v = self.initial_state_variation
-        cos_slope = math.cos(self.slope)
-        while True:
-            state = GARCIA_FIXED_POINT * rng.uniform(1.0 - v, 1.0 + v, size=4)
-            if 0.5 * state[2] ** 2 + math.cos(state[0]) * cos_slope >= cos_slope:
-                return state

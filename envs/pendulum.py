@@ -1,27 +1,56 @@
-"""Pendulum swing-up of thesis section 4.2.1 with the model of Table 4.1, in our reading (DESIGN.md section 7).
+"""Pendulum swing-up of thesis section 4.2.1 (Table 4.1, Eq. 4.1), with every uncertain reading an option.
 
 State ``s = [theta, theta_dot]``: ``theta = 0`` points up, ``theta = +-pi`` hangs down; ``theta`` is wrapped into
 ``[-pi, pi)``. The dynamics are
 
-    J * theta'' = m * g * l * sin(theta) - b * theta' + u
+    J_pivot * theta'' = m * g * l * sin(theta) - b * theta' + tau
 
-with Table 4.1's values m = 1.113 kg, J = 3.773e-3 kg m^2, g = 9.81 m/s^2, l = 8.5e-2 m, and viscous damping b = 0 (the
-thesis names none). We read J as the inertia about the pivot, as the equation needs. Table 4.1's J is smaller than
-m * l^2 = 8.04e-3 kg m^2, so if it was meant about the centre of mass, pass ``inertia=3.773e-3 + 1.113 * 0.085**2``.
+with Table 4.1's m = 1.113 kg, J = 3.773e-3 kg m^2, g = 9.81 m/s^2, l = 8.5e-2 m, and viscous damping b = 0 (the
+thesis names none). Each control step holds the action for ``dt = 0.01`` s (thesis 4.2.1: "the sampling period is 0.01
+seconds"), integrated by ``substeps`` classical Runge-Kutta (RK4) steps. The reward of thesis Eq. 4.1 is taken at the
+state reached by the step, with ``a`` the action in its own unit (N m, or V for ``actuation="voltage"``):
 
-The torque ``u`` takes 7 evenly spaced values in ``[-max_torque, max_torque]``; the default limit 0.6 N m lies below
-m * g * l = 0.928 N m, so the pendulum cannot be lifted directly and has to swing (the thesis's motivation). Each control
-step holds ``u`` for ``dt = 0.01`` s, integrated by ``substeps`` classical Runge-Kutta (RK4) steps. The angular rate is
-clipped to ``[-max_velocity, max_velocity]`` after each control step, which keeps the observation bounded; the clip
-never binds in a swing-up (from rest hanging down, the upright position is passed at about 31 rad/s).
+    r = -5 * theta^2 - 0.1 * theta'^2 - a^2.
 
-The reward of thesis Eq. 4.1 is taken at the state reached by the step,
+Every episode starts hanging down at rest and is ``truncated`` after ``episode_seconds`` (15 s, thesis 4.2.1).
 
-    r = -5 * theta^2 - 0.1 * theta'^2 - u^2.
+Readings (the thesis does not settle these; each is an option, with the printed value always available):
 
-Every episode starts hanging down at rest. It ends (``terminated``, ``info["goal_reached"]``) when the pendulum reaches
-the goal ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), and is ``truncated`` after
-``episode_seconds`` (15 s, i.e. 1500 steps). ``info["fell"]`` is always False: reaching the goal is no fall.
+* Inertia, ``inertia_about``. Table 4.1 prints J = 3.773e-3 kg m^2 without saying about which axis. About the pivot
+  it would be smaller than m * l^2 = 8.04e-3 kg m^2 (the point-mass inertia of the same mass at l), which no rigid body
+  can be. The thesis simulated the pendulum in ODE (MatODE), and an ODE body takes its inertia tensor about its centre
+  of mass. ``"center_of_mass"`` (default, the physical reading) uses J_pivot = J + m * l^2 = 1.1814e-2 kg m^2 (parallel
+  axis theorem); ``"pivot"`` uses J_pivot = J (the reading before issue 10). GRL (github wcaarls/grl) is itself split:
+  its hand-written DCSC pendulum (``base/src/environments/pendulum.cpp``) integrates J theta'' = ..., J about the pivot,
+  while its RBDL model of the same pendulum (``addons/rbdl/cfg/pendulum.lua``) gives J as the body's inertia about a
+  centre of mass at l. For the DCSC values, J = 1.91e-4 > m l^2 = 9.7e-5, so there the pivot reading is physical.
+* Velocity tile width, ``velocity_tile_width`` (``tile_widths = [0.33, velocity_tile_width]``). The thesis prints
+  "a tile width of 0.33 rad and 0.33 rad/s" (``velocity_tile_width=0.33``); we read a dropped digit and default to
+  3.3 rad/s, for the evidence that follows (not for how it learns). Every tile-coded pendulum in GRL
+  (``cfg/pendulum/sarsa_tc.yaml`` and its siblings) uses the resolution [0.31415 rad, 3.1415 rad/s]: a velocity width
+  ten times the angle width, about 3.3 rad/s if the thesis dropped a digit. A swing-up spans about +-18 rad/s
+  (centre-of-mass inertia) or +-31 rad/s (pivot): 0.33 rad/s cuts that range into 100-200 tiles, against 19 for the
+  angle. Candidates screened for issue 10: 0.33, 1.0, 3.3.
+* Actuation, ``actuation``. ``"torque"`` (default): ``n_actions`` torques evenly spaced in ``[-max_torque, max_torque]``
+  N m; the thesis gives "7 actions" but no range, and says only that the torque "is not strong enough to directly rotate
+  the pendulum to its up position", so the limit must lie below m g l = 0.928 N m; 0.6 N m is our choice.
+  ``"voltage"``: the action is a motor voltage u in ``[-max_voltage, max_voltage]`` V driving a DC motor,
+  tau = (K / R) * (u - K * theta'), the model of the Delft DCSC pendulum (MOPS) whose reward Eq. 4.1 is: GRL's
+  ``dynamics/pendulum`` has K = 0.0536 N m/A, R = 9.5 Ohm, u in +-3 V, with J = 1.91e-4 kg m^2 (pivot), m = 0.055 kg,
+  l = 0.042 m, b = 3e-6 N m s/rad (``DCSC_MOPS`` below). Table 4.1 gives no motor constants: on Table 4.1's pendulum the
+  DCSC motor's stall torque of 0.017 N m is 2 % of m g l, and 15 s of bang-bang pumping at 3 V lift it only 1.5 rad
+  (centre-of-mass inertia) or 2.7 rad (pivot) from hanging. The voltage reading is meant for the whole DCSC model,
+  ``PendulumSwingupEnv(**DCSC_MOPS)``.
+* Goal, ``terminate_at_goal``. The thesis says only that "an episode lasts 15 seconds or when the goal is reached"; it
+  defines no goal. Ours: the episode ends (``terminated``, ``info["goal_reached"]``) when ``|theta| < goal_angle``
+  (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), our own definition. GRL's swing-up task has no goal at all: it
+  never marks a state absorbing and ends every episode at its timeout (2.99 s of 0.03 s steps, 100 steps);
+  ``terminate_at_goal=False`` runs every episode for ``episode_seconds``, as GRL does.
+
+The angular rate is clipped to ``[-max_velocity, max_velocity]`` (40 rad/s) after each control step, which keeps the
+observation bounded; the clip never binds in a swing-up (from rest hanging down, upright is passed at about 18 rad/s
+with the centre-of-mass inertia, 31 rad/s with J about the pivot, 22 rad/s in the DCSC model). ``info["fell"]`` is
+always False: reaching the goal is no fall.
 """
 
 from __future__ import annotations
@@ -38,10 +67,36 @@ from sb3_er_envs import discrete_action_index
 
 _IMAGE_PIXELS = 128
 
+INERTIA_AXES = ("center_of_mass", "pivot")
+ACTUATIONS = ("torque", "voltage")
+
+# Table 4.1 of the thesis.
+TABLE_4_1 = {"mass": 1.113, "inertia": 3.773e-3, "length": 8.5e-2, "gravity": 9.81}
+
+# The Delft DCSC pendulum (MOPS) as GRL models it: base/src/environments/pendulum.cpp (PendulumDynamics::configure:
+# J, m, l, b, K, R; PendulumSwingupTask: actions clipped to +-3 V). J is the inertia about the pivot there.
+DCSC_MOPS = {
+    "mass": 0.055,
+    "inertia": 1.91e-4,
+    "inertia_about": "pivot",
+    "length": 0.042,
+    "damping": 3e-6,
+    "actuation": "voltage",
+    "max_voltage": 3.0,
+    "motor_constant": 0.0536,
+    "motor_resistance": 9.5,
+}
+
+# Defaults of the actuation-specific parameters (None in the signature means "this default, if it applies").
+_DEFAULT_MAX_TORQUE = 0.6
+_DEFAULT_MAX_VOLTAGE = DCSC_MOPS["max_voltage"]
+_DEFAULT_MOTOR_CONSTANT = DCSC_MOPS["motor_constant"]
+_DEFAULT_MOTOR_RESISTANCE = DCSC_MOPS["motor_resistance"]
+
 
 @numba.njit(cache=True)
 def _angular_acceleration(theta, velocity, torque, gravity_torque, damping, inertia):
-    """theta'' of the pendulum, J * theta'' = m g l sin(theta) - b theta' + u (thesis 4.2.1)."""
+    """theta'' of the pendulum, J_pivot * theta'' = m g l sin(theta) - b theta' + u (thesis 4.2.1)."""
     return (gravity_torque * math.sin(theta) - damping * velocity + torque) / inertia
 
 
@@ -49,7 +104,8 @@ def _angular_acceleration(theta, velocity, torque, gravity_torque, damping, iner
 def pendulum_rk4_step(theta, velocity, torque, gravity_torque, damping, inertia, dt, substeps):
     """Advance (theta, theta') by ``dt`` seconds with ``substeps`` RK4 steps at constant torque; no wrapping here.
 
-    ``gravity_torque`` is m * g * l, so the equation integrated is J * theta'' = m g l sin(theta) - b theta' + u.
+    ``gravity_torque`` is m * g * l and ``inertia`` the inertia about the pivot, so the equation integrated is
+    J_pivot * theta'' = m g l sin(theta) - b theta' + u.
     """
     h = dt / substeps
     for _ in range(substeps):
@@ -75,48 +131,87 @@ def wrap_angle(theta: float) -> float:
     return (theta + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _positive_finite(name: str, value) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = float("nan")
+    if isinstance(value, bool) or not (math.isfinite(number) and number >= np.finfo(np.float64).tiny):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return number
+
+
 class PendulumSwingupEnv(gym.Env):
-    """Under-actuated pendulum swing-up (thesis 4.2.1, Table 4.1, reward Eq. 4.1) with 7 discrete torques.
+    """Under-actuated pendulum swing-up (thesis 4.2.1, Table 4.1, reward Eq. 4.1) with 7 discrete actions.
+
+    See the module docstring for the source of every value and the readings behind the options.
 
     Parameters
     ----------
+    actuation:
+        ``"torque"`` (default): the action is a joint torque in N m. ``"voltage"``: a DC-motor voltage in V, torque
+        (K / R) * (u - K * theta') (the DCSC pendulum's motor, from GRL).
     max_torque:
-        Torque limit in N m (0.6); must lie below m * g * l so that the task needs swinging.
-    n_torques:
-        Number of evenly spaced torques in ``[-max_torque, max_torque]`` (7, odd so that zero torque is one of them).
-    goal_angle, goal_velocity:
-        The episode terminates when ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s).
+        Torque limit in N m, ``actuation="torque"`` only (default 0.6, our choice: the thesis gives none). Must lie
+        below m * g * l so that the task needs swinging (thesis 4.2.1).
+    max_voltage, motor_constant, motor_resistance:
+        ``actuation="voltage"`` only: voltage limit in V (3), motor constant K in N m/A (0.0536) and winding resistance
+        R in Ohm (9.5), GRL's DCSC values. The stall torque K * max_voltage / R must lie below m * g * l.
+    n_actions:
+        Number of evenly spaced actions in ``[-max, max]`` (7, thesis 4.2.1; odd keeps zero among them).
+    inertia, inertia_about:
+        Table 4.1's J = 3.773e-3 kg m^2, read about ``"center_of_mass"`` (default: the pivot inertia is J + m l^2) or
+        about the ``"pivot"`` (J itself, though Table 4.1's J is smaller than m l^2).
+    velocity_tile_width:
+        Tile width of the angular rate in rad/s that the env recommends (``tile_widths``): 3.3 (default: GRL tiles the
+        rate 10 times wider than the angle, 3.1415 against 0.31415, and 0.33 cuts a swing-up's rates into 100-200
+        tiles); 0.33 as printed in thesis 4.2.1.
+    terminate_at_goal, goal_angle, goal_velocity:
+        With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
+        ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s): our definition, the thesis gives
+        none. ``False`` runs every episode to its time limit, as GRL's swing-up task does.
     episode_seconds:
-        Simulated seconds after which the episode is truncated (15).
+        Simulated seconds after which the episode is truncated (15, thesis 4.2.1).
     dt, substeps:
-        Control period in seconds (0.01) and RK4 steps per control period (5).
-    mass, inertia, length, gravity, damping:
-        Model parameters (Table 4.1; damping 0 N m s/rad).
+        Control period in seconds (0.01, thesis 4.2.1) and RK4 steps per control period (5).
+    mass, length, gravity, damping:
+        m in kg, l (pivot to centre of mass) in m and g in m/s^2 from Table 4.1; viscous damping b in N m s/rad (0).
     max_velocity:
         Clip and observation bound of the angular rate in rad/s (40).
     render_mode:
         ``None`` or ``"rgb_array"``.
+
+    ``PendulumSwingupEnv(**DCSC_MOPS)`` is the DCSC pendulum of GRL with this env's task (7 voltages, dt, goal, 15 s).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 100}
 
     def __init__(
         self,
-        max_torque: float = 0.6,
-        n_torques: int = 7,
+        max_torque: float | None = None,
+        n_actions: int = 7,
         goal_angle: float = 0.1,
         goal_velocity: float = 1.0,
         episode_seconds: float = 15.0,
         dt: float = 0.01,
         substeps: int = 5,
-        mass: float = 1.113,
-        inertia: float = 3.773e-3,
-        length: float = 8.5e-2,
-        gravity: float = 9.81,
+        mass: float = TABLE_4_1["mass"],
+        inertia: float = TABLE_4_1["inertia"],
+        length: float = TABLE_4_1["length"],
+        gravity: float = TABLE_4_1["gravity"],
         damping: float = 0.0,
         max_velocity: float = 40.0,
         render_mode: str | None = None,
+        *,
+        inertia_about: str = "center_of_mass",
+        velocity_tile_width: float = 3.3,
+        actuation: str = "torque",
+        max_voltage: float | None = None,
+        motor_constant: float | None = None,
+        motor_resistance: float | None = None,
+        terminate_at_goal: bool = True,
     ) -> None:
+        values = {}
         for name, value in (
             ("mass", mass),
             ("inertia", inertia),
@@ -127,59 +222,118 @@ class PendulumSwingupEnv(gym.Env):
             ("goal_velocity", goal_velocity),
             ("max_velocity", max_velocity),
             ("episode_seconds", episode_seconds),
+            ("velocity_tile_width", velocity_tile_width),
         ):
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a positive finite number, got {value}")
-        if not (math.isfinite(damping) and damping >= 0.0):
-            raise ValueError(f"damping must be a non-negative finite number, got {damping}")
-        gravity_torque = mass * gravity * length
-        if not 0.0 < max_torque < gravity_torque:
-            raise ValueError(
-                f"max_torque must lie in (0, m*g*l) = (0, {gravity_torque:.4g}) N m so that the pendulum has to swing "
-                f"up, got {max_torque}"
-            )
-        if int(n_torques) != n_torques or n_torques < 2:
-            raise ValueError(f"n_torques must be an integer of at least 2, got {n_torques}")
-        if int(substeps) != substeps or substeps < 1:
-            raise ValueError(f"substeps must be a positive integer, got {substeps}")
+            values[name] = _positive_finite(name, value)
+        if isinstance(damping, bool) or not (math.isfinite(float(damping)) and damping >= 0.0):
+            raise ValueError(f"damping must be a non-negative finite number, got {damping!r}")
+        if inertia_about not in INERTIA_AXES:
+            raise ValueError(f"inertia_about must be one of {INERTIA_AXES}, got {inertia_about!r}")
+        if actuation not in ACTUATIONS:
+            raise ValueError(f"actuation must be one of {ACTUATIONS}, got {actuation!r}")
+        if not isinstance(terminate_at_goal, (bool, np.bool_)):
+            raise ValueError(f"terminate_at_goal must be True or False, got {terminate_at_goal!r}")
+        if isinstance(n_actions, bool) or int(n_actions) != n_actions or n_actions < 2:
+            raise ValueError(f"n_actions must be an integer of at least 2, got {n_actions!r}")
+        if isinstance(substeps, bool) or int(substeps) != substeps or substeps < 1:
+            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
 
-        self.max_torque = float(max_torque)
-        self.torques = tuple(float(u) for u in np.linspace(-max_torque, max_torque, int(n_torques)))
-        self.goal_angle = float(goal_angle)
-        self.goal_velocity = float(goal_velocity)
-        self.dt = float(dt)
+        mass, length, gravity = values["mass"], values["length"], values["gravity"]
+        gravity_torque = mass * gravity * length
+        if actuation == "torque":
+            for name, value in (
+                ("max_voltage", max_voltage),
+                ("motor_constant", motor_constant),
+                ("motor_resistance", motor_resistance),
+            ):
+                if value is not None:
+                    raise ValueError(f"{name} applies to actuation='voltage' only; got {name}={value!r} with 'torque'")
+            max_action = _positive_finite("max_torque", _DEFAULT_MAX_TORQUE if max_torque is None else max_torque)
+            torque_per_unit, back_emf_damping = 1.0, 0.0
+            stall_torque = max_action
+            if not stall_torque < gravity_torque:
+                raise ValueError(
+                    f"max_torque must lie in (0, m*g*l) = (0, {gravity_torque:.4g}) N m so that the pendulum has to "
+                    f"swing up, got {max_torque}"
+                )
+        else:
+            if max_torque is not None:
+                raise ValueError(
+                    f"max_torque applies to actuation='torque' only; with 'voltage' set max_voltage, got {max_torque!r}"
+                )
+            max_action = _positive_finite("max_voltage", _DEFAULT_MAX_VOLTAGE if max_voltage is None else max_voltage)
+            constant = _positive_finite(
+                "motor_constant", _DEFAULT_MOTOR_CONSTANT if motor_constant is None else motor_constant
+            )
+            resistance = _positive_finite(
+                "motor_resistance", _DEFAULT_MOTOR_RESISTANCE if motor_resistance is None else motor_resistance
+            )
+            torque_per_unit, back_emf_damping = constant / resistance, constant * constant / resistance
+            stall_torque = torque_per_unit * max_action
+            if not stall_torque < gravity_torque:
+                raise ValueError(
+                    f"the stall torque motor_constant * max_voltage / motor_resistance = {stall_torque:.4g} N m must "
+                    f"lie below m*g*l = {gravity_torque:.4g} N m so that the pendulum has to swing up"
+                )
+
+        self.actuation = actuation
+        self.action_unit = "N m" if actuation == "torque" else "V"
+        self.max_action = float(max_action)
+        self.action_levels = tuple(float(a) for a in np.linspace(-max_action, max_action, int(n_actions)))
+        # The torque of each action at rest (theta' = 0): the action itself, or K/R times the voltage.
+        self.torques = tuple(torque_per_unit * a for a in self.action_levels)
+        self.max_torque = float(stall_torque)
+        self.torque_per_unit = float(torque_per_unit)
+        self.motor_constant = None if actuation == "torque" else float(constant)
+        self.motor_resistance = None if actuation == "torque" else float(resistance)
+        self.terminate_at_goal = bool(terminate_at_goal)
+        self.goal_angle = values["goal_angle"]
+        self.goal_velocity = values["goal_velocity"]
+        self.dt = values["dt"]
         self.substeps = int(substeps)
-        self.max_episode_steps = max(1, round(episode_seconds / dt))
-        self.mass = float(mass)
-        self.inertia = float(inertia)
-        self.length = float(length)
-        self.gravity = float(gravity)
+        self.max_episode_steps = max(1, round(values["episode_seconds"] / self.dt))
+        self.mass = mass
+        self.inertia = values["inertia"]
+        self.inertia_about = inertia_about
+        self.pivot_inertia = self.inertia + (mass * length**2 if inertia_about == "center_of_mass" else 0.0)
+        self.length = length
+        self.gravity = gravity
         self.damping = float(damping)
+        # Viscous damping plus the motor's back-EMF, K^2 / R, for a voltage: tau = K/R (u - K theta') - b theta'.
+        self.total_damping = self.damping + back_emf_damping
         self.gravity_torque = float(gravity_torque)
-        self.max_velocity = float(max_velocity)
+        self.max_velocity = values["max_velocity"]
+        self.velocity_tile_width = values["velocity_tile_width"]
         self.render_mode = render_mode
 
-        self.tile_widths = np.array([0.33, 0.33])
+        self.tile_widths = np.array([0.33, self.velocity_tile_width])
         self.wrap_periods = (2.0 * math.pi, None)
         self.observation_space = spaces.Box(
             low=np.array([-math.pi, -self.max_velocity]), high=np.array([math.pi, self.max_velocity]), dtype=np.float64
         )
-        self.action_space = spaces.Discrete(len(self.torques))
+        self.action_space = spaces.Discrete(len(self.action_levels))
 
         self.theta = -math.pi
         self.velocity = 0.0
         self._steps = 0
-        self._last_torque = 0.0
+        self._last_action = 0.0
 
     def energy(self) -> float:
-        """Mechanical energy J theta'^2 / 2 + m g l cos(theta) in J (zero potential at the horizontal)."""
-        return 0.5 * self.inertia * self.velocity**2 + self.gravity_torque * math.cos(self.theta)
+        """Mechanical energy J_pivot theta'^2 / 2 + m g l cos(theta) in J (zero potential at the horizontal)."""
+        return 0.5 * self.pivot_inertia * self.velocity**2 + self.gravity_torque * math.cos(self.theta)
 
-    def reward(self, theta: float, velocity: float, torque: float) -> float:
-        """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - u^2."""
-        return -5.0 * theta * theta - 0.1 * velocity * velocity - torque * torque
+    def torque(self, action_value: float, velocity: float) -> float:
+        """Joint torque in N m of the action ``action_value`` (N m, or V) at angular rate ``velocity``, damping aside.
+
+        A torque is itself; a voltage u gives (K / R) * (u - K * theta'), the back-EMF included.
+        """
+        return self.torque_per_unit * action_value - (self.total_damping - self.damping) * velocity
+
+    def reward(self, theta: float, velocity: float, action_value: float) -> float:
+        """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V)."""
+        return -5.0 * theta * theta - 0.1 * velocity * velocity - action_value * action_value
 
     def set_state(self, theta: float, velocity: float) -> None:
         """Place the pendulum at angle ``theta`` (wrapped) with angular rate ``velocity`` (within the bound)."""
@@ -195,32 +349,33 @@ class PendulumSwingupEnv(gym.Env):
         self.theta = -math.pi
         self.velocity = 0.0
         self._steps = 0
-        self._last_torque = 0.0
+        self._last_action = 0.0
         return self._observation(), {"goal_reached": False, "fell": False}
 
     def step(self, action):
-        torque = self.torques[discrete_action_index(action, len(self.torques))]
+        action_value = self.action_levels[discrete_action_index(action, len(self.action_levels))]
         theta, velocity = pendulum_rk4_step(
             self.theta,
             self.velocity,
-            torque,
+            self.torque_per_unit * action_value,
             self.gravity_torque,
-            self.damping,
-            self.inertia,
+            self.total_damping,
+            self.pivot_inertia,
             self.dt,
             self.substeps,
         )
         self.theta = wrap_angle(theta)
         self.velocity = min(max(velocity, -self.max_velocity), self.max_velocity)
-        self._last_torque = torque
+        self._last_action = action_value
         self._steps += 1
         goal_reached = abs(self.theta) < self.goal_angle and abs(self.velocity) < self.goal_velocity
-        truncated = not goal_reached and self._steps >= self.max_episode_steps
-        reward = self.reward(self.theta, self.velocity, torque)
-        return self._observation(), reward, goal_reached, truncated, {"goal_reached": goal_reached, "fell": False}
+        terminated = self.terminate_at_goal and goal_reached
+        truncated = not terminated and self._steps >= self.max_episode_steps
+        reward = self.reward(self.theta, self.velocity, action_value)
+        return self._observation(), reward, terminated, truncated, {"goal_reached": goal_reached, "fell": False}
 
     def render(self) -> np.ndarray | None:
-        """An RGB image: the rod from the pivot (up is theta = 0), the bob coloured by the applied torque."""
+        """An RGB image: the rod from the pivot (up is theta = 0), the bob coloured by the applied action."""
         if self.render_mode is None:
             gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array' to PendulumSwingupEnv")
             return None
@@ -238,7 +393,7 @@ class PendulumSwingupEnv(gym.Env):
         image = np.full((size, size, 3), 255, dtype=np.uint8)
         image[np.hypot(columns - centre, rows - centre - reach) < 2.0] = (200, 200, 200)
         image[distance_to_rod < 2.5] = (60, 60, 60)
-        push = self._last_torque / self.max_torque
+        push = self._last_action / self.max_action
         bob = (int(120 + 100 * max(push, 0.0)), 80, int(120 + 100 * max(-push, 0.0)))
         image[np.hypot(columns - tip_column, rows - tip_row) < 0.08 * size] = bob
         image[np.hypot(columns - centre, rows - centre) < 3.0] = (0, 0, 0)

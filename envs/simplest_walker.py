@@ -25,17 +25,26 @@ impact map of thesis Eq. 4.4 is applied there,
 and the integration continues to the end of the control step. The footstep is ``2 sin(-phi_st-)`` long. ``phi_h`` is
 kept wrapped into ``[-pi, pi)`` (the dynamics are 2 pi periodic in it).
 
+Which reading is the default, and why: the thesis ran Schuitema's (2012) code, which the Delft lab's later framework
+GRL (github wcaarls/grl) keeps: the thesis takes its gamma, epsilon and lambda from Schuitema and says he used a
+learning rate of 0.4, which is exactly GRL's walker configuration. Where the thesis describes a mechanism in words (the
+footstep reward, what a fall is, the coordinates, the start distribution) we take the mechanism of that code; where it
+states a number of its own (15 actions, -50 for a fall, alpha 0.2, the tile widths of Table 4.2) we take the number.
+Every reading is an option, the thesis's words included.
+
 Observation (``observation=``):
 
-* ``"thesis"`` (default): the state of Eq. 4.2, with bounds ``|phi_st| <= pi/2`` (a fall ends the episode there),
-  ``|phi_h| <= pi``, ``|phi_st'| <= 5`` and ``|phi_h'| <= 50``, generous for the rates (random hip actions peak near
-  1.4 and 15), which are clipped to them should they ever get there. ``tile_widths`` are Table 4.2's
-  (0.10, 0.10, 0.11, 0.21).
-* ``"grl"``: the coordinates of GRL (github wcaarls/grl, the Delft lab's later framework, which descends from the code
-  the thesis ran; ``compass_walker.cpp``, the walk task's ``observe``): ``[phi_st, phi_h - 2 phi_st, phi_st',
-  phi_h' - 2 phi_st']``. The second is the swing leg's angle from the stance leg's mirror image, 0 at every heel
-  strike. Bounds ``pi/2, 2 pi, 5, 60``; tile widths GRL's (0.0838, 0.1047, 0.1111, 0.2222, ``cfg/compass_walker/
-  sarsa_walk.yaml``).
+* ``"grl"`` (default): the coordinates of GRL's walk task (``compass_walker.cpp``, ``observe``): ``[phi_st,
+  phi_h - 2 phi_st, phi_st', phi_h' - 2 phi_st']``. The second is the swing leg's angle from the stance leg's mirror
+  image, 0 at every heel strike. Bounds ``pi/2, 2 pi, 5, 60``. Table 4.2's widths are GRL's rounded (GRL: 0.0838,
+  0.1047, 0.1111, 0.2222 for exactly these coordinates, ``cfg/compass_walker/sarsa_walk.yaml``), which is how we
+  know the thesis tiled these coordinates although its text names the hip joint's angle.
+* ``"thesis"``: the state of Eq. 4.2 as the text names it, with bounds ``|phi_st| <= pi/2``, ``|phi_h| <= pi``,
+  ``|phi_st'| <= 5`` and ``|phi_h'| <= 50``, generous for the rates (random hip actions peak near 1.4 and 15), which
+  are clipped to them should they ever get there.
+
+``tile_widths`` default to Table 4.2's (0.10, 0.10, 0.11, 0.21) in either case; pass GRL's (``GRL_TILE_WIDTHS``) or
+others through ``tile_widths=``.
 
 Neither wraps a dimension (``wrap_periods = None``): ``phi_h`` stays far from +-pi while walking, and GRL's tile coder
 wraps nothing for this task.
@@ -66,11 +75,12 @@ passive footstep every ~19 control steps earns 24-30 against 18 steps of -1, so 
 
 Fall (``fall=``):
 
-* ``"hip"`` (default, the thesis's text): the hip touches the slope, ``|phi_st| = pi/2``, located inside the control
-  step like a heel strike.
-* ``"angles"`` (GRL's walk task, ``compass_walker.cpp``, ``observe`` and ``evaluate``): ``|phi_st| > pi/8`` or
-  ``|phi_h - 2 phi_st| > pi/4``, checked on the state at the end of each control step. A hip touching the slope
-  inside the step, where the simulation stops, also counts (it implies the first condition).
+* ``"angles"`` (default, GRL's walk task, ``compass_walker.cpp``, ``observe`` and ``evaluate``): ``|phi_st| > pi/8``
+  or ``|phi_h - 2 phi_st| > pi/4``, checked on the state at the end of each control step: the walker is doomed. A hip
+  touching the slope inside the step, where the simulation stops, also counts (it implies the first condition). The
+  code has no other fall test, so this is what the thesis's "the hip mass touches the ground" describes.
+* ``"hip"`` (the thesis's words taken literally): the hip touches the slope, ``|phi_st| = pi/2``, located inside the
+  control step like a heel strike.
 
 The episode is ``truncated`` after ``episode_seconds`` (100, i.e. 500 steps).
 
@@ -89,12 +99,15 @@ Readings of the thesis's gaps and typos:
   ``phi_st < 0`` alone does not suffice once the hip is actuated.
 * Eq. 4.5 prints ``phi_h' = +0.0073`` at the fixed point; Eq. 4.4 gives ``phi_h'+ = (1 - cos(2 phi_st+)) phi_st'+ =
   -0.0073`` there, which is the value Garcia's gait has and the one we use.
-* The start distribution is not given ("random variations ... so that the walker always has enough energy to start
-  walking"). Ours varies the post-impact state of Eq. 4.5 on the impact manifold: ``phi_st ~ U(0.1534 (1 - v),
-  0.1534 (1 + v))`` with ``v = initial_state_variation`` (0.1), ``phi_h = 2 phi_st``, ``phi_h' = (1 - cos(2 phi_st))
+* The start distribution (``start=``) is described, not given ("random variations ... so that the walker always has
+  enough energy to start walking"). ``"grl"`` (default, ``compass_walker.cpp``, ``start``): each of the four values
+  of Eq. 4.5 times its own ``U[1 - v, 1 + v]``, ``v = initial_state_variation`` (0.2), drawn again while
+  ``phi_st'^2 / 2 + cos(phi_st) cos(mu) < cos(mu)``: exactly "random variations" with "enough energy to start
+  walking". ``"impact"`` (our earlier reading) varies the post-impact state on the impact manifold: ``phi_st ~
+  U(0.1534 (1 - v), 0.1534 (1 + v))`` with ``v`` 0.1 by default, ``phi_h = 2 phi_st``, ``phi_h' = (1 - cos(2 phi_st))
   phi_st'`` and ``phi_st'`` fixed by the stance leg's energy ``E = phi_st'^2 / 2 + cos(phi_st - mu)``, drawn from
   ``U(1 + 0.4 e*, 1 + 1.6 e*)`` where ``e* = 0.00105`` is the fixed point's surplus over the energy 1 needed to pass
-  over the stance foot. Every such start passes mid-stance and takes a step with zero actuation (tested).
+  over the stance foot. Every start of either kind passes mid-stance (tested).
 * The fall reward replaces the -1 of that step, so a fall is worth exactly -50.
 """
 
@@ -310,13 +323,16 @@ def _distance_to_segment(columns: np.ndarray, rows: np.ndarray, start: np.ndarra
 
 REWARD_READINGS = ("schuitema", "literal")
 """Values of ``reward``: GRL's (Schuitema's) capped footstep reward (default) and the thesis's words read literally."""
-FALL_CRITERIA = ("hip", "angles")
-"""Values of ``fall``: the hip touching the slope (the thesis's text, default) and GRL's angle limits."""
+FALL_CRITERIA = ("angles", "hip")
+"""Values of ``fall``: GRL's angle limits (default) and the hip touching the slope (the thesis's words)."""
 OBSERVATIONS = ("thesis", "grl")
-"""Values of ``observation``: the state of Eq. 4.2 (default) and GRL's coordinates."""
+"""Values of ``observation``: GRL's coordinates (default) and the state of Eq. 4.2."""
+STARTS = ("grl", "impact")
+"""Values of ``start``: GRL's start distribution (default) and ours on the impact manifold."""
 
 THESIS_TILE_WIDTHS = (0.10, 0.10, 0.11, 0.21)
-"""Table 4.2: phi_st, phi_h, phi_st', phi_h'."""
+"""Table 4.2: stance leg angle and rate 0.10, 0.11; "hip joint" angle and rate 0.10, 0.21, in observation order (stance
+angle, hip coordinate, stance rate, hip-coordinate rate), whichever coordinates the observation uses."""
 GRL_TILE_WIDTHS = (0.0838, 0.1047, 0.1111, 0.2222)
 """GRL's ``cfg/compass_walker/sarsa_walk.yaml``: phi_st, phi_h - 2 phi_st, phi_st', phi_h' - 2 phi_st'."""
 FALL_STANCE_ANGLE = math.pi / 8
@@ -342,11 +358,11 @@ def swing_foot_height(stance: float, hip: float) -> float:
 class SimplestWalkerEnv(gym.Env):
     """Garcia's simplest walker on a 0.004 rad slope with 15 hip accelerations (thesis 4.2.2, Eq. 4.2-4.5, Table 4.2).
 
-    The readings (module docstring) are options; the defaults are the thesis's text except for the reward, where the
-    default is Schuitema's capped footstep reward: the thesis's "a reward of 50 for every meter footstep length" comes
-    with walker settings taken from Schuitema (2012), whose code lineage (GRL) pays ``min(50 * 4 sin(phi_st), 30)``, and
-    the literal reading makes a dive (one long step, then a fall, about -5 to -15) worth far more than 100 s of walking
-    (about -118), so nothing learns to walk under it.
+    The readings (module docstring) are options. The defaults take the mechanisms of the code the thesis ran
+    (Schuitema's, which GRL keeps: the footstep reward ``min(50 * 4 sin(phi_st), 30)``, the angle fall test, GRL's
+    coordinates and start distribution) and the numbers the thesis states (15 actions, -50 for a fall, Table 4.2's
+    tile widths). The thesis's words read literally are options too; the literal reward makes a dive (one long step,
+    then a fall, about -5 to -15) worth far more than 100 s of walking (about -118), so nothing learns to walk under it.
 
     Parameters
     ----------
@@ -362,12 +378,16 @@ class SimplestWalkerEnv(gym.Env):
     reward:
         ``"schuitema"`` (default) or ``"literal"``, see below and the module docstring.
     fall:
-        ``"hip"`` (default: the hip touches the slope) or ``"angles"`` (GRL: ``|phi_st| > pi/8`` or
-        ``|phi_h - 2 phi_st| > pi/4`` at the end of a control step).
+        ``"angles"`` (default, GRL: ``|phi_st| > pi/8`` or ``|phi_h - 2 phi_st| > pi/4`` at the end of a control step)
+        or ``"hip"`` (the hip touches the slope).
     observation:
-        ``"thesis"`` (default, Eq. 4.2 with Table 4.2's tile widths) or ``"grl"`` (``[phi_st, phi_h - 2 phi_st,
-        phi_st', phi_h' - 2 phi_st']`` with GRL's tile widths). ``tile_widths``, ``observation_space`` and
-        ``wrap_periods`` follow it.
+        ``"grl"`` (default, ``[phi_st, phi_h - 2 phi_st, phi_st', phi_h' - 2 phi_st']``) or ``"thesis"`` (Eq. 4.2).
+        ``observation_space`` follows it; nothing is wrapped.
+    start:
+        ``"grl"`` (default: Garcia's four values each times U[1 - v, 1 + v], redrawn until the walker can pass
+        mid-stance) or ``"impact"`` (our post-impact reading, see the module docstring).
+    tile_widths:
+        Tile widths of the 4 observation dimensions; None takes Table 4.2's (0.10, 0.10, 0.11, 0.21).
     time_reward:
         Reward of a control step (-1). Under ``"schuitema"`` a step with a heel strike pays the footstep reward
         instead; under ``"literal"`` the footstep reward is added to it.
@@ -380,8 +400,8 @@ class SimplestWalkerEnv(gym.Env):
     fall_reward:
         Reward of the control step in which the walker falls (-50), replacing every other reward of that step.
     initial_state_variation:
-        Relative spread ``v`` of the start's stance angle around 0.1534 rad (0.1, at most 0.2); 0 starts every
-        episode at Garcia's fixed point. Otherwise the stance-leg energy is drawn from ``1 + [0.4, 1.6] * 0.00105``.
+        Relative spread ``v`` of the start (at most 0.2); None takes the start's own: 0.2 for ``"grl"``, 0.1 for
+        ``"impact"``. 0 starts every episode at Garcia's fixed point.
     render_mode:
         ``None`` or ``"rgb_array"``.
 
@@ -406,18 +426,23 @@ class SimplestWalkerEnv(gym.Env):
         substeps: int = 10,
         episode_seconds: float = 100.0,
         reward: str = "schuitema",
-        fall: str = "hip",
-        observation: str = "thesis",
+        fall: str = "angles",
+        observation: str = "grl",
+        start: str = "grl",
+        tile_widths: Any = None,
         step_reward: float = 50.0,
         step_reward_cap: float | None = None,
         fall_reward: float = -50.0,
         time_reward: float = -1.0,
-        initial_state_variation: float = 0.1,
+        initial_state_variation: float | None = None,
         render_mode: str | None = None,
     ) -> None:
         self.reward = _choice("reward", reward, REWARD_READINGS)
         self.fall = _choice("fall", fall, FALL_CRITERIA)
         self.observation = _choice("observation", observation, OBSERVATIONS)
+        self.start = _choice("start", start, STARTS)
+        if initial_state_variation is None:
+            initial_state_variation = 0.2 if self.start == "grl" else 0.1
         for name, value in (("dt", dt), ("episode_seconds", episode_seconds)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be a positive finite number, got {value}")
@@ -469,11 +494,13 @@ class SimplestWalkerEnv(gym.Env):
 
         self._state_high = np.array([_HALF_PI, math.pi, self.max_stance_rate, self.max_hip_rate])
         if self._grl_coordinates:
-            tile_widths = list(GRL_TILE_WIDTHS)
             high = [_HALF_PI, 2.0 * math.pi, self.max_stance_rate, self.max_hip_rate + 2.0 * self.max_stance_rate]
         else:
-            tile_widths = list(THESIS_TILE_WIDTHS)
             high = list(self._state_high)
+        tile_widths = list(THESIS_TILE_WIDTHS if tile_widths is None else np.asarray(tile_widths, dtype=np.float64))
+        if len(tile_widths) != 4 or not all(math.isfinite(w) and w > 0 for w in tile_widths):
+            raise ValueError(f"tile_widths must be 4 positive numbers (stance angle, hip coordinate, their rates), "
+                             f"got {tile_widths}")
         low = [-h for h in high]
         if self._stance_change_flag:
             tile_widths.append(self.stance_change_tile_width)
@@ -511,8 +538,16 @@ class SimplestWalkerEnv(gym.Env):
         return self._observe(stance, hip, stance_rate, hip_rate, False), self._info(False, 0.0, False)
 
     def sample_start_state(self, rng: np.random.Generator) -> np.ndarray:
-        """A random post-impact start (module docstring): stance angle 0.1534 (1 +- v), energy 1 + [0.4, 1.6] e*."""
+        """A random start (module docstring). ``"grl"``: Garcia's four values each times U[1 - v, 1 + v], redrawn until
+        the stance leg's kinetic energy lifts the hip over phi_st = 0. ``"impact"``: a post-impact state with stance
+        angle 0.1534 (1 +- v) and energy 1 + [0.4, 1.6] e*."""
         v = self.initial_state_variation
+        if self.start == "grl":
+            cos_slope = math.cos(self.slope)
+            while True:
+                state = GARCIA_FIXED_POINT * rng.uniform(1.0 - v, 1.0 + v, size=4)
+                if 0.5 * state[2] ** 2 + math.cos(state[0]) * cos_slope >= cos_slope:
+                    return state
         stance_angle = GARCIA_FIXED_POINT[0] * (1.0 + v * rng.uniform(-1.0, 1.0))
         energy = 1.0 + rng.uniform(*self.start_energy_surplus)
         return impact_manifold_state(stance_angle, energy, self.slope)

@@ -8,7 +8,10 @@ from sb3_er.common.base_class import DivergenceError
 from sb3_er.common.buffers import TrajectoryReplayBuffer
 from sb3_er.common.policies import TileQPolicy
 from sb3_er.common.tile_coding import TileCoder
+from sb3_er.dyna import Dyna
 from sb3_er.er import ER, ERSigma, ResidualER, ResidualERSigma
+from sb3_er.fqi import FQI
+from sb3_er.lspi import LSPI
 from sb3_er.sarsa_lambda import SarsaLambda
 
 __version__ = "0.1.0"
@@ -16,7 +19,10 @@ __version__ = "0.1.0"
 __all__ = [
     "ER",
     "DivergenceError",
+    "Dyna",
     "ERSigma",
+    "FQI",
+    "LSPI",
     "ResidualER",
     "ResidualERSigma",
     "SarsaLambda",

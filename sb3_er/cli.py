@@ -6,10 +6,20 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from sb3_er.experiments.specs import EXPERIMENTS
+from sb3_er.experiments.specs import ANALYSES, EXPERIMENTS
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
+
+
+def _name_value(text: str) -> tuple[str, object]:
+    """``NAME:VALUE`` with VALUE read as YAML (``3`` -> 3, ``angles`` -> "angles", ``[1, 2]`` -> [1, 2])."""
+    import yaml
+
+    name, separator, value = text.partition(":")
+    if not separator or not name.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected NAME:VALUE, got {text!r}")
+    return name, yaml.safe_load(value)
 
 
 def _reproduce_parser() -> argparse.ArgumentParser:
@@ -19,39 +29,145 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         description="Run a thesis experiment for every (algorithm, seed) pair in parallel, resume finished runs, and "
         "write per-run CSVs, a summary table beside the thesis's numbers and figures.",
     )
-    parser.add_argument("experiment", choices=list(EXPERIMENTS), help="which thesis experiment")
+    parser.add_argument(
+        "experiment", choices=[*EXPERIMENTS, *ANALYSES],
+        help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
+        "(Figure 5.5)",
+    )
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds per algorithm (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
     parser.add_argument(
-        "--algos", nargs="+", default=list(ALGORITHM_LABELS), choices=list(ALGORITHM_LABELS),
-        help="algorithms (default: all five)",
+        "--algos", nargs="+", default=None, choices=list(ALGORITHM_LABELS),
+        help="algorithms (default: all five; not for the analyses)",
     )
     parser.add_argument("--out", default=None, help="output folder (default results/<experiment>)")
     parser.add_argument(
         "--budget", type=float, default=None,
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
-        f"(defaults: {budgets})",
+        f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
+        "learning time (default 5000); pessimistic: long-replay phases (default 30)",
     )
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: number of CPUs)")
+    parser.add_argument(
+        "--jobs", type=int, default=None,
+        help="worker processes, or the CPUs of the local Ray instance with --backend ray (default: number of CPUs)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--backend", choices=["local", "ray"], default="local",
+        help="local: worker processes on this machine (default); ray: one Ray task per run, on a local Ray instance "
+        "or the cluster at --address (needs pip install 'sb3-er[ray]')",
+    )
+    parser.add_argument(
+        "--address", default=None,
+        help="Ray cluster to run on: 'auto' (the cluster this machine belongs to) or HOST:PORT of its head node; "
+        "default: start a local Ray instance",
+    )
+    parser.add_argument(
+        "--env-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
+        help="a reading of the env other than its defaults, as gymnasium.make keyword arguments, e.g. "
+        "--env-kwargs n_actions:3 fall:angles (values read as YAML: 3 is a number, angles a string)",
+    )
+    parser.add_argument(
+        "--algo-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
+        help="constructor arguments overriding zoo_configs/<algo>.yml for every chosen algorithm that has them, e.g. "
+        "--algo-kwargs replay_unit:segment (for the analyses: sigma only, on top of its sigma definitions)",
+    )
+    analyses = parser.add_argument_group("analyses")
+    analyses.add_argument("--database-episodes", type=int, default=None,
+                          help="replay-order: Sarsa(lambda) episodes per database (default 200)")
+    analyses.add_argument("--eval-every", type=int, default=None,
+                          help="replay-order: replayed updates between greedy evaluations (default 75000)")
+    analyses.add_argument("--sigmas", nargs="+", default=None, metavar="SIGMA",
+                          help="sigma: the definitions to run (default all five: worst average_worst average "
+                          "average_best best)")
+    analyses.add_argument("--initial-value", type=float, default=None,
+                          help="pessimistic: the pessimistic initial Q (default -50, the cliff's reward)")
+    parser.add_argument(
+        "--allow-mixed-versions", action="store_true",
+        help="resume next to finished runs made by other code (version, git commit) or another configuration, or "
+        "without a version record (seed_<n>.json); without it such a resume is refused",
+    )
     return parser
 
 
+# Options of one analysis: option name (argparse dest) -> keyword of its reproduce function.
+ANALYSIS_OPTIONS = {
+    "replay-order": {"database_episodes": "database_episodes", "eval_every": "eval_every"},
+    "sigma": {"sigmas": "sigmas", "algo_kwargs": "algo_kwargs"},
+    "pessimistic": {"initial_value": "initial_value"},
+}
+
+
+def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, object]:
+    """The keyword arguments of the chosen analysis's own options; a parser error (exit 2) for an option given to an
+    experiment or analysis that has no use for it."""
+    own = ANALYSIS_OPTIONS.get(args.experiment, {"algo_kwargs": "algo_kwargs"})
+    given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs")
+             if (value := getattr(args, dest)) not in (None, [])}
+    if args.experiment in ANALYSES and args.algos is not None:
+        given["algos"] = args.algos
+    foreign = sorted(f"--{dest.replace('_', '-')}" for dest in given if dest not in own)
+    if foreign:
+        parser.error(f"{', '.join(foreign)} does not apply to {args.experiment}")
+    if args.experiment not in ANALYSES:
+        return {}
+    return {keyword: dict(given[dest]) if dest == "algo_kwargs" else given[dest]
+            for dest, keyword in own.items() if dest in given}
+
+
 def reproduce_command(argv: Sequence[str]) -> None:
-    """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J]`."""
+    """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J] [--backend ray ...]`.
+
+    Bad option combinations, a missing import (ray) and version conflicts with finished runs exit with the message
+    (status 2).
+    """
+    from sb3_er.experiments.records import MixedVersionsError
     from sb3_er.experiments.reproduce import reproduce
 
-    args = _reproduce_parser().parse_args(argv)
-    result = reproduce(
-        args.experiment,
-        n_seeds=args.seeds,
-        algos=args.algos,
-        out_dir=args.out,
-        budget=args.budget,
-        n_workers=args.jobs,
-        first_seed=args.first_seed,
-        show_progress=not args.no_progress,
-    )
+    parser = _reproduce_parser()
+    args = parser.parse_args(argv)
+    if args.address is not None and args.backend != "ray":
+        parser.error("--address needs --backend ray")
+    if args.address is not None and args.jobs is not None:
+        parser.error("--jobs sets the CPUs of a local Ray instance; a cluster at --address uses its own CPUs")
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    options = _analysis_options(parser, args)
+    try:
+        if args.experiment in ANALYSES:
+            from sb3_er.experiments.analyses import command
+
+            result = command(args.experiment)(
+                n_seeds=args.seeds,
+                out_dir=args.out,
+                budget=args.budget,
+                n_workers=args.jobs,
+                first_seed=args.first_seed,
+                show_progress=not args.no_progress,
+                backend=args.backend,
+                address=args.address,
+                allow_mixed_versions=args.allow_mixed_versions,
+                env_kwargs=dict(args.env_kwargs),
+                **options,
+            )
+        else:
+            result = reproduce(
+                args.experiment,
+                n_seeds=args.seeds,
+                algos=args.algos if args.algos is not None else list(ALGORITHM_LABELS),
+                out_dir=args.out,
+                budget=args.budget,
+                n_workers=args.jobs,
+                first_seed=args.first_seed,
+                show_progress=not args.no_progress,
+                backend=args.backend,
+                address=args.address,
+                allow_mixed_versions=args.allow_mixed_versions,
+                env_kwargs=dict(args.env_kwargs),
+                algo_kwargs=dict(args.algo_kwargs),
+            )
+    except (ImportError, MixedVersionsError) as error:  # a missing ray, or finished runs of other code
+        parser.exit(2, f"sb3-er reproduce: error: {error}\n")
     print(result.table_markdown.read_text())
     print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
     print(f"table:   {result.table_markdown}  and  {result.table_csv}")
@@ -67,7 +183,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     if not arguments or arguments[0] in ("-h", "--help") or arguments[0] not in commands:
         print(
             "usage: sb3-er {reproduce,train,enjoy,optimize} ...\n\n"
-            "  reproduce EXPERIMENT   run a thesis experiment (gridworld, pendulum, walker, leo); see reproduce -h\n"
+            "  reproduce EXPERIMENT   run a thesis experiment (gridworld, pendulum, walker, leo) or analysis\n"
+            "                         (replay-order, sigma, pessimistic); see reproduce -h\n"
             "  train --algo A --env E rl-zoo training with the thesis hyperparameters from zoo_configs/\n"
             "  enjoy --algo A --env E rl-zoo enjoy of a trained agent (-f FOLDER, --no-render)\n"
             "  optimize --algo A --env E  rl-zoo optuna search (--n-trials N, --n-timesteps T)\n\n"

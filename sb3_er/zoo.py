@@ -18,6 +18,10 @@ from typing import Any
 import yaml
 
 ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma")
+# The other sample re-use methods of thesis chapter 3 (Dyna, FQI, LSPI): trainable through rl-zoo, not in the thesis's
+# experiments (their zoo configs hold our settings, not the thesis's).
+FRAMEWORK_ALGORITHM_NAMES = ("dyna", "fqi", "lspi")
+ALL_ALGORITHM_NAMES = ALGORITHM_NAMES + FRAMEWORK_ALGORITHM_NAMES
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "zoo_configs"
 ENV_PACKAGE = "sb3_er_envs"
 SIGMA_DEFINITIONS = ("worst", "average_worst", "average", "average_best", "best")
@@ -27,7 +31,7 @@ ZOO_ONLY_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "env_wrapper", 
 
 def algorithm_classes() -> dict[str, type]:
     """Our algorithm classes under their rl-zoo names."""
-    from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
+    from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
 
     return {
         "sarsa_lambda": SarsaLambda,
@@ -35,13 +39,16 @@ def algorithm_classes() -> dict[str, type]:
         "er_sigma": ERSigma,
         "residual_er": ResidualER,
         "residual_er_sigma": ResidualERSigma,
+        "dyna": Dyna,
+        "fqi": FQI,
+        "lspi": LSPI,
     }
 
 
 def config_path(algo: str) -> Path:
     """The rl-zoo YAML file holding the thesis's hyperparameters of `algo`."""
-    if algo not in ALGORITHM_NAMES:
-        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHM_NAMES)}")
+    if algo not in ALL_ALGORITHM_NAMES:
+        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALL_ALGORITHM_NAMES)}")
     path = CONFIG_DIR / f"{algo}.yml"
     if not path.is_file():
         raise FileNotFoundError(
@@ -106,12 +113,44 @@ def sample_residual_er_sigma_params(trial, n_actions: int, n_envs: int, addition
     }
 
 
+def sample_dyna_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of Dyna: alpha, gamma, epsilon, the planning updates per step and the model's k."""
+    return {
+        **_sample_common(trial),
+        "planning_steps": trial.suggest_categorical("planning_steps", [1, 5, 10, 20, 50]),
+        "target": trial.suggest_categorical("target", ["q_learning", "sarsa"]),
+        "n_neighbors": trial.suggest_categorical("n_neighbors", [1, 3, 5, 10]),
+    }
+
+
+def _sample_fitted(trial) -> dict[str, Any]:
+    return {
+        "gamma": trial.suggest_categorical("gamma", [0.95, 0.98, 0.99, 0.995, 0.999]),
+        "exploration_rate": trial.suggest_float("exploration_rate", 0.01, 0.2, log=True),
+        "fit_every": trial.suggest_categorical("fit_every", [1, 2, 5, 10]),
+        "ridge": trial.suggest_float("ridge", 1e-4, 10.0, log=True),
+    }
+
+
+def sample_fqi_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of FQI: gamma, epsilon, the fit schedule, the ridge term and the sweeps per fit."""
+    return {**_sample_fitted(trial), "n_iterations": trial.suggest_categorical("n_iterations", [5, 10, 20, 50])}
+
+
+def sample_lspi_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
+    """Optuna search space of LSPI: gamma, epsilon, the fit schedule and the ridge term."""
+    return _sample_fitted(trial)
+
+
 SAMPLERS: dict[str, Callable[..., dict[str, Any]]] = {
     "sarsa_lambda": sample_sarsa_lambda_params,
     "er": sample_er_params,
     "er_sigma": sample_er_sigma_params,
     "residual_er": sample_residual_er_params,
     "residual_er_sigma": sample_residual_er_sigma_params,
+    "dyna": sample_dyna_params,
+    "fqi": sample_fqi_params,
+    "lspi": sample_lspi_params,
 }
 
 
@@ -126,7 +165,7 @@ def register_algorithms() -> None:
 
     utils.ALGOS.update(algorithm_classes())
     hyperparams_opt.HYPERPARAMS_SAMPLER.update(SAMPLERS)
-    hyperparams_opt.HYPERPARAMS_CONVERTER.update({name: _sampled_params_as_kwargs for name in ALGORITHM_NAMES})
+    hyperparams_opt.HYPERPARAMS_CONVERTER.update({name: _sampled_params_as_kwargs for name in ALL_ALGORITHM_NAMES})
 
 
 def _has_option(argv: Sequence[str], *names: str) -> bool:
@@ -136,7 +175,7 @@ def _has_option(argv: Sequence[str], *names: str) -> bool:
 def _with_defaults(argv: Sequence[str], training: bool) -> list[str]:
     """rl_zoo3 arguments with our defaults: the env package, and for training the config file and TensorBoard folder."""
     parser = argparse.ArgumentParser(add_help=False)
-    parser.add_argument("--algo", required=True, choices=ALGORITHM_NAMES)
+    parser.add_argument("--algo", required=True, choices=ALL_ALGORITHM_NAMES)
     parser.add_argument("-f", "--log-folder", "--folder", dest="folder", default="logs")
     known, _ = parser.parse_known_args(argv)
     arguments = list(argv)

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import sb3_er_envs  # noqa: F401  (registers the ids)
-from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT, SimplestWalkerEnv, impact_manifold_state
+from sb3_er_envs.simplest_walker import GRL_TILE_WIDTHS, GARCIA_FIXED_POINT, SimplestWalkerEnv, impact_manifold_state
 
 SLOPE = 0.004
 ZERO = 7  # index of hip acceleration 0 among the 15 levels
@@ -73,8 +73,25 @@ def reference_control_step(before, dt, h=1e-5):
     return strike_time, x
 
 
+PHYSICAL = dict(fall="hip", observation="thesis", start="impact")
+"""Most tests here check the simulation itself: the hip-on-slope fall, the state of Eq. 4.2 as the observation and
+starts on the impact manifold make its facts visible. The defaults are tested on their own."""
+
+
 def walker(**kwargs):
-    return SimplestWalkerEnv(**kwargs)
+    return SimplestWalkerEnv(**{**PHYSICAL, **kwargs})
+
+
+def test_defaults_are_the_mechanisms_of_the_code_the_thesis_ran_with_the_thesis_numbers():
+    env = SimplestWalkerEnv()
+    assert (env.reward, env.fall, env.observation, env.start) == ("schuitema", "angles", "grl", "grl")
+    assert env.action_space.n == 15 and env.fall_reward == -50.0  # the thesis's numbers
+    np.testing.assert_array_equal(env.tile_widths, [0.10, 0.10, 0.11, 0.21])  # Table 4.2
+    assert env.initial_state_variation == 0.2
+    observation, _ = env.reset(seed=0)
+    s = env.state  # GRL's start: each of Garcia's values times U[0.8, 1.2]
+    assert np.all(np.abs(s / GARCIA_FIXED_POINT - 1.0) <= 0.2 + 1e-12)
+    np.testing.assert_allclose(observation, [s[0], s[1] - 2 * s[0], s[2], s[3] - 2 * s[2]])
 
 
 def step_until_footstep(env, max_steps=40):
@@ -352,7 +369,7 @@ def test_render_draws_legs_on_the_slope():
         ({"slope": -0.1}, "slope"),
         ({"render_mode": "human"}, "render_mode"),
         ({"reward": "thesis"}, "reward must be one of 'schuitema', 'literal'"),
-        ({"fall": "torso"}, "fall must be one of 'hip', 'angles'"),
+        ({"fall": "torso"}, "fall must be one of 'angles', 'hip'"),
         ({"observation": "state"}, "observation must be one of 'thesis', 'grl'"),
         ({"observation": None}, "observation must be one of"),
         ({"step_reward_cap": math.nan}, "step_reward_cap"),
@@ -546,7 +563,9 @@ def test_hip_on_the_slope_is_a_fall_under_both_criteria():
 
 def test_grl_observation_coordinates_by_hand():
     env = walker(observation="grl")
-    np.testing.assert_array_equal(env.tile_widths, [0.0838, 0.1047, 0.1111, 0.2222])
+    np.testing.assert_array_equal(env.tile_widths, [0.10, 0.10, 0.11, 0.21])  # Table 4.2's, whichever coordinates
+    grl = walker(observation="grl", tile_widths=GRL_TILE_WIDTHS)
+    np.testing.assert_array_equal(grl.tile_widths, [0.0838, 0.1047, 0.1111, 0.2222])
     assert env.wrap_periods is None
     np.testing.assert_allclose(env.observation_space.high, [math.pi / 2, 2 * math.pi, 5.0, 60.0])
     observation, _ = env.reset(options={"state": [0.12, 0.31, -0.2, 0.4]})

@@ -1,5 +1,9 @@
 """Short reproductions of each thesis experiment (tiny budgets, 2 seeds), resumption, protocols and the CLI."""
 
+import json
+import re
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pandas as pd
@@ -10,10 +14,16 @@ import sb3_er_envs  # noqa: F401
 from sb3_er import ER, SarsaLambda
 from sb3_er.cli import main
 from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
+from sb3_er.experiments.records import read_record
 from sb3_er.experiments.reproduce import reproduce
-from sb3_er.experiments.runner import run_csv_path
+from sb3_er.experiments.runner import plan_jobs, run_csv_path, run_jobs
+from sb3_er.experiments.specs import EXPERIMENTS
 
 PNG_SIGNATURE = b"\x89PNG"
+
+
+def result_budget(result):
+    return json.loads((result.out_dir / "settings.json").read_text())["budget"]
 
 
 def _assert_well_formed(result, algos, seeds, columns, n_records):
@@ -23,12 +33,14 @@ def _assert_well_formed(result, algos, seeds, columns, n_records):
             assert set(columns) <= set(frame.columns)
             assert len(frame) == n_records
             assert frame["cumulative_falls"].is_monotonic_increasing
+            record = read_record(run_csv_path(result.out_dir, algo, seed))  # written by the driver beside the CSV
+            assert (record["run"], record["config"]["budget"]) == (f"{algo}/seed_{seed}", result_budget(result))
     table = pd.read_csv(result.table_csv)
     assert set(table["seeds"]) == {len(seeds)}
     markdown = result.table_markdown.read_text()
     assert markdown.count("| Rise time") == len(algos)
     for figure in result.figures:
-        assert figure.read_bytes()[:4] == PNG_SIGNATURE
+        assert figure.read_bytes()[:4] == (b"GIF8" if figure.suffix == ".gif" else PNG_SIGNATURE)
     return table, markdown
 
 
@@ -66,6 +78,12 @@ def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
         first, algos, [0, 1], ["learning_time_s", "distance", "episodes"], 3  # evaluations at 0, 100 and 200 s
     )
     assert "11.7" in markdown  # Table 6.2's Sarsa(lambda) end performance
+    names = {path.name for path in first.figures}
+    assert {"typical_runs.png", "gait_sarsa_lambda.png", "gait_er_sigma.png", "walker_er_sigma.gif"} <= names
+    gait = pd.read_csv(tmp_path / "runs" / "er_sigma" / "seed_0_gait.csv")  # the first seed's greedy gait, 10 s
+    assert list(gait.columns) == ["time", "stance_angle", "hip_angle", "swing_foot_height", "fell"]
+    assert gait["stance_angle"].iloc[0] == pytest.approx(0.1534) and len(gait) <= 51  # from Garcia's fixed point
+    assert not (tmp_path / "runs" / "er_sigma" / "seed_1_gait.csv").exists()
     frame = pd.read_csv(run_csv_path(tmp_path, "er_sigma", 1))
     assert list(frame["learning_time_s"]) == [0.0, 100.0, 200.0]
     finished = {path: path.stat().st_mtime_ns for path in (tmp_path / "runs").rglob("*.csv")}
@@ -137,6 +155,23 @@ def test_bad_requests_are_refused_with_a_clear_message(tmp_path):
         GreedyDistanceProtocol([], dt=0.2, eval_interval=100.0, learning_time=200.0)
     with pytest.raises(ValueError, match="n_episodes"):
         EpisodeReturnProtocol(0)
+    with pytest.raises(ValueError, match="unknown backend 'dask'; choose one of local, ray"):
+        reproduce("walker", backend="dask", out_dir=tmp_path)
+    with pytest.raises(ValueError, match="address .* is for the Ray backend only"):
+        reproduce("walker", address="auto", out_dir=tmp_path)
+
+
+def test_missing_ray_names_the_extra(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # as if ray were not installed
+    jobs, _ = plan_jobs(EXPERIMENTS["gridworld"], ["er"], [0], 2, tmp_path)
+    with pytest.raises(ImportError, match=re.escape("pip install 'sb3-er[ray]'")):
+        run_jobs(jobs, backend="ray", show_progress=False)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "gridworld", "--backend", "ray", "--seeds", "1", "--algos", "er", "--budget", "2",
+              "--out", str(tmp_path), "--no-progress"])
+    assert exit_info.value.code == 2
+    assert "pip install 'sb3-er[ray]'" in capsys.readouterr().err
+    assert not run_csv_path(tmp_path, "er", 0).exists()
 
 
 def test_cli_usage_and_errors(capsys):
@@ -150,3 +185,35 @@ def test_cli_usage_and_errors(capsys):
         main(["reproduce", "walkr"])
     assert exit_info.value.code == 2
     assert "invalid choice: 'walkr'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "--help"])
+    help_text = capsys.readouterr().out
+    assert all(option in help_text for option in ("--backend", "--address", "--allow-mixed-versions"))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "walker", "--address", "auto"])
+    assert exit_info.value.code == 2
+    assert "--address needs --backend ray" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "walker", "--backend", "ray", "--address", "auto", "--jobs", "4"])
+    assert exit_info.value.code == 2
+    assert "a cluster at --address uses its own CPUs" in capsys.readouterr().err
+
+
+def test_a_reading_other_than_the_defaults_runs_and_is_recorded(tmp_path):
+    from sb3_er.experiments import records
+
+    main(["reproduce", "walker", "--seeds", "1", "--algos", "sarsa_lambda", "er", "--budget", "100", "--jobs", "1",
+          "--no-progress", "--out", str(tmp_path), "--env-kwargs", "n_actions:3", "fall:angles",
+          "--algo-kwargs", "replay_unit:segment"])
+    er = records.read_record(run_csv_path(tmp_path, "er", 0))
+    sarsa = records.read_record(run_csv_path(tmp_path, "sarsa_lambda", 0))
+    assert er["config"]["env_kwargs"] == {"n_actions": 3, "fall": "angles"}
+    assert er["config"]["algorithm_kwargs"]["replay_unit"] == "segment"
+    assert "replay_unit" not in sarsa["config"]["algorithm_kwargs"]  # Sarsa(lambda) has no such parameter
+    assert er["resolved"]["env"]["n_actions"] == 3
+    assert "n_actions=3, fall='angles', replay_unit='segment'" in (tmp_path / "summary.md").read_text()
+    with pytest.raises(ValueError, match="no chosen algorithm has the parameters \\['replay_units'\\]"):
+        reproduce("walker", n_seeds=1, algos=["er"], out_dir=tmp_path / "other", budget=100, n_workers=1,
+                  show_progress=False, algo_kwargs={"replay_units": "segment"})
+    with pytest.raises(SystemExit):
+        main(["reproduce", "walker", "--env-kwargs", "n_actions=3"])

@@ -173,7 +173,7 @@ def test_start_noise_varies_the_pose_within_its_bound_and_keeps_the_stance_foot_
     assert heel[2] == pytest.approx(toe[2], abs=1e-12)
     radius = physics.model.geom_size[physics.model.name2id("heel_left", "geom"), 0]
     lowest = min(physics.data.geom_xpos[i, 2] - physics.model.geom_size[i, 0]
-                 for i in np.flatnonzero(physics.model.geom_contype))
+                 for i in set(physics.model.pair_geom2.tolist()))  # the robot's collision geoms
     assert lowest == pytest.approx(0.0, abs=1e-12) and heel[2] >= radius - 1e-12
 
 
@@ -396,6 +396,143 @@ def test_registered_env_exposes_the_contract():
 
 def test_substeps_divide_the_control_step_exactly(physics):
     assert physics.model.opt.timestep * leo_domain.PHYSICS_SUBSTEPS == pytest.approx(1.0 / 30.0, abs=1e-15)
+
+
+def test_contacts_are_explicit_floor_pairs_with_the_parameters_mujoco_mixed_before():
+    """Only the floor against the 7 rubber spheres and the 3 foam bumpers collides, through explicit pairs (no
+    broad-phase search). Their parameters are what MuJoCo's default mixing made of the geom values before the pairs
+    (mean solref/solimp at solmix 1, larger friction), so the contacts did not change: the rubber's designed
+    (0.0083, 0.78) / (0.99, 0.999, 0.001) and the floor's defaults (0.02, 1) / (0.9, 0.95, 0.001), friction 2."""
+    model = leo_domain.load_physics().model
+    assert not model.geom_contype.any() and not model.geom_conaffinity.any()
+    floor = model.name2id("floor", "geom")
+    rubber = {"hand", "knee_left", "heel_left", "toe_left", "knee_right", "heel_right", "toe_right"}
+    foam = {"assbumper", "shoulder_front", "shoulder_back"}
+    assert model.pair_geom1.tolist() == [floor] * 10
+    assert {model.id2name(g, "geom") for g in model.pair_geom2} == rubber | foam
+    assert list(model.pair_geom2) == sorted(model.pair_geom2)  # geom order: contacts come in the old order
+    mixed_rubber = ([0.5 * 0.0083 + 0.5 * 0.02, 0.5 * 0.78 + 0.5 * 1.0],
+                    [0.5 * 0.99 + 0.5 * 0.9, 0.5 * 0.999 + 0.5 * 0.95, 0.001, 0.5, 2.0])
+    for pair, geom in enumerate(model.pair_geom2):
+        solref, solimp = mixed_rubber if model.id2name(geom, "geom") in rubber else ([0.02, 1.0],
+                                                                                     [0.9, 0.95, 0.001, 0.5, 2.0])
+        assert model.pair_solref[pair].tolist() == solref
+        assert model.pair_solimp[pair].tolist() == solimp
+        assert model.pair_friction[pair].tolist() == [2.0, 2.0, 0.005, 0.0001, 0.0001]
+        assert model.pair_dim[pair] == 3 and model.pair_margin[pair] == 0.0 and model.pair_gap[pair] == 0.0
+
+
+def test_step_control_is_dm_control_physics_step_bit_for_bit():
+    """Physics.step_control (MuJoCo called directly, quiet timer clock) leaves exactly the data dm_control's
+    Physics.step leaves: state, warm start, contacts and the kinematics the task reads."""
+    twins = [leo_domain.load_physics() for _ in range(2)]
+    task = leo_domain.LeoWalk(random=0, start_noise=0.0)
+    for physics in twins:
+        with physics.reset_context():
+            task.initialize_episode(physics)
+    rng = np.random.default_rng(0)
+    for step in range(60):
+        voltages = rng.uniform(-leo_domain.MAX_VOLTAGE, leo_domain.MAX_VOLTAGE, size=7)
+        for physics in twins:
+            physics.set_voltages(voltages)
+        twins[0].step(leo_domain.PHYSICS_SUBSTEPS)
+        twins[1].step_control(leo_domain.PHYSICS_SUBSTEPS)
+        a, b = (physics.data.ptr for physics in twins)
+        for field in ("qpos", "qvel", "qacc", "qacc_warmstart", "xanchor", "geom_xpos", "efc_force", "time"):
+            assert np.array_equal(getattr(a, field), getattr(b, field)), (step, field)
+        assert a.ncon == b.ncon and np.array_equal(a.contact.geom, b.contact.geom)
+        assert np.array_equal(a.contact.dist, b.contact.dist)
+    assert mujoco.get_mjcb_time() is None  # the quiet clock is only in place during the step
+
+
+def test_reset_for_leaves_the_data_of_dm_controls_reset_context():
+    """LeoEnv's reset (Physics.reset_for, two mj_forward calls fewer) leaves exactly the data and task state that
+    ``with physics.reset_context(): task.initialize_episode(physics)`` leaves, also after an episode has run."""
+    twins = [leo_domain.load_physics() for _ in range(2)]
+    tasks = [leo_domain.LeoWalk(random=7, start_noise=0.08) for _ in range(2)]
+    for episode in range(3):
+        with twins[0].reset_context():
+            tasks[0].initialize_episode(twins[0])
+        twins[1].reset_for(tasks[1])
+        a, b = (physics.data.ptr for physics in twins)
+        for field in ("qpos", "qvel", "qacc", "qacc_warmstart", "qfrc_actuator", "actuator_force", "efc_force",
+                      "xanchor", "geom_xpos", "ctrl", "time", "qM", "cinert"):
+            field = "M" if field == "qM" and not hasattr(a, "qM") else field
+            assert np.array_equal(getattr(a, field), getattr(b, field)), (episode, field)
+        assert a.ncon == b.ncon and np.array_equal(a.contact.dist, b.contact.dist)
+        assert tasks[0].stance_values() == tasks[1].stance_values()
+        assert tasks[0].stance_contact == tasks[1].stance_contact
+        for physics, task in zip(twins, tasks):
+            for _ in range(20):
+                task.apply_voltages(2.0, -3.0, 1.0, physics)
+                physics.step_control(leo_domain.PHYSICS_SUBSTEPS)
+                task.after_step(physics)
+
+
+def test_step_control_keeps_mujoco_timers_on_request_and_leaves_a_user_clock_alone():
+    physics = leo_domain.load_physics()
+    with physics.reset_context():
+        physics.set_pose({})
+    step_timer = physics.data.ptr.timer[mujoco.mjtTimer.mjTIMER_STEP]
+    physics.step_control(30)
+    assert step_timer.number == 30 and step_timer.duration == 0.0
+    physics.keep_mujoco_timers = True
+    physics.step_control(30)
+    assert step_timer.number == 60 and step_timer.duration > 0.0
+    physics.keep_mujoco_timers = False
+    clock = [0.0]
+
+    def user_clock():
+        clock[0] += 1.0
+        return clock[0]
+
+    mujoco.set_mjcb_time(user_clock)
+    try:
+        physics.step_control(2)
+        assert mujoco.get_mjcb_time() is user_clock and clock[0] > 0.0
+    finally:
+        mujoco.set_mjcb_time(None)
+
+
+def test_step_control_raises_physics_error_like_dm_control():
+    from dm_control.rl.control import PhysicsError
+
+    physics = leo_domain.load_physics()
+    with physics.reset_context():
+        physics.set_pose({})
+    physics.data.qvel[:] = np.nan
+    with pytest.raises(PhysicsError, match="invalid.*mjWARN_BAD"):
+        physics.step_control(30)
+    physics.data.qvel[:] = np.nan
+    with physics.suppress_physics_errors():
+        physics.step_control(30)  # logged, not raised
+    assert np.all(np.isfinite(physics.data.qvel))  # MuJoCo reset the diverged state
+
+
+@pytest.mark.parametrize("action", [np.array([1, 3, 6]), np.array([1, 3, 6], dtype=np.int32), [1, 3, 6],
+                                    np.array([1.0, 3.0, 6.0]), (1, 3, 6)])
+def test_every_form_of_a_valid_action_gives_the_same_step(action):
+    results = []
+    for form in (np.array([1, 3, 6]), action):
+        env = LeoEnv(start_noise=0.0)
+        env.reset(seed=0)
+        observation, reward, _, _, info = env.step(form)
+        results.append((observation, reward, info["energy"], env.physics.data.ctrl.copy()))
+        env.close()
+    (obs_a, reward_a, energy_a, ctrl_a), (obs_b, reward_b, energy_b, ctrl_b) = results
+    assert np.array_equal(obs_a, obs_b) and reward_a == reward_b and energy_a == energy_b
+    assert np.array_equal(ctrl_a, ctrl_b)
+
+
+def test_gait_action_is_the_nearest_voltage_level():
+    from sb3_er_envs.leo.gait import _nearest_level
+
+    levels = leo_domain.VOLTAGE_LEVELS
+    rng = np.random.default_rng(0)
+    voltages = np.concatenate([rng.uniform(-12.0, 12.0, 2000), levels, (levels[:-1] + levels[1:]) / 2.0,
+                               [-20.0, 20.0, 0.0, -0.0]])
+    for voltage in voltages:
+        assert _nearest_level(float(voltage)) == int(np.abs(voltage - levels).argmin())
 
 
 @pytest.mark.parametrize("action", [[0, 0, 7], [0, -1, 0], [3, 3], [0.5, 3, 3]])

@@ -1,5 +1,8 @@
 """rl-zoo integration: registration, the thesis hyperparameters in zoo_configs, train -> enjoy, and an optuna study."""
 
+import subprocess
+import sys
+
 import pandas as pd
 import pytest
 import rl_zoo3
@@ -82,6 +85,32 @@ def test_optuna_study_with_two_trials(tmp_path):
     assert len(trials) == 2
     assert set(trials["params_sigma"]) <= set(zoo.SIGMA_DEFINITIONS)
     assert trials["params_learning_rate"].between(0.02, 0.6).all()
+
+
+def test_two_optimize_workers_share_one_sqlite_study(tmp_path):
+    optuna = pytest.importorskip("optuna")
+    storage = f"sqlite:///{tmp_path / 'study.db'}"
+    # the study exists before the workers start, as the README recommends (two first workers could race to create it)
+    optuna.create_study(storage=storage, study_name="windy-er", direction="maximize")
+    workers = [
+        subprocess.Popen(
+            [sys.executable, "-m", "sb3_er.cli", "optimize", "--algo", "er", "--env", "sb3_er/WindyCliff-v0",
+             "--n-trials", "2", "--n-timesteps", "500", "--storage", storage, "--study-name", "windy-er",
+             "-f", str(tmp_path / f"worker_{index}"), "--n-evaluations", "1", "--eval-episodes", "2",
+             "--sampler", "random", "--pruner", "none", "--seed", str(index), "--no-optim-plots", "--verbose", "0"],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        )
+        for index in range(2)
+    ]
+    outputs = [worker.communicate(timeout=300)[0] for worker in workers]
+    assert [worker.returncode for worker in workers] == [0, 0], "\n".join(outputs)
+    trials = optuna.load_study(study_name="windy-er", storage=storage).get_trials()
+    # each worker runs its own 2 trials into the shared study: 4 in all, with our sampler's parameters
+    assert len(trials) == 4 and all(trial.state == optuna.trial.TrialState.COMPLETE for trial in trials)
+    assert all(set(trial.params) == {"learning_rate", "gamma", "exploration_rate", "replay_order"} for trial in trials)
+    # every worker's report lists the study's trials when it finished: the later one all 4
+    reports = [pd.read_csv(next((tmp_path / f"worker_{index}" / "er").glob("report_*.csv"))) for index in range(2)]
+    assert sorted(len(report) for report in reports)[-1] == 4
 
 
 def test_plain_rl_zoo_trains_its_own_dqn_on_our_environments(tmp_path, monkeypatch):

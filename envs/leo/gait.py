@@ -9,6 +9,8 @@ random voltage levels instead, as Erik's observing mode did.
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 
 from .leo import CONTROL_TIMESTEP, MAX_VOLTAGE, TORQUE_TO_VOLTAGE, VOLTAGE_LEVELS
@@ -47,21 +49,39 @@ class ObservingGait:
         ``info`` needs ``stance_contact`` (the stance foot touches the floor) and ``footstep_length`` (the length of
         the footstep made in the last step, 0 without one); a forward footstep restarts the swing timer.
         """
+        return np.array(self._command(observation, info))
+
+    def action(self, observation: np.ndarray, info: dict) -> np.ndarray:
+        """The same command on Erik's 7 voltage levels: the nearest level index per joint (the lower one at a tie),
+        for ``LeoEnv``."""
+        return np.array([_nearest_level(voltage) for voltage in self._command(observation, info)])
+
+    def _command(self, observation, info: dict) -> list[float]:
+        """:meth:`voltages` as Python floats (plain float arithmetic: the same numbers NumPy scalars would give)."""
         self.swing_time += CONTROL_TIMESTEP
         if info["footstep_length"] > 0.0:
             self.swing_time = 0.0
-        torso, _, stance_hip, _, swing_hip, _, _, _, swing_knee, _ = np.asarray(observation, dtype=np.float64)
+        values = observation.tolist() if isinstance(observation, np.ndarray) else [float(v) for v in observation]
+        torso, _, stance_hip, _, swing_hip, _, _, _, swing_knee, _ = values
         if self.explore_rate and self.rng.random() < self.explore_rate:
-            return self.rng.choice(VOLTAGE_LEVELS, size=3)
+            return self.rng.choice(VOLTAGE_LEVELS, size=3).tolist()
         spread = HIP_SPREAD_GAIN * (HIP_SPREAD_TARGET - (swing_hip - stance_hip))
         stance_torque = STANCE_HIP_SHARE * spread
         if info["stance_contact"]:
             stance_torque += TORSO_GAIN * (TORSO_TARGET - torso)
         knee = EARLY_SWING_VOLTAGE if self.swing_time < EARLY_SWING_TIME else SWING_KNEE_GAIN * (0.0 - swing_knee)
-        command = np.array([TORQUE_TO_VOLTAGE * stance_torque, TORQUE_TO_VOLTAGE * spread, knee])
-        return np.clip(command, -MAX_VOLTAGE, MAX_VOLTAGE)
+        command = (TORQUE_TO_VOLTAGE * stance_torque, TORQUE_TO_VOLTAGE * spread, knee)
+        return [MAX_VOLTAGE if v > MAX_VOLTAGE else -MAX_VOLTAGE if v < -MAX_VOLTAGE else v for v in command]
 
-    def action(self, observation: np.ndarray, info: dict) -> np.ndarray:
-        """The same command on Erik's 7 voltage levels: the nearest level index per joint, for ``LeoEnv``."""
-        command = self.voltages(observation, info)
-        return np.abs(command[:, None] - VOLTAGE_LEVELS[None, :]).argmin(axis=1)
+
+_LEVELS = VOLTAGE_LEVELS.tolist()
+
+
+def _nearest_level(voltage: float) -> int:
+    """Index of the voltage level nearest to ``voltage`` (the lower at a tie, as ``argmin`` over all 7 gives)."""
+    upper = bisect.bisect_left(_LEVELS, voltage)
+    if upper == 0:
+        return 0
+    if upper == len(_LEVELS):
+        return upper - 1
+    return upper - 1 if abs(voltage - _LEVELS[upper - 1]) <= abs(voltage - _LEVELS[upper]) else upper

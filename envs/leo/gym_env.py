@@ -19,6 +19,24 @@ TILE_WIDTHS = (0.14, 5.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0, 0.28, 10.0)
 ACTION_TILE_WIDTHS = (6.67, 6.67, 6.67)
 #: Declared observation bounds: +-pi for angles, +-10 pi rad/s for rates (Erik's state ranges).
 OBSERVATION_BOUND = np.array([math.pi, 10.0 * math.pi] * 5)
+_BOUNDS = OBSERVATION_BOUND.tolist()
+_LEVEL_VOLTAGES = VOLTAGE_LEVELS.tolist()
+
+
+def _voltages_of_levels(action) -> list[float]:
+    """The voltages [V] of LeoEnv's action (3 integer levels 0..6); anything else raises ValueError.
+
+    An integer array of shape (3,), as SB3 and the gait give, takes a fast path; other sequences go through NumPy."""
+    if isinstance(action, np.ndarray) and action.dtype.kind in "iu" and action.shape == (3,):
+        levels = action.tolist()
+        if 0 <= min(levels) and max(levels) < 7:
+            return [_LEVEL_VOLTAGES[level] for level in levels]
+    else:
+        levels = np.asarray(action)
+        indices = levels.astype(np.int64, copy=False)
+        if levels.shape == (3,) and np.all(indices == levels) and 0 <= indices.min() and indices.max() < 7:
+            return [_LEVEL_VOLTAGES[level] for level in indices.tolist()]
+    raise ValueError(f"LEO's action is 3 voltage levels in 0..6 (stance hip, swing hip, swing knee), got {action!r}")
 
 
 class LeoEnv(gym.Env):
@@ -94,19 +112,13 @@ class LeoEnv(gym.Env):
         super().reset(seed=seed)
         if seed is not None:
             self.task.random.seed(int(self.np_random.integers(2**32)))
-        with self.physics.reset_context():
-            self.task.initialize_episode(self.physics)
+        self.physics.reset_for(self.task)
         self._steps = 0
         return self._observation(), self.task.info(self.physics)
 
     def step(self, action):
-        levels = np.asarray(action)
-        indices = levels.astype(np.int64, copy=False)
-        if levels.shape != (3,) or not (np.all(indices == levels) and 0 <= indices.min() and indices.max() < 7):
-            raise ValueError(f"LEO's action is 3 voltage levels in 0..6 (stance hip, swing hip, swing knee), "
-                             f"got {action!r}")
-        self.task.before_step(VOLTAGE_LEVELS[indices], self.physics)
-        self.physics.step(PHYSICS_SUBSTEPS)
+        self.task.apply_voltages(*_voltages_of_levels(action), self.physics)
+        self.physics.step_control(PHYSICS_SUBSTEPS)
         self.task.after_step(self.physics)
         self._steps += 1
         terminated = self.task.fell
@@ -114,7 +126,9 @@ class LeoEnv(gym.Env):
         return self._observation(), self.task.reward, terminated, truncated, self.task.info(self.physics)
 
     def _observation(self) -> np.ndarray:
-        return np.clip(self.task.stance_observation(), -OBSERVATION_BOUND, OBSERVATION_BOUND)
+        values = self.task.stance_values()
+        return np.array([bound if value > bound else -bound if value < -bound else value
+                         for value, bound in zip(values, _BOUNDS)])
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -17,6 +17,7 @@ the walking task of the thesis (Eq. 4.6-4.7, Table 4.3) with Erik's task logic:
 from __future__ import annotations
 
 import collections
+import logging
 import math
 import os
 from pathlib import Path
@@ -29,6 +30,7 @@ _USER_MUJOCO_GL = os.environ.get("MUJOCO_GL")
 #: Why MuJoCo cannot render in this process (None: it can try). Simulation never needs OpenGL.
 RENDERING_UNAVAILABLE = prepare_backend()
 
+import mujoco as mujoco_engine  # noqa: E402  (MuJoCo's own bindings; `mujoco` below is dm_control's wrapper)
 from dm_control import _render, mujoco  # noqa: E402
 from dm_control.rl import control  # noqa: E402
 from dm_control.suite import base  # noqa: E402
@@ -93,6 +95,14 @@ START_POSE = {
 LEFT, RIGHT = 0, 1
 _SIDES = ("left", "right")
 _MOTOR_JOINTS = ("shoulder", "hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right")
+#: The task's state joints: the torso pitch (index 0), then the motor joints (index k is _MOTOR_JOINTS[k - 1]).
+_STATE_JOINTS = ("torso", *_MOTOR_JOINTS)
+#: Indices into _STATE_JOINTS of each side's hip, knee and ankle, indexed by LEFT / RIGHT.
+_HIP, _KNEE, _ANKLE = (2, 3), (4, 5), (6, 7)
+#: The hip and knee motors whose energy counts, in _MOTOR_JOINTS order.
+_HIP_KNEE = (2, 3, 4, 5)
+#: Observed joints of Eq. 4.6 (torso, stance hip, swing hip, stance knee, swing knee) by stance leg.
+_OBSERVED = tuple((0, _HIP[stance], _HIP[1 - stance], _KNEE[stance], _KNEE[1 - stance]) for stance in (LEFT, RIGHT))
 
 
 def butterworth_coefficients(cutoff: float, sample_rate: float) -> tuple[float, float]:
@@ -116,13 +126,30 @@ def ankle_x_from_hip(torso: float, hip: float, knee: float) -> float:
     return THIGH_LENGTH * math.sin(thigh) + SHANK_LENGTH * math.sin(thigh + knee)
 
 
+_ZERO_CLOCK = []
+
+
+def _zero_clock():
+    """ctypes pointer of the numba-compiled C function returning 0.0 (``_clock.py``), compiled on first use."""
+    if not _ZERO_CLOCK:
+        from ._clock import zero_clock
+
+        _ZERO_CLOCK.append(zero_clock.ctypes)  # kept alive here: MuJoCo holds only the address
+    return _ZERO_CLOCK[0]
+
+
 def get_model_and_assets() -> tuple[bytes, dict]:
     """The MJCF model as a string and its (empty) assets, as dm_control suite domains provide them."""
     return MODEL_PATH.read_bytes(), {}
 
 
 class Physics(mujoco.Physics):
-    """LEO's physics with accessors in LEO's own variables (angles about -y, the torso positive leaning backward)."""
+    """LEO's physics with accessors in LEO's own variables (angles about -y, the torso positive leaning backward).
+
+    The task's hot path uses integer addresses into qpos/qvel/ctrl and NumPy views of MuJoCo's own arrays, all built
+    once in ``_reload_from_data`` (which dm_control calls whenever the data changes), and :meth:`step_control` steps
+    MuJoCo directly.
+    """
 
     def _reload_from_data(self, data) -> None:
         super()._reload_from_data(data)
@@ -131,12 +158,26 @@ class Physics(mujoco.Physics):
         self.qpos_index = {name: int(model.jnt_qposadr[model.name2id(name, "joint")]) for name in names}
         self.qvel_index = {name: int(model.jnt_dofadr[model.name2id(name, "joint")]) for name in names}
         self._motor_actuators = np.array([model.name2id(name, "actuator") for name in _MOTOR_JOINTS])
-        self._foot_geoms = [frozenset(model.name2id(f"{part}_{side}", "geom") for part in ("heel", "toe"))
-                            for side in _SIDES]
-        self._contact_geoms = np.flatnonzero(model.geom_contype)
+        first = int(self._motor_actuators[0])
+        contiguous = np.array_equal(self._motor_actuators, np.arange(first, first + len(_MOTOR_JOINTS)))
+        self._motor_ctrl = slice(first, first + len(_MOTOR_JOINTS)) if contiguous else self._motor_actuators
+        self._foot_side = {model.name2id(f"{part}_{side}", "geom"): index
+                           for index, side in enumerate(_SIDES) for part in ("heel", "toe")}
+        paired = set(model.pair_geom1.tolist()) | set(model.pair_geom2.tolist())
+        filtered = set(np.flatnonzero(model.geom_contype | model.geom_conaffinity).tolist())
+        self._contact_geoms = np.array(sorted(g for g in paired | filtered if model.geom_rbound[g] > 0.0))
+        self._contact_radius = model.geom_size[self._contact_geoms, 0]
         self._left_heel = model.name2id("heel_left", "geom")
         self.hip_joint = model.name2id("hip_left", "joint")
         self._torso_body = model.name2id("torso", "body")
+        # The task's state joints (torso pitch, then the motor joints) as plain integer addresses.
+        self._state_qpos = [self.qpos_index[name] for name in _STATE_JOINTS]
+        self._state_qvel = [self.qvel_index[name] for name in _STATE_JOINTS]
+        raw_model, raw_data = self.model.ptr, self.data.ptr
+        self._raw = (raw_model, raw_data)
+        self._qpos, self._qvel, self._ctrl = raw_data.qpos, raw_data.qvel, raw_data.ctrl
+        self._xanchor = raw_data.xanchor
+        self._warning_counts = raw_data.warning.number
 
     def joint_angle(self, name: str) -> float:
         """Angle of a joint, or of the root ("torso" pitch, "root_x", "root_z"), in LEO's convention."""
@@ -152,27 +193,86 @@ class Physics(mujoco.Physics):
         unknown = set(angles) - set(self.qpos_index)
         if unknown:
             raise ValueError(f"unknown LEO joints {sorted(unknown)}; known: {sorted(self.qpos_index)}")
-        self.data.qpos[:] = 0.0
-        self.data.qvel[:] = 0.0
+        model, data = self._raw
+        qpos = self._qpos
+        qpos[:] = 0.0
+        self._qvel[:] = 0.0
         for name, value in angles.items():
-            self.data.qpos[self.qpos_index[name]] = value
+            qpos[self.qpos_index[name]] = value
+        mujoco_engine.mj_kinematics(model, data)  # geom positions only; the forward below recomputes everything
+        geom_xpos = data.geom_xpos
+        lowest = float(np.min(geom_xpos[self._contact_geoms, 2] - self._contact_radius))
+        qpos[self.qpos_index["root_z"]] -= lowest
+        qpos[self.qpos_index["root_x"]] -= float(geom_xpos[self._left_heel, 0])
         self.forward()
-        radius = self.model.geom_size[self._contact_geoms, 0]
-        lowest = float(np.min(self.data.geom_xpos[self._contact_geoms, 2] - radius))
-        self.data.qpos[self.qpos_index["root_z"]] -= lowest
-        self.data.qpos[self.qpos_index["root_x"]] -= float(self.data.geom_xpos[self._left_heel, 0])
-        self.forward()
+
+    def reset_for(self, task) -> None:
+        """``with physics.reset_context(): task.initialize_episode(physics)``, leaving bit for bit the same data,
+        with two of its four ``mj_forward`` calls dropped: dm_control's ``reset`` forwards the default pose, which
+        ``set_pose`` then overwrites entirely (``mj_forward`` does not touch the warm start that ``mj_resetData``
+        zeroed). The closing forward runs without actuation, as dm_control's ``after_reset``."""
+        model, data = self._raw
+        mujoco_engine.mj_resetData(model, data)
+        task.initialize_episode(self)
+        flags = model.opt.disableflags
+        model.opt.disableflags = flags | mujoco_engine.mjtDisableBit.mjDSBL_ACTUATION
+        try:
+            self.forward()
+        finally:
+            model.opt.disableflags = flags
 
     def set_voltages(self, voltages) -> None:
         """Set the 7 motor voltages (order: shoulder, hip left, hip right, knee left, knee right, ankle left, ankle
         right), each clipped to +-MAX_VOLTAGE."""
         self.data.ctrl[self._motor_actuators] = np.clip(voltages, -MAX_VOLTAGE, MAX_VOLTAGE)
 
+    #: Keep MuJoCo's profiling timers (``data.timer``) running during :meth:`step_control`. By default (False) and
+    #: while no ``mjcb_time`` callback is installed, :meth:`step_control` installs one returning 0 for the duration
+    #: of the step: MuJoCo 3.17 otherwise reads the system clock at every stage of every substep, about 10 % of a
+    #: LEO substep. The simulation is the same either way; only ``data.timer`` stays 0.
+    keep_mujoco_timers = False
+
+    def step_control(self, nstep: int) -> None:
+        """Advance ``nstep`` physics substeps exactly as dm_control's ``Physics.step`` does (its default "legacy"
+        stepping for a non-RK4 integrator: ``mj_step2``, ``mj_step`` for the other ``nstep - 1`` substeps, then
+        ``mj_step1`` so that positions, contacts and velocities in ``data`` belong to the final state), without the
+        Python wrapper around it. Like dm_control, a new MuJoCo warning (a diverged and auto-reset state, a full
+        contact buffer) raises ``dm_control.rl.control.PhysicsError`` unless errors are suppressed, then it is
+        logged. See ``keep_mujoco_timers`` for the timer callback in place during the step."""
+        counts = self._warning_counts
+        before = counts.tolist()
+        model, data = self._raw
+        quiet_clock = not self.keep_mujoco_timers and mujoco_engine.get_mjcb_time() is None
+        if quiet_clock:
+            mujoco_engine.set_mjcb_time(_zero_clock())
+        try:
+            mujoco_engine.mj_step2(model, data)
+            if nstep > 1:
+                mujoco_engine.mj_step(model, data, nstep - 1)
+            mujoco_engine.mj_step1(model, data)
+        finally:
+            if quiet_clock:
+                mujoco_engine.set_mjcb_time(None)
+        if counts.tolist() != before:
+            names = [name for name, old, new in zip(mujoco_engine.mjtWarning.__members__, before, counts.tolist())
+                     if new > old]
+            message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
+            if self._warnings_cause_exception:
+                raise control.PhysicsError(message)
+            logging.warning(message)
+
     def foot_contacts(self) -> tuple[bool, bool]:
         """Whether the heel or the toe of the left and of the right foot touches the floor."""
-        ncon = self.data.ncon
-        touching = set(self.data.contact.geom1[:ncon].tolist()) | set(self.data.contact.geom2[:ncon].tolist())
-        return bool(touching & self._foot_geoms[LEFT]), bool(touching & self._foot_geoms[RIGHT])
+        data = self._raw[1]
+        if not data.ncon:
+            return False, False
+        touching = [False, False]
+        side_of = self._foot_side
+        for geom1, geom2 in data.contact.geom.tolist():
+            side = side_of.get(geom2, side_of.get(geom1))
+            if side is not None:
+                touching[side] = True
+        return touching[LEFT], touching[RIGHT]
 
     def max_penetration(self) -> float:
         """Deepest current penetration of any contact [m] (0 without contacts)."""
@@ -210,6 +310,9 @@ class LeoWalk(base.Task):
         Hold each foot at 3.72 degrees to the floor (Erik's ``autoActuateAnkles``, gain 8 N m/rad: the feet stay about
         parallel to the floor as the thesis describes) instead of Erik's default, which holds each ankle joint at
         3.72 degrees relative to its shank.
+
+    The per-step state is kept in plain lists in ``_STATE_JOINTS`` order (torso, then the motor joints), indexed with
+    the integer tables ``_HIP``, ``_KNEE`` and ``_ANKLE`` by side, so that a control step builds no dicts.
     """
 
     def __init__(self, random=None, start_noise: float = 0.05, filter_rates: bool = True,
@@ -221,9 +324,8 @@ class LeoWalk(base.Task):
         self.filter_rates = bool(filter_rates)
         self.floor_parallel_ankles = bool(floor_parallel_ankles)
         self._filter_b, self._filter_a = butterworth_coefficients(RATE_FILTER_CUTOFF, 1.0 / CONTROL_TIMESTEP)
-        self._names = ("torso", *_MOTOR_JOINTS)
         self.stance = LEFT
-        self.voltages = np.zeros(len(_MOTOR_JOINTS))
+        self._voltages = [0.0] * len(_MOTOR_JOINTS)
         self.footsteps = 0
         self.footstep = False
         self.footstep_length = 0.0
@@ -232,6 +334,11 @@ class LeoWalk(base.Task):
         self.reward = 0.0
         self.fell = False
         self.distance = 0.0
+
+    @property
+    def voltages(self) -> np.ndarray:
+        """The 7 motor voltages [V] applied in the last step, in ``_MOTOR_JOINTS`` order, after clipping."""
+        return np.array(self._voltages)
 
     def action_spec(self, physics):
         """Voltages of the stance hip, swing hip and swing knee."""
@@ -247,12 +354,13 @@ class LeoWalk(base.Task):
         pose["ankle_left"] = -(pose["torso"] + pose["hip_left"] + pose["knee_left"])
         physics.set_pose(pose)
         self.stance = LEFT
-        self.voltages = np.zeros(len(_MOTOR_JOINTS))
-        physics.set_voltages(self.voltages)
-        self._angles = {name: physics.joint_angle(name) for name in self._names}
-        self._raw_rates = dict.fromkeys(self._names, 0.0)
-        self._rates = dict.fromkeys(self._names, 0.0)
-        self._previous_rates = dict(self._rates)
+        self._voltages = [0.0] * len(_MOTOR_JOINTS)
+        physics.set_voltages(self._voltages)
+        qpos = physics._qpos.tolist()
+        self._angles = [qpos[index] for index in physics._state_qpos]
+        self._raw_rates = [0.0] * len(_STATE_JOINTS)
+        self._rates = [0.0] * len(_STATE_JOINTS)
+        self._previous_rates = list(self._rates)
         self._progress = self._swing_progress()
         self._start_x = float(physics.hip_position()[0])
         self.footsteps = 0
@@ -269,45 +377,63 @@ class LeoWalk(base.Task):
         # which here would count a control step at the reset.
 
     def auto_voltages(self) -> dict[str, float]:
-        """Erik's controllers for the joints the agent does not drive (reference 4.5), from the current state."""
+        """Erik's controllers for the joints the agent does not drive (reference 4.5), from the current state [V],
+        before clipping."""
+        voltages = self._auto_voltage_list()
+        stance, swing = self.stance, 1 - self.stance
+        auto = (0, _KNEE[stance] - 1, _ANKLE[stance] - 1, _ANKLE[swing] - 1)
+        return {_MOTOR_JOINTS[index]: voltages[index] for index in auto}
+
+    def _auto_voltage_list(self) -> list[float]:
+        """The 7 motor voltages with the auto-controlled joints filled in and the learned ones 0."""
         angles = self._angles
-        stance, swing = _SIDES[self.stance], _SIDES[1 - self.stance]
-        voltages = {
-            "shoulder": ARM_GAIN * (ARM_TARGET - angles["shoulder"]),
-            f"knee_{stance}": STANCE_KNEE_GAIN * (STANCE_KNEE_TARGET - angles[f"knee_{stance}"]),
-        }
-        for side in (stance, swing):
+        stance = self.stance
+        voltages = [0.0] * len(_MOTOR_JOINTS)
+        voltages[0] = ARM_GAIN * (ARM_TARGET - angles[1])
+        knee = _KNEE[stance]
+        voltages[knee - 1] = STANCE_KNEE_GAIN * (STANCE_KNEE_TARGET - angles[knee])
+        for side in (stance, 1 - stance):
+            ankle = _ANKLE[side]
             if self.floor_parallel_ankles:
-                foot = angles["torso"] + angles[f"hip_{side}"] + angles[f"knee_{side}"] + angles[f"ankle_{side}"]
-                voltages[f"ankle_{side}"] = FLOOR_PARALLEL_ANKLE_GAIN * (ANKLE_TARGET - foot)
+                foot = angles[0] + angles[_HIP[side]] + angles[_KNEE[side]] + angles[ankle]
+                voltages[ankle - 1] = FLOOR_PARALLEL_ANKLE_GAIN * (ANKLE_TARGET - foot)
             else:
-                voltages[f"ankle_{side}"] = ANKLE_GAIN * (ANKLE_TARGET - angles[f"ankle_{side}"])
+                voltages[ankle - 1] = ANKLE_GAIN * (ANKLE_TARGET - angles[ankle])
         return voltages
 
     def before_step(self, action, physics) -> None:
         action = np.asarray(action, dtype=np.float64)
         if action.shape != (3,) or not np.all(np.isfinite(action)):
             raise ValueError(f"LEO needs 3 finite voltages (stance hip, swing hip, swing knee), got {action!r}")
-        stance, swing = _SIDES[self.stance], _SIDES[1 - self.stance]
-        voltages = self.auto_voltages()
-        voltages[f"hip_{stance}"], voltages[f"hip_{swing}"], voltages[f"knee_{swing}"] = action.tolist()
-        self.voltages = np.array([_clip(voltages[name], MAX_VOLTAGE) for name in _MOTOR_JOINTS])
-        physics.set_voltages(self.voltages)
+        self.apply_voltages(*action.tolist(), physics)
+
+    def apply_voltages(self, stance_hip: float, swing_hip: float, swing_knee: float, physics) -> None:
+        """``before_step`` for three finite voltages [V] given as Python floats (not checked): add the auto-controlled
+        joints, clip all to +-MAX_VOLTAGE and set them as the motors' controls for the coming step."""
+        stance, swing = self.stance, 1 - self.stance
+        voltages = self._auto_voltage_list()
+        voltages[_HIP[stance] - 1] = stance_hip
+        voltages[_HIP[swing] - 1] = swing_hip
+        voltages[_KNEE[swing] - 1] = swing_knee
+        voltages = [_clip(value, MAX_VOLTAGE) for value in voltages]
+        self._voltages = voltages
+        physics._ctrl[physics._motor_ctrl] = voltages
 
     def after_step(self, physics) -> None:
-        qpos, qvel = physics.data.qpos.tolist(), physics.data.qvel.tolist()
-        self._angles = {name: qpos[physics.qpos_index[name]] for name in self._names}
-        self._update_rates({name: qvel[physics.qvel_index[name]] for name in self._names})
+        qpos, qvel = physics._qpos.tolist(), physics._qvel.tolist()
+        self._angles = [qpos[index] for index in physics._state_qpos]
+        self._update_rates([qvel[index] for index in physics._state_qvel])
         self.energy = self._motor_energy()
         progress = self._swing_progress()
         self._update_stance(*physics.foot_contacts())
-        self.fell = (abs(self._angles["torso"]) > MAX_TORSO_ANGLE
-                     or abs(self._angles["torso"] + self._angles[f"hip_{_SIDES[self.stance]}"]) > MAX_STANCE_LEG_ANGLE)
+        torso = self._angles[0]
+        self.fell = (abs(torso) > MAX_TORSO_ANGLE
+                     or abs(torso + self._angles[_HIP[self.stance]]) > MAX_STANCE_LEG_ANGLE)
         gained = _clip(progress, MAX_FOOTSTEP_LENGTH) - _clip(self._progress, MAX_FOOTSTEP_LENGTH)
         self.reward = (REWARD_TIME + REWARD_ENERGY * self.energy + REWARD_PROGRESS * gained
                        + (REWARD_FALL if self.fell else 0.0))
         self._progress = -progress if self.footstep else progress
-        self.distance = float(physics.data.xanchor[physics.hip_joint, 0]) - self._start_x
+        self.distance = physics._xanchor.item(physics.hip_joint, 0) - self._start_x
 
     def info(self, physics) -> dict:
         """Per-step facts: whether a footstep was made (and its length), the net footstep count, the hip's walked
@@ -324,35 +450,37 @@ class LeoWalk(base.Task):
             "stance_contact": self.stance_contact,
         }
 
-    def _update_rates(self, raw: dict[str, float]) -> None:
-        """Erik's rate filter, ``y[n] = b (x[n] + x[n-1]) - a y[n-1]``, restarted at every episode."""
-        self._previous_rates = self._rates
+    def _update_rates(self, raw: list[float]) -> None:
+        """Erik's rate filter, ``y[n] = b (x[n] + x[n-1]) - a y[n-1]``, restarted at every episode (index 0, the
+        torso, is never filtered)."""
+        previous = self._rates
+        self._previous_rates = previous
         if self.filter_rates:
             b, a = self._filter_b, self._filter_a
-            rates = {name: b * (raw[name] + self._raw_rates[name]) - a * self._rates[name] for name in _MOTOR_JOINTS}
-            rates["torso"] = raw["torso"]
+            raw_before = self._raw_rates
+            rates = [raw[0]]
+            rates.extend([b * (raw[k] + raw_before[k]) - a * previous[k] for k in range(1, len(raw))])
         else:
-            rates = dict(raw)
+            rates = list(raw)
         self._raw_rates = raw
         self._rates = rates
 
     def _motor_energy(self) -> float:
         """Electrical energy of the hip and knee motors over the last step [J], negative work not counted."""
         energy = 0.0
-        for index, name in enumerate(_MOTOR_JOINTS):
-            if name.startswith(("hip", "knee")):
-                voltage = float(self.voltages[index])
-                speed = 0.5 * (self._rates[name] + self._previous_rates[name])
-                current = (voltage - TORQUE_CONSTANT_TIMES_GEAR * speed) / TERMINAL_RESISTANCE
-                energy += max(0.0, voltage * current) * CONTROL_TIMESTEP
+        rates, previous, voltages = self._rates, self._previous_rates, self._voltages
+        for index in _HIP_KNEE:
+            voltage = voltages[index - 1]
+            speed = 0.5 * (rates[index] + previous[index])
+            current = (voltage - TORQUE_CONSTANT_TIMES_GEAR * speed) / TERMINAL_RESISTANCE
+            energy += max(0.0, voltage * current) * CONTROL_TIMESTEP
         return energy
 
     def _update_stance(self, left_contact: bool, right_contact: bool) -> None:
         """Stance leg from the foot contacts; a change of stance leg is a footstep (reference 4.3)."""
         previous = self.stance
         if left_contact and right_contact:
-            ahead_left = self._ankle_x("left") > self._ankle_x("right")
-            self.stance = LEFT if ahead_left else RIGHT
+            self.stance = LEFT if self._ankle_x(LEFT) > self._ankle_x(RIGHT) else RIGHT
         elif left_contact:
             self.stance = LEFT
         elif right_contact:
@@ -361,23 +489,29 @@ class LeoWalk(base.Task):
         self.stance_contact = (left_contact, right_contact)[self.stance]
         self.footstep_length = 0.0
         if self.footstep:
-            self.footstep_length = self._ankle_x(_SIDES[self.stance]) - self._ankle_x(_SIDES[previous])
+            self.footstep_length = self._ankle_x(self.stance) - self._ankle_x(previous)
             self.footsteps += 1 if self.footstep_length > 0.0 else -1
 
-    def _ankle_x(self, side: str) -> float:
+    def _ankle_x(self, side: int) -> float:
         angles = self._angles
-        return ankle_x_from_hip(angles["torso"], angles[f"hip_{side}"], angles[f"knee_{side}"])
+        return ankle_x_from_hip(angles[0], angles[_HIP[side]], angles[_KNEE[side]])
 
     def _swing_progress(self) -> float:
         """Swing ankle ahead of the stance ankle [m], from joint angles."""
-        return self._ankle_x(_SIDES[1 - self.stance]) - self._ankle_x(_SIDES[self.stance])
+        return self._ankle_x(1 - self.stance) - self._ankle_x(self.stance)
+
+    def stance_values(self) -> list[float]:
+        """The 10 values of Eq. 4.6 in the current stance/swing assignment, as Python floats [rad, rad/s]."""
+        angles, rates = self._angles, self._rates
+        values = []
+        for index in _OBSERVED[self.stance]:
+            values.append(angles[index])
+            values.append(rates[index])
+        return values
 
     def stance_observation(self) -> np.ndarray:
         """The 10-D state of Eq. 4.6 in the current stance/swing assignment."""
-        angles, rates = self._angles, self._rates
-        stance, swing = _SIDES[self.stance], _SIDES[1 - self.stance]
-        names = ("torso", f"hip_{stance}", f"hip_{swing}", f"knee_{stance}", f"knee_{swing}")
-        return np.array([value for name in names for value in (angles[name], rates[name])])
+        return np.array(self.stance_values())
 
     def get_observation(self, physics) -> collections.OrderedDict:
         return collections.OrderedDict(state=self.stance_observation())

@@ -46,6 +46,7 @@ def _mix64(h):
 
 
 RNG_STREAM_ACTIONS, RNG_STREAM_REPLAY, RNG_STREAM_PREDICT = 0, 1, 2
+RNG_STREAM_PLANNING = 100  # Dyna's planning picks
 
 
 def new_rng_state(seed=None, stream: int = RNG_STREAM_ACTIONS) -> np.ndarray:
@@ -541,3 +542,136 @@ def weight_statistics(theta, initial_low, initial_span, initial_seed):
     if touched == 0:
         return 0.0, 0.0
     return total / touched, touched / theta.shape[0]
+
+
+# --- Batch views, FQI, LSPI and Dyna (sb3_er.fqi, sb3_er.lspi, sb3_er.dyna; thesis chapter 3) ----------------------
+# A binary design matrix Phi (n, f) over the f weights a data set touches is given by its active ``columns`` (n, N):
+# row d has a one at each columns[d, k] (a column repeated within a row, a hash collision, counts twice).
+
+
+@nb.njit(cache=True)
+def batch_state_slots(observations, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
+    """Hashed state-tile slots (B, N) of each row of observations (B, D); False if a row is not finite."""
+    for i in range(observations.shape[0]):
+        if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, out_slots[i]):
+            return False
+    return True
+
+
+@nb.njit(cache=True)
+def greedy_next_values(theta, next_slots, terminal, stride, action_columns, columns_are_actions, q_scratch, out_values,
+                       out_actions):
+    """max_a Q(s'_d, a) and its argmax (lowest index on ties) for each transition d (FQI's Eq. 3.1, LSPI's greedy
+    policy at s'); 0 and -1 where s'_d is terminal."""
+    for d in range(next_slots.shape[0]):
+        if terminal[d]:
+            out_values[d] = 0.0
+            out_actions[d] = -1
+            continue
+        all_q_values(theta, next_slots[d], stride, action_columns, columns_are_actions, q_scratch)
+        best = argmax_first(q_scratch)
+        out_values[d] = q_scratch[best]
+        out_actions[d] = best
+
+
+@nb.njit(cache=True)
+def features_dot(x, columns, out):
+    """out = Phi x: out[d] = sum_k x[columns[d, k]] (the fitted values of the n samples)."""
+    for d in range(columns.shape[0]):
+        total = 0.0
+        for k in range(columns.shape[1]):
+            total += x[columns[d, k]]
+        out[d] = total
+
+
+@nb.njit(cache=True)
+def features_transpose_dot(y, columns, out):
+    """out = Phi^T y: out[j] = sum of y[d] over the samples d with feature j active (with multiplicity)."""
+    for j in range(out.shape[0]):
+        out[j] = 0.0
+    for d in range(columns.shape[0]):
+        for k in range(columns.shape[1]):
+            out[columns[d, k]] += y[d]
+
+
+@nb.njit(cache=True)
+def ridge_normal_matvec(x, columns, ridge, out):
+    """out = (Phi^T Phi + ridge I) x: the matrix of the ridge normal equations of FQI's least-squares fit."""
+    for j in range(out.shape[0]):
+        out[j] = ridge * x[j]
+    for d in range(columns.shape[0]):
+        total = 0.0
+        for k in range(columns.shape[1]):
+            total += x[columns[d, k]]
+        for k in range(columns.shape[1]):
+            out[columns[d, k]] += total
+
+
+@nb.njit(inline="always", cache=True)
+def one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns, columns_are_actions,
+                    target_kind, step_size, gamma, epsilon, rng, q):
+    """One single-sample update (thesis Eq. 3.10, Alg. 5 line 4) on (s, a, r, s'); returns delta.
+
+    theta <- theta + alpha delta phi(s, a) / N with delta = r + gamma c v(s') - Q(s, a), where v(s') = max_a Q(s', a)
+    for Q-learning (T*) or Q(s', a') with a' epsilon-greedy for Sarsa (T^pi), and c is the probability that s' is not
+    terminal (0 or 1 for a real transition; a model's prediction may lie between). c = 0 skips s' altogether.
+    """
+    q_sa = q_value(theta, slots, stride, action_columns, action)
+    target = reward
+    if continuation > 0.0:
+        all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
+        if target_kind == TARGET_Q_LEARNING:
+            value = q[argmax_first(q)]
+        else:
+            value = q[epsilon_greedy(q, epsilon, rng)]
+        target += gamma * continuation * value
+    delta = target - q_sa
+    if not np.isfinite(delta):
+        return delta
+    for k in range(slots.shape[0]):
+        theta[slots[k] * stride + action_columns[k, action]] += step_size * delta
+    return delta
+
+
+@nb.njit(cache=True)
+def dyna_step(
+    theta, slots, action, reward, terminated, next_obs, next_slots,
+    plan_slots, plan_actions, plan_rewards, plan_continuation, plan_next_slots, plan_start, plan_count,
+    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions,
+    target_kind, step_size, gamma, epsilon, rng, q_scratch,
+):
+    """One real step of Dyna (Sutton 1991; thesis 3.4 and Alg. 3-5): the direct update on (s_k, a_k, r_{k+1}, s_{k+1}),
+    then ``plan_count`` planning updates on the model's predicted transitions ``plan_start ...`` (rows with a negative
+    ``plan_continuation`` were not covered by the model and are skipped). Fills next_slots with the tiles of s_{k+1}.
+
+    Returns (delta of the direct update, planning updates made, sum of their |delta|, status).
+    """
+    continuation = 0.0
+    if not terminated:
+        if not state_slots(next_obs, inv_widths, offsets, wrap_tiles, slot_mask, next_slots):
+            return np.nan, 0, 0.0, STATUS_BAD_OBSERVATION
+        continuation = 1.0
+    delta = one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns,
+                            columns_are_actions, target_kind, step_size, gamma, epsilon, rng, q_scratch)
+    if not np.isfinite(delta):
+        return delta, 0, 0.0, STATUS_DIVERGED
+    updates = 0
+    sum_abs_delta = 0.0
+    for p in range(plan_start, plan_start + plan_count):
+        if plan_continuation[p] < 0.0:
+            continue
+        planned = one_step_update(theta, plan_slots[p], plan_actions[p], plan_rewards[p], plan_continuation[p],
+                                  plan_next_slots[p], stride, action_columns, columns_are_actions, target_kind,
+                                  step_size, gamma, epsilon, rng, q_scratch)
+        updates += 1
+        if not np.isfinite(planned):
+            return planned, updates, sum_abs_delta, STATUS_DIVERGED
+        sum_abs_delta += abs(planned)
+    return delta, updates, sum_abs_delta, STATUS_OK
+
+
+@nb.njit(cache=True)
+def initial_weights_at(indices, initial_low, initial_span, initial_seed, out):
+    """out[j] <- the initial value of weight indices[j] (:func:`initial_weight`), for a whole index array at once."""
+    for j in range(indices.shape[0]):
+        out[j] = initial_weight(indices[j], initial_low, initial_span, initial_seed)

@@ -25,6 +25,12 @@ ENV_ID = "sb3_er/WindyCliff-v0"
 CASES = {"tabular": {"n_tilings": 1, "tile_widths": [1.0, 1.0]}, "tile coding": {"n_tilings": 16}}
 REPLAY_VARIANTS = ("er", "er_sigma", "residual_er", "residual_er_sigma")
 REPLAYS_PER_TRAJECTORY = 10
+PESSIMISTIC = "er_pessimistic"
+"""Name of vanilla ER with a pessimistic initial value (thesis Figure 5.5) among the replay variants."""
+PESSIMISTIC_VALUE = -50.0
+"""The pessimistic initial Q of Figure 5.5 (the thesis gives none): the cliff's reward, which is also the exact
+discounted return of every path that ends in the cliff (k steps of -1, then -50: -(1 - gamma^k) / (1 - gamma) -
+50 gamma^k = -50 for gamma = 0.98) and the infimum of every return, so no true value lies below it."""
 
 
 class StopAtFirstGoal(BaseCallback):
@@ -91,17 +97,49 @@ def learn_until_goal(algo: str, env, policy_kwargs: dict, seed: int, max_episode
     return model, stopper.episodes
 
 
+def positive_cells(values: np.ndarray, first_windy_row: int) -> dict[str, int]:
+    """How far the goal's reward has spread in a value map V[y, x] (non-goal cells): the number of cells with V > 0
+    in all (``positive_cells``), below the wind (``calm_positive_cells``) and in it (``windy_positive_cells``)."""
+    return {
+        "positive_cells": int((values > 0).sum()),
+        "calm_positive_cells": int((values[:first_windy_row] > 0).sum()),
+        "windy_positive_cells": int((values[first_windy_row:] > 0).sum()),
+    }
+
+
+def replay_variants(pessimistic_value: float | None = None) -> dict[str, tuple[str, dict]]:
+    """The replay variants of the value-map study: name -> (algorithm, policy kwargs on top of the case's tiling).
+    With `pessimistic_value`, also vanilla ER whose Q starts at that value everywhere (:data:`PESSIMISTIC`)."""
+    variants = {algo: (algo, {}) for algo in REPLAY_VARIANTS}
+    if pessimistic_value is not None:
+        variants[PESSIMISTIC] = ("er", {"initial_value": float(pessimistic_value)})
+    return variants
+
+
+def replay_model(algo: str, env, policy_kwargs: dict, seed: int, buffer_path: Path):
+    """A fresh `algo` model (the grid world's thesis settings, `policy_kwargs`, `seed`) holding the replay buffer
+    saved at `buffer_path`, its trajectory generator seeded with `seed`: every such model replays the same
+    trajectories (thesis 5.2-5.4, "the exact same samples are replayed")."""
+    model = _new_model(algo, env, policy_kwargs, seed)
+    model.load_replay_buffer(buffer_path)
+    model.seed_replay(seed)
+    return model
+
+
 def same_data_value_maps(
-    seed: int = 0, long_phases: int = 30
+    seed: int = 0, long_phases: int = 30, pessimistic_value: float | None = None
 ) -> tuple[dict[str, dict[str, dict[str, np.ndarray]]], pd.DataFrame]:
     """Value maps per (situation, case, algorithm) and their statistics, with the data and replays shared per case.
 
     Situations: ``"after goal"`` (one replay phase, Table 5.1) and ``"long replay"`` (`long_phases` phases, Table 5.2).
+    With `pessimistic_value` (e.g. :data:`PESSIMISTIC_VALUE`), vanilla ER with Q starting at that value replays the
+    same data too, under the name :data:`PESSIMISTIC` (thesis Figure 5.5).
     """
     import gymnasium as gym
 
     import sb3_er_envs  # noqa: F401
 
+    variants = replay_variants(pessimistic_value)
     env = gym.make(ENV_ID)
     first_windy_row = env.unwrapped.first_windy_row
     maps: dict[str, dict[str, dict[str, np.ndarray]]] = {"after goal": {}, "long replay": {}}
@@ -119,17 +157,15 @@ def same_data_value_maps(
                     {"situation": situation, "case": case, "algorithm": "sarsa_lambda", "episodes": sarsa_episodes,
                      "replayed_trajectories": 0, **map_statistics(maps[situation][case]["sarsa_lambda"], first_windy_row)}
                 )
-                for algo in REPLAY_VARIANTS:
-                    model = _new_model(algo, env, policy_kwargs, seed)
-                    model.load_replay_buffer(buffer_path)
-                    model.seed_replay(seed)
+                for name, (algo, extra_policy_kwargs) in variants.items():
+                    model = replay_model(algo, env, {**policy_kwargs, **extra_policy_kwargs}, seed, buffer_path)
                     for _ in range(phases):
                         model.replay(REPLAYS_PER_TRAJECTORY * n_trajectories)
-                    maps[situation][case][algo] = value_map(model, env)
+                    maps[situation][case][name] = value_map(model, env)
                     rows.append(
-                        {"situation": situation, "case": case, "algorithm": algo, "episodes": episodes,
+                        {"situation": situation, "case": case, "algorithm": name, "episodes": episodes,
                          "replayed_trajectories": phases * REPLAYS_PER_TRAJECTORY * n_trajectories,
-                         **map_statistics(maps[situation][case][algo], first_windy_row)}
+                         **map_statistics(maps[situation][case][name], first_windy_row)}
                     )
     env.close()
     return maps, pd.DataFrame(rows)

@@ -1,5 +1,5 @@
-"""Figures like the thesis's: mean learning curves with 95% CI bands (Figure 6.1), cumulative falls (Figure 6.2) and
-grid-world value maps (Figures 5.2-5.5, Tables 5.1-5.2)."""
+"""Figures like the thesis's: mean learning curves with 95% CI bands (Figure 6.1), cumulative falls (Figure 6.2),
+typical single runs (Figure 4.5) and grid-world value maps (Figures 5.2-5.5, Tables 5.1-5.2)."""
 
 from __future__ import annotations
 
@@ -26,6 +26,25 @@ def plot_mean_with_ci(
         (line,) = axes.plot(x, mean, label=f"{ALGORITHM_LABELS.get(algo, algo)} (n={curves.shape[0]})")
         if np.isfinite(half_width).any():
             axes.fill_between(x, mean - half_width, mean + half_width, color=line.get_color(), alpha=0.2, linewidth=0)
+    axes.set_xlabel(x_label)
+    axes.set_ylabel(y_label)
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize="small")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def plot_typical_runs(
+    runs: Mapping[str, tuple[np.ndarray, np.ndarray]], x_label: str, y_label: str, title: str, path: Path
+) -> Path:
+    """Figure 4.5: one run's learning curve per algorithm (label -> (x, y)), to show how single runs behave (drops in
+    performance, runs that find no gait) where the mean curves smooth it away; saved to `path`."""
+    figure, axes = plt.subplots(figsize=(7.0, 4.2))
+    for label, (x, y) in runs.items():
+        axes.plot(x, y, label=label, linewidth=1.2)
     axes.set_xlabel(x_label)
     axes.set_ylabel(y_label)
     axes.set_title(title)
@@ -67,5 +86,64 @@ def plot_value_maps(
             axes_cell.set_title(f"{ALGORITHM_LABELS.get(algo, algo)}, {case}", fontsize="small")
     figure.suptitle(title)
     figure.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(figure)
+    return path
+
+
+def plot_mean_with_error_bars(
+    series: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    x_label: str,
+    y_label: str,
+    title: str,
+    path: Path,
+    references: Mapping[str, float] | None = None,
+) -> Path:
+    """Figure A.1's style: per series (label -> (x of shape (P,), samples of shape (S, P), rows the seeds)) the mean
+    at each x with the 95% CI of the mean as error bars, the series shifted slightly apart along x so that their bars
+    do not hide each other; `references` (label -> value) are drawn as dashed horizontal lines. Saved to `path`."""
+    figure, axes = plt.subplots(figsize=(7.0, 4.2))
+    span = max((float(np.ptp(x)) for x, _ in series.values() if len(x)), default=1.0) or 1.0
+    shift = 0.012 * span
+    for index, (label, (x, samples)) in enumerate(series.items()):
+        samples = np.asarray(samples, dtype=float)
+        if samples.size == 0:
+            continue
+        mean, half_width = mean_confidence_interval(samples)
+        offset = (index - (len(series) - 1) / 2.0) * shift
+        axes.errorbar(np.asarray(x, dtype=float) + offset, mean,
+                      yerr=None if not np.isfinite(half_width).any() else half_width,
+                      marker="o", markersize=4, capsize=3, linewidth=1.2, label=f"{label} (n={samples.shape[0]})")
+    for label, value in (references or {}).items():
+        axes.axhline(value, color="grey", linestyle="--", linewidth=1, label=label)
+    axes.set_xlabel(x_label)
+    axes.set_ylabel(y_label)
+    axes.set_title(title, fontsize="medium")
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize="small")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def plot_scores(scores: Mapping[str, np.ndarray], y_label: str, title: str, path: Path) -> Path:
+    """Figure B.1's style: one category per key (in the given order) with its per-run scores (1-D), the mean and
+    the 95% CI of the mean as an error bar, the single runs as faint dots. Saved to `path`."""
+    figure, axes = plt.subplots(figsize=(7.0, 4.2))
+    for index, (label, values) in enumerate(scores.items()):
+        values = np.asarray(values, dtype=float).reshape(-1)
+        if values.size == 0:
+            continue
+        mean, half_width = mean_confidence_interval(values)
+        axes.scatter(np.full(values.size, index, dtype=float), values, color="grey", alpha=0.35, s=10)
+        axes.errorbar([index], [mean], yerr=None if not np.isfinite(half_width) else [half_width], marker="o",
+                      color="C0", capsize=5, linewidth=1.5)
+    axes.set_xticks(range(len(scores)))
+    axes.set_xticklabels(list(scores), fontsize="small")
+    axes.set_ylabel(y_label)
+    axes.set_title(title, fontsize="medium")
+    axes.grid(alpha=0.3, axis="y")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
     plt.close(figure)
     return path

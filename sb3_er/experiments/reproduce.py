@@ -9,7 +9,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sb3_er.experiments.runner import plan_jobs, run_jobs
+from sb3_er.experiments import records
+from sb3_er.experiments.runner import BACKENDS, RunJob, plan_jobs, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
 from sb3_er.experiments.summary import load_curves, markdown_table, summary_table
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
@@ -43,10 +44,13 @@ def _checked_algorithms(algos: Sequence[str]) -> list[str]:
     return list(dict.fromkeys(algos))
 
 
-def _pin_settings(out_dir: Path, experiment: Experiment, budget: float) -> None:
-    """Record the experiment and run length of `out_dir`; refuse to mix runs of different settings in one folder."""
+def _pin_settings(out_dir: Path, experiment: Experiment, budget: float, env_kwargs: dict, algo_kwargs: dict) -> None:
+    """Record the experiment, run length and reading of `out_dir`; refuse to mix runs of different settings in one
+    folder."""
     settings_path = out_dir / "settings.json"
     settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget}
+    if env_kwargs or algo_kwargs:
+        settings.update(env_kwargs=records.normalized(env_kwargs), algo_kwargs=records.normalized(algo_kwargs))
     if settings_path.is_file():
         existing = json.loads(settings_path.read_text())
         if existing != settings:
@@ -59,6 +63,35 @@ def _pin_settings(out_dir: Path, experiment: Experiment, budget: float) -> None:
         settings_path.write_text(json.dumps(settings, indent=2))
 
 
+def _check_finished_runs(finished: list[RunJob], out_dir: Path, allow_mixed_versions: bool) -> None:
+    """Refuse to resume next to finished runs of other code or configuration (see sb3_er.experiments.records)."""
+    if not finished:
+        return
+    code = records.code_version()
+    records.check_versions(
+        {job.key: records.read_record(job.csv_path) for job in finished},
+        {job.key: records.current_record(job, code) for job in finished},
+        allow_mixed_versions,
+        f"{out_dir} holds finished runs that",
+    )
+
+
+def _code_versions_line(out_dir: Path, algos: Sequence[str], seeds: Sequence[int]) -> str:
+    """Which code made the runs, e.g. "Code: sb3-er 0.1.0, commit 91bd149ab1 (40 runs)"."""
+    from sb3_er.experiments.runner import run_csv_path
+
+    counts: dict[str, int] = {}
+    for algo in algos:
+        for seed in seeds:
+            csv_path = run_csv_path(out_dir, algo, seed)
+            if csv_path.is_file():
+                description = records.describe_code(records.read_record(csv_path))
+                counts[description] = counts.get(description, 0) + 1
+    versions = "; ".join(f"{description} ({count} runs)" for description, count in counts.items())
+    mixed = " **Mixed versions: the runs were made by different code.**" if len(counts) > 1 else ""
+    return f"Code: {versions}.{mixed}"
+
+
 def reproduce(
     experiment_name: str,
     n_seeds: int = 20,
@@ -68,8 +101,24 @@ def reproduce(
     n_workers: int | None = None,
     first_seed: int = 0,
     show_progress: bool = True,
+    backend: str = "local",
+    address: str | None = None,
+    allow_mixed_versions: bool = False,
+    env_kwargs: dict | None = None,
+    algo_kwargs: dict | None = None,
 ) -> Reproduction:
-    """Run (or resume) an experiment and write its per-run CSVs, summary table (markdown and CSV) and figures."""
+    """Run (or resume) an experiment and write its per-run CSVs and records, summary table (markdown, CSV), figures.
+
+    `backend` ``"local"`` runs on `n_workers` processes (default: all CPUs); ``"ray"`` runs every (algorithm, seed)
+    pair as a Ray task with one CPU, on a local Ray instance of `n_workers` CPUs, or on the cluster at `address`
+    (``"auto"`` or ``"HOST:PORT"``). Resuming next to finished runs whose version record differs from the current code
+    or configuration, or that have no record, raises MixedVersionsError naming the runs and fields, unless
+    `allow_mixed_versions`. Failed runs raise RunFailure after the others are written.
+
+    `env_kwargs` and `algo_kwargs` run a reading other than the defaults: keyword arguments of ``gymnasium.make`` for
+    the learning and evaluation envs, and constructor arguments that override the zoo config of every algorithm that
+    has them (a name that no chosen algorithm accepts is a ValueError). The table's heading names them.
+    """
     from sb3_er.experiments.plots import plot_mean_with_ci
 
     start = time.perf_counter()
@@ -80,12 +129,22 @@ def reproduce(
     budget = float(experiment.default_budget if budget is None else budget)
     if budget <= 0:
         raise ValueError(f"the run length must be positive ({experiment.budget_unit}), got {budget}")
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    if address is not None and backend != "ray":
+        raise ValueError(f"an address ({address!r}) is for the Ray backend only; add --backend ray")
+    env_kwargs, algo_kwargs = dict(env_kwargs or {}), dict(algo_kwargs or {})
+    _check_algo_kwargs(algos, algo_kwargs)
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    _pin_settings(out_dir, experiment, budget)
+    _pin_settings(out_dir, experiment, budget, env_kwargs, algo_kwargs)
     seeds = list(range(first_seed, first_seed + n_seeds))
 
-    to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir)
-    run_jobs(to_run, n_workers or os.cpu_count() or 1, show_progress)
+    to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir, env_kwargs, algo_kwargs)
+    _check_finished_runs(finished, out_dir, allow_mixed_versions)
+    if backend == "local":
+        n_workers = n_workers or os.cpu_count() or 1
+    run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
+             allow_mixed_versions=allow_mixed_versions)
 
     curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
     table = summary_table(experiment, curves, budget)
@@ -112,8 +171,10 @@ def reproduce(
                 out_dir / "cumulative_falls.png",
             )
         )
+    figures += _per_run_figures(experiment, out_dir, curves, first_seed)
+    reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
     sections = [
-        f"# {experiment.title}: {n_seeds} seeds, {budget:g} {experiment.budget_unit} per run",
+        f"# {experiment.title}: {n_seeds} seeds, {budget:g} {experiment.budget_unit} per run{reading}",
         "",
         markdown_table(experiment, table),
         "",
@@ -122,6 +183,8 @@ def reproduce(
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
+        "",
+        _code_versions_line(out_dir, algos, seeds),
     ]
     if experiment.name == "gridworld":
         value_figures, value_section = _gridworld_value_maps(out_dir, first_seed)
@@ -138,6 +201,54 @@ def reproduce(
         runs_skipped=len(finished),
         wall_time_s=time.perf_counter() - start,
     )
+
+
+def _check_algo_kwargs(algos: Sequence[str], algo_kwargs: dict) -> None:
+    from sb3_er.experiments.runner import accepted_parameters
+    from sb3_er.zoo import algorithm_classes
+
+    accepted = set().union(*(accepted_parameters(algorithm_classes()[algo]) for algo in algos))
+    unknown = sorted(set(algo_kwargs) - accepted)
+    if unknown:
+        raise ValueError(f"no chosen algorithm has the parameters {unknown}; they take {sorted(accepted)}")
+
+
+def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: int) -> list[Path]:
+    """Figure 4.5 (one seed's learning curve per algorithm, for the walking experiments) and, for the walker, each
+    algorithm's learned gait (Figures 4.6 / 6.3, ``gait_<algo>.png``) and animation (``walker_<algo>.gif``) from the
+    first seed's final greedy policy."""
+    import shutil
+
+    import pandas as pd
+
+    from sb3_er.experiments.gait import GaitTrace, plot_gait
+    from sb3_er.experiments.plots import plot_typical_runs
+    from sb3_er.experiments.runner import artifact_path, run_csv_path
+
+    figures = []
+    if experiment.protocol == "walking":
+        runs = {}
+        for algo, curve in curves.items():
+            if curve is not None and seed in curve.seeds:
+                frame = pd.read_csv(run_csv_path(out_dir, algo, seed))
+                runs[ALGORITHM_LABELS[algo]] = (frame[experiment.x_column].to_numpy(),
+                                                frame[experiment.performance_column].to_numpy())
+        if runs:
+            figures.append(plot_typical_runs(runs, experiment.x_label, experiment.performance_label,
+                                             f"{experiment.title}: typical runs (seed {seed})",
+                                             out_dir / "typical_runs.png"))
+    for algo in curves:
+        csv_path = run_csv_path(out_dir, algo, seed)
+        gait_csv, gif = artifact_path(csv_path, "gait.csv"), artifact_path(csv_path, "walker.gif")
+        if gait_csv.is_file():
+            table = pd.read_csv(gait_csv)
+            trace = GaitTrace(table["time"].to_numpy(), table["stance_angle"].to_numpy(), table["hip_angle"].to_numpy(),
+                              table["swing_foot_height"].to_numpy(), bool(table["fell"].iloc[-1]), 0.0)
+            figures.append(plot_gait({ALGORITHM_LABELS[algo]: trace}, out_dir / f"gait_{algo}.png",
+                                     f"{experiment.title}: greedy gait after learning, {ALGORITHM_LABELS[algo]}"))
+        if gif.is_file():
+            figures.append(Path(shutil.copyfile(gif, out_dir / f"walker_{algo}.gif")))
+    return figures
 
 
 def _gridworld_value_maps(out_dir: Path, seed: int) -> tuple[list[Path], str]:

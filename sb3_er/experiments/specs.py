@@ -109,3 +109,86 @@ EXPERIMENTS: dict[str, Experiment] = {
         thesis_caption="Thesis Table 6.3: rise time in minutes, end performance in meters.",
     ),
 }
+
+
+@dataclass(frozen=True)
+class Analysis(Experiment):
+    """A thesis analysis that is no learning run under a protocol: `sb3-er reproduce replay-order` (Appendix A) and
+    `sb3-er reproduce pessimistic` (Figure 5.5).
+
+    Each run (one seed) is done by the function registered for ``task`` in
+    :data:`sb3_er.experiments.runner.TASKS`. ``unit`` is the unit of the run length (``budget``), and ``settings``
+    (sorted ``(name, value)`` pairs) holds the analysis's other settings. :meth:`with_settings` also writes them into
+    ``protocol``, the protocol name that every run's version record keeps, so that a resume with other settings is
+    refused like one with another configuration.
+    """
+
+    task: str = ""
+    unit: str = ""
+    settings: tuple = ()
+
+    @property
+    def budget_unit(self) -> str:
+        return self.unit
+
+    def setting(self, name: str):
+        """The value of setting `name`; KeyError naming the known settings otherwise."""
+        settings = dict(self.settings)
+        if name not in settings:
+            raise KeyError(f"{self.name} has no setting {name!r}; it has {sorted(settings)}")
+        return settings[name]
+
+    def with_settings(self, **settings) -> "Analysis":
+        """A copy with `settings` replacing those of the same name; ``protocol`` names all of them."""
+        import dataclasses
+
+        merged = tuple(sorted({**dict(self.settings), **settings}.items()))
+        protocol = f"{self.task}(" + ", ".join(f"{name}={value!r}" for name, value in merged) + ")"
+        return dataclasses.replace(self, settings=merged, protocol=protocol)
+
+
+def _analyses() -> dict[str, Experiment]:
+    import dataclasses
+
+    replay_order = Analysis(
+        name="replay-order",
+        env_id="sb3_er/PendulumSwingup-v0",
+        title="Inverted pendulum: replay orders on one Sarsa(λ) database per seed (Appendix A)",
+        protocol="replay_order",
+        default_budget=300_000,
+        x_column="replayed_updates",
+        x_label="replayed updates (samples)",
+        performance_column="return",
+        performance_label="return of a greedy 15 s episode",
+        rise_time_unit="replayed updates",
+        task="replay_order",
+        unit="replayed updates",
+    ).with_settings(database_episodes=200, eval_every=75_000)
+    pessimistic = Analysis(
+        name="pessimistic",
+        env_id="sb3_er/WindyCliff-v0",
+        title="Windy cliff: pessimistic initialisation against ER-σ on the same data and replays (Figure 5.5)",
+        protocol="pessimistic",
+        default_budget=30,
+        x_column="phase",
+        x_label="replay phases (10 × the stored trajectories each)",
+        performance_column="positive_cells",
+        performance_label="cells with V > 0",
+        rise_time_unit="phases",
+        task="pessimistic",
+        unit="replay phases",
+    ).with_settings(initial_value=-50.0)
+    sigma = dataclasses.replace(
+        EXPERIMENTS["walker"],
+        name="sigma",
+        title="Simplest walker: ER-σ with the five σ definitions of Appendix B",
+        thesis_table={},
+        thesis_caption="Thesis Appendix B, Figure B.1: definition 4 (between the worst case and the average) performs "
+        "best; performance drops greatly towards the best case. The thesis prints no numbers.",
+    )
+    return {"replay-order": replay_order, "sigma": sigma, "pessimistic": pessimistic}
+
+
+ANALYSES: dict[str, Experiment] = _analyses()
+"""`sb3-er reproduce` analyses beside the four experiments: Appendix A (``replay-order``), Appendix B (``sigma``, the
+walker experiment run once per σ definition) and Figure 5.5 (``pessimistic``)."""

@@ -1,0 +1,288 @@
+"""Shared machinery of the methods of thesis chapter 3 that keep a sample database D (Dyna, FQI, LSPI).
+
+- ``stored_transitions``: D as arrays, one row per transition (s_d, a_d, r_d, s'_d, terminal_d), read from the
+  ``TrajectoryReplayBuffer`` that ER also uses.
+- ``TileFeatures``: the binary design matrix Phi (n, f) of phi(s_d, a_d) over the f weights the data touches, as the
+  projection methods (thesis 3.5.1, Alg. 6) need it.
+- ``BufferedTileQAlgorithm``: a TileQAlgorithm that stores every transition (thesis Alg. 3 line 6 with
+  D <- D u {(s_k, a_k, s_{k+1}, r_{k+1})}) and saves/loads its buffer like ER.
+- ``FittedTileQAlgorithm``: adds the batch trigger of Alg. 3 line 7 (every ``fit_every`` episodes) for FQI and LSPI.
+"""
+
+import contextlib
+import pathlib
+import time
+from typing import Any, NamedTuple, Optional, Union
+
+import numpy as np
+import scipy.sparse as sp
+from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
+
+from sb3_er.common import kernels
+from sb3_er.common.base_class import DivergenceError, TileQAlgorithm
+from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.tile_coding import TileCoder
+
+try:
+    from threadpoolctl import threadpool_limits
+except ImportError:  # optional: without it, BLAS keeps its own thread count
+    threadpool_limits = None
+
+
+class Transitions(NamedTuple):
+    """The sample database D, oldest transition first (n rows; D observation dimensions, N tilings)."""
+
+    observations: np.ndarray  # (n, D) float64, s_d
+    slots: np.ndarray  # (n, N) int64, state tiles of s_d
+    actions: np.ndarray  # (n,) int64, flat a_d
+    rewards: np.ndarray  # (n,) float64, r_d
+    next_observations: np.ndarray  # (n, D) float64, s'_d
+    next_slots: np.ndarray  # (n, N) int64, state tiles of s'_d
+    terminal: np.ndarray  # (n,) bool: s'_d ended the episode by termination (target r_d)
+
+    def __len__(self) -> int:
+        return self.actions.shape[0]
+
+
+def stored_transitions(buffer: TrajectoryReplayBuffer, include_open: bool = False) -> Transitions:
+    """Every closed transition of the buffer as arrays (copies), oldest first.
+
+    s'_d is s_{d+1} of the next row inside a trajectory and the trajectory's stored last observation at its end.
+    ``include_open`` adds the open trajectory (the episode in progress), its last s' being the buffer's
+    ``open_next_obs``; its transitions are not terminal.
+    """
+    capacity = buffer.capacity
+    n_trajectories = buffer.n_trajectories
+    first = int(buffer.trajectory_start[buffer.oldest_trajectory]) if n_trajectories else buffer.write_row
+    n_open = buffer.open_length if include_open else 0
+    n = buffer.n_closed_transitions + n_open
+    rows = (first + np.arange(n)) % capacity
+    next_rows = (rows + 1) % capacity
+    next_observations = buffer.observations[next_rows]
+    next_slots = buffer.slots[next_rows]
+    terminal = np.zeros(n, dtype=np.bool_)
+    if n_trajectories:
+        trajectories = (buffer.oldest_trajectory + np.arange(n_trajectories)) % capacity
+        ends = np.cumsum(buffer.trajectory_length[trajectories]) - 1
+        next_observations[ends] = buffer.trajectory_next_obs[trajectories]
+        next_slots[ends] = buffer.trajectory_next_slots[trajectories]
+        terminal[ends] = buffer.trajectory_terminated[trajectories]
+    if n_open:
+        next_observations[n - 1] = buffer.open_next_obs
+        next_slots[n - 1] = buffer.tile_coder.slots(buffer.open_next_obs)
+    return Transitions(buffer.observations[rows], buffer.slots[rows], buffer.actions[rows], buffer.rewards[rows],
+                       next_observations, next_slots, terminal)
+
+
+def single_threaded_blas() -> contextlib.AbstractContextManager:
+    """Run BLAS (the vector operations inside scipy's solvers) on one thread, if threadpoolctl is installed.
+
+    The fits' vector operations are memory-bound, and OpenBLAS's thread synchronisation made them 10-30 times slower on
+    a loaded 2-core machine (a dot product of 383,000 numbers: 7.7 ms of CPU against 0.28 ms single-threaded). One
+    thread also keeps the summation order, and so the results, independent of the machine's core count.
+    """
+    if threadpool_limits is None:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def weight_indices(coder: TileCoder, slots: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Indices (n, N) of the active weights of phi(s_d, a_d), given the state tiles (n, N) and flat actions (n,)."""
+    tilings = np.arange(coder.n_tilings)[None, :]
+    return slots * coder.stride + coder.action_columns[tilings, np.asarray(actions)[:, None]]
+
+
+class TileFeatures:
+    """The binary design matrix Phi (n, f) of phi(s_d, a_d), restricted to the f weights the data touches.
+
+    Column j stands for weight ``touched[j]``; ``columns[d]`` are the N active columns of row d (a column repeated in a
+    row, a hash collision, has the value 2 there); ``counts[j]`` is how often column j is active.
+
+    :param coder: the policy's tile coder.
+    :param slots: (n, N) state tiles of s_d.
+    :param actions: (n,) flat actions a_d.
+    """
+
+    def __init__(self, coder: TileCoder, slots: np.ndarray, actions: np.ndarray):
+        self.coder = coder
+        indices = weight_indices(coder, slots, actions)
+        self.touched, inverse = np.unique(indices, return_inverse=True)
+        self.columns = np.ascontiguousarray(inverse.reshape(indices.shape), dtype=np.int64)
+        self.counts = np.bincount(self.columns.ravel(), minlength=self.n_features).astype(np.float64)
+
+    @property
+    def n_features(self) -> int:
+        return int(self.touched.shape[0])
+
+    def columns_of(self, slots: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """Columns (n, N) of phi(s, a) for other states and actions; -1 for weights outside the touched set and for rows
+        with a negative action (a terminal s')."""
+        indices = weight_indices(self.coder, slots, np.maximum(actions, 0))
+        position = np.minimum(np.searchsorted(self.touched, indices), self.n_features - 1)
+        found = (self.touched[position] == indices) & (np.asarray(actions) >= 0)[:, None]
+        return np.where(found, position, -1)
+
+    def matrix(self, columns: Optional[np.ndarray] = None) -> sp.csr_matrix:
+        """Phi as a scipy CSR matrix (n, f), or the matrix of other ``columns`` (entries -1 dropped)."""
+        columns = self.columns if columns is None else columns
+        n = columns.shape[0]
+        rows = np.repeat(np.arange(n), columns.shape[1])
+        flat = columns.ravel()
+        keep = flat >= 0
+        matrix = sp.csr_matrix((np.ones(int(keep.sum())), (rows[keep], flat[keep])), shape=(n, self.n_features))
+        matrix.sum_duplicates()
+        return matrix
+
+
+def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
+    if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= minimum):
+        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
+
+
+class BufferedTileQAlgorithm(TileQAlgorithm):
+    """A TileQAlgorithm that keeps every transition in a TrajectoryReplayBuffer (the database D of thesis 3.5.3).
+
+    A trajectory closes at each episode end and wherever the env sets ``info["segment_end"]``, as in ER.
+
+    :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
+    Other parameters as in TileQAlgorithm.
+    """
+
+    def __init__(self, policy, env, buffer_size: int = 1_000_000, **kwargs):
+        self.buffer_size = buffer_size
+        self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
+        super().__init__(policy, env, **kwargs)
+
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        _check_integer("buffer_size", self.buffer_size, minimum=1)
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder)
+
+    def _end_episode_at_reset(self) -> None:
+        """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last real
+        s_{t+1} (as ER does), never joined to the next episode; no fit is triggered."""
+        super()._end_episode_at_reset()
+        if self.replay_buffer is not None:
+            self.replay_buffer.truncate_open_trajectory()
+
+    def _store_transition(self, obs, action, reward, next_obs, terminated, done, info) -> bool:
+        """Add (s_k, a_k, r_{k+1}, s_{k+1}); close the trajectory at s_{k+1} if it ends here. Returns whether it
+        closed."""
+        self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
+        if done or info.get("segment_end", False):
+            return self.replay_buffer.close_trajectory(next_obs, terminated)
+        return False
+
+    def _record_train_metrics(self) -> None:
+        super()._record_train_metrics()
+        self.logger.record("train/transitions", self.replay_buffer.n_transitions)
+        self.logger.record("train/trajectories", self.replay_buffer.n_trajectories)
+
+    def save_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
+        """Save the stored transitions (and the visit vector w)."""
+        save_to_pkl(path, self.replay_buffer, self.verbose)
+
+    def load_replay_buffer(self, path: Union[str, pathlib.Path], truncate_last_traj: bool = True) -> None:
+        """Load a buffer saved by save_replay_buffer (of any algorithm of this package); its tile coding must match.
+
+        :param truncate_last_traj: as in SB3 and ER: close the episode that was in progress when the buffer was saved
+            as truncated (True, the default), or keep it open to be continued without an env reset.
+        """
+        buffer = load_from_pkl(path, self.verbose)
+        if not isinstance(buffer, TrajectoryReplayBuffer):
+            raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
+        if buffer.tile_coder.config() != self.policy.tile_coder.config():
+            raise ValueError("The replay buffer was stored with a different tile coding than this model's")
+        buffer.tile_coder = self.policy.tile_coder
+        if truncate_last_traj:
+            buffer.truncate_open_trajectory()
+        self.replay_buffer = buffer
+        self._on_buffer_replaced()
+
+    def _on_buffer_replaced(self) -> None:
+        """Hook: drop anything derived from the previous buffer."""
+
+
+class FittedTileQAlgorithm(BufferedTileQAlgorithm):
+    """A projection method (thesis Alg. 6) run on the whole database every ``fit_every`` episodes (Alg. 3 line 7 with
+    an event-based L). Between fits the agent acts epsilon-greedily on the current Q without learning.
+
+    Subclasses implement ``_fit(data)``, which writes theta and returns scalars to log under ``train/``.
+
+    :param fit_every: episodes between fits.
+    :param n_iterations: sweeps per fit (E of thesis 3.5.4; LSPI stops earlier once its policy is stable).
+    :param ridge: lambda of the ridge term lambda ||theta||^2 that keeps the least-squares systems regular.
+    """
+
+    def __init__(self, policy, env, fit_every: int = 5, n_iterations: int = 20, ridge: float = 1.0, **kwargs):
+        self.fit_every = fit_every
+        self.n_iterations = n_iterations
+        self.ridge = ridge
+        self.fits = 0
+        self.fit_seconds = 0.0
+        self._fit_stats: dict[str, float] = {}
+        super().__init__(policy, env, **kwargs)
+
+    def _check_hyperparameters(self) -> None:
+        super()._check_hyperparameters()
+        _check_integer("fit_every", self.fit_every, minimum=1, unit=" episode")
+        _check_integer("n_iterations", self.n_iterations, minimum=1)
+        if not (isinstance(self.ridge, (int, float)) and np.isfinite(self.ridge) and self.ridge > 0.0):
+            raise ValueError(f"ridge must be positive and finite (it keeps the systems regular), got {self.ridge!r}")
+
+    def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
+        self._store_transition(obs, action, reward, next_obs, terminated, done, info)
+        if done and (self._episode_num + 1) % self.fit_every == 0:
+            self.fit()
+
+    def fit(self) -> dict[str, float]:
+        """Fit Q on every closed transition now (one call of Alg. 6); returns the fit's statistics."""
+        data = stored_transitions(self.replay_buffer)
+        if len(data) == 0:
+            return {}
+        start = time.perf_counter()
+        with single_threaded_blas():
+            stats = self._fit(data)
+        if not np.all(np.isfinite(self.policy.theta_array)):
+            raise DivergenceError(
+                f"The Q-function diverged in fit {self.fits + 1} at step {self.num_timesteps}: non-finite weights. "
+                f"Raise ridge (now {self.ridge}) or check the rewards' scale."
+            )
+        self.fits += 1
+        self.fit_seconds += time.perf_counter() - start
+        self._fit_stats = stats
+        return stats
+
+    def _fit(self, data: Transitions) -> dict[str, float]:
+        raise NotImplementedError
+
+    def _record_train_metrics(self) -> None:
+        super()._record_train_metrics()
+        self.logger.record("train/fits", self.fits)
+        self.logger.record("train/fit_seconds", self.fit_seconds)
+        for name, value in self._fit_stats.items():
+            self.logger.record(f"train/{name}", value)
+
+    def _initial_values(self, indices: np.ndarray) -> np.ndarray:
+        """theta_0 (the policy's initial weights, 0 by default) at the weight ``indices`` (f,)."""
+        out = np.empty(indices.shape[0])
+        kernels.initial_weights_at(indices, *self.policy.initial_arguments, out)
+        return out
+
+    def _reset_weights(self, touched: np.ndarray, values: np.ndarray) -> None:
+        """theta <- values on the touched weights and theta_0 elsewhere: Q is a function of the data alone."""
+        theta = self.policy.theta_array
+        low, span, _ = self.policy.initial_arguments
+        if low == 0.0 and span == 0.0:
+            theta.fill(0.0)
+        else:
+            kernels.fill_initial_weights(theta, *self.policy.initial_arguments)
+        theta[touched] = values
+
+
+def features_summary(features: TileFeatures) -> dict[str, Any]:
+    """Sizes worth logging: touched features and the share of them seen only once."""
+    return {"features": features.n_features, "features_seen_once": float(np.mean(features.counts == 1))}

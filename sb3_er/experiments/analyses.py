@@ -1,0 +1,116 @@
+"""What the analyses of `sb3-er reproduce` share (``replay-order``, ``sigma``, ``pessimistic``; see
+:data:`sb3_er.experiments.specs.ANALYSES`): checking the request, pinning an output folder to its settings, running
+the jobs on the runner (parallel, resumable, versioned records, Ray) and the lines every summary ends with.
+
+Each analysis module has a ``reproduce_<name>(...)`` function that returns a
+:class:`~sb3_er.experiments.reproduce.Reproduction`; :data:`COMMANDS` maps the analysis names to them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from sb3_er.experiments import records
+from sb3_er.experiments.runner import BACKENDS, RunJob, run_jobs
+
+COMMANDS = {
+    "replay-order": "sb3_er.experiments.replay_order:reproduce_replay_order",
+    "sigma": "sb3_er.experiments.sigma_study:reproduce_sigma",
+    "pessimistic": "sb3_er.experiments.pessimistic:reproduce_pessimistic",
+}
+
+
+def command(name: str):
+    """The ``reproduce_<name>`` function of analysis `name`; ValueError naming the analyses for another name."""
+    if name not in COMMANDS:
+        raise ValueError(f"unknown analysis {name!r}; choose one of {', '.join(COMMANDS)}")
+    module, _, function = COMMANDS[name].partition(":")
+    return getattr(importlib.import_module(module), function)
+
+
+def check_request(n_seeds: int, budget: float, unit: str, backend: str, address: str | None) -> None:
+    """ValueError naming the problem for a non-positive seed count or run length (in `unit`), an unknown backend or
+    an address without the Ray backend."""
+    if int(n_seeds) != n_seeds or n_seeds < 1:
+        raise ValueError(f"the number of seeds must be a positive integer, got {n_seeds}")
+    if not budget > 0:
+        raise ValueError(f"the run length must be positive ({unit}), got {budget}")
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    if address is not None and backend != "ray":
+        raise ValueError(f"an address ({address!r}) is for the Ray backend only; add --backend ray")
+
+
+def pin_settings(out_dir: Path, settings: dict[str, Any]) -> None:
+    """Write `settings` to ``out_dir/settings.json``, or refuse (ValueError) when the folder holds runs of others."""
+    settings = records.normalized(settings)
+    path = Path(out_dir) / "settings.json"
+    if path.is_file():
+        existing = json.loads(path.read_text())
+        if existing != settings:
+            raise ValueError(
+                f"{out_dir} holds runs made with {existing}, not {settings}; resume with the same settings or choose "
+                "another --out"
+            )
+    else:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(settings, indent=2))
+
+
+def run_analysis_jobs(
+    jobs: list[RunJob],
+    out_dir: Path,
+    n_workers: int | None,
+    show_progress: bool,
+    backend: str,
+    address: str | None,
+    allow_mixed_versions: bool,
+) -> tuple[int, int]:
+    """Run the jobs whose CSV does not exist yet and return (runs done, runs already finished).
+
+    Finished runs are first checked against the current code and configuration (MixedVersionsError naming the runs
+    and fields unless `allow_mixed_versions`, see :mod:`sb3_er.experiments.records`). Failed runs raise RunFailure
+    after the others are written.
+    """
+    finished = [job for job in jobs if job.csv_path.is_file()]
+    to_run = [job for job in jobs if not job.csv_path.is_file()]
+    if finished:
+        code = records.code_version()
+        records.check_versions(
+            {job.key: records.read_record(job.csv_path) for job in finished},
+            {job.key: records.current_record(job, code) for job in finished},
+            allow_mixed_versions,
+            f"{out_dir} holds finished runs that",
+        )
+    if backend == "local":
+        n_workers = n_workers or os.cpu_count() or 1
+    run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
+             allow_mixed_versions=allow_mixed_versions)
+    return len(to_run), len(finished)
+
+
+def code_line(jobs: list[RunJob]) -> str:
+    """Which code made the finished runs of `jobs`, e.g. ``"Code: sb3-er 0.1.0, commit 91bd149ab1 (60 runs)."``."""
+    counts: dict[str, int] = {}
+    for job in jobs:
+        if job.csv_path.is_file():
+            description = records.describe_code(records.read_record(job.csv_path))
+            counts[description] = counts.get(description, 0) + 1
+    versions = "; ".join(f"{description} ({count} runs)" for description, count in counts.items())
+    mixed = " **Mixed versions: the runs were made by different code.**" if len(counts) > 1 else ""
+    return f"Code: {versions}.{mixed}"
+
+
+def env_reading(jobs: list[RunJob]) -> str:
+    """The env's constructor arguments as the first finished run of `jobs` resolved them (its defaults at run time,
+    overridden by ``--env-kwargs``), e.g. ``"max_torque=0.6, n_torques=7, ..."``; "unknown" without a record."""
+    for job in jobs:
+        record = records.read_record(job.csv_path) if job.csv_path.is_file() else None
+        if record is not None and "resolved" in record:
+            env = {name: value for name, value in record["resolved"]["env"].items() if name != "render_mode"}
+            return ", ".join(f"{name}={value!r}" for name, value in env.items())
+    return "unknown"

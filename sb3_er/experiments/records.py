@@ -1,0 +1,407 @@
+"""Version records of learning runs: which code and which configuration produced each per-run CSV.
+
+Every finished run of ``sb3-er reproduce`` has a record ``runs/<algo>/seed_<n>.json`` beside its CSV. The record is
+made where the run ran (a worker process or a Ray worker on another machine) and holds:
+
+- ``sb3_er_version``: ``sb3_er.__version__``;
+- ``code_sha256``: a hash of the code itself, every source file of the packages ``sb3_er`` and ``sb3_er_envs`` as
+  imported (see :func:`code_hash`; works for a checkout and an installed wheel alike);
+- ``git_commit``, ``git_dirty`` and ``git_diff_sha256``: the commit of the checkout the package was imported from,
+  whether the work tree differed from that commit, and a hash of the differences (see :func:`git_state`; all three
+  None when the package is not a git checkout, e.g. an installed wheel, or git is missing);
+- ``config``: what the driver asked for, so that it can be recomputed before running anything: experiment, algorithm
+  name, class and constructor keyword arguments (the zoo config entry without rl-zoo's run-level keys, plus policy and
+  seed), env id and ``gymnasium.make`` keyword arguments, run length (``budget`` in ``budget_unit``) and the protocol
+  (name, evaluation interval in seconds of learning time, greedy runs per evaluation, evaluation seed);
+- ``resolved``: what the run's objects held after construction: every constructor parameter of the algorithm's class
+  hierarchy within sb3_er read back from the model (e.g. ``policy_kwargs`` with the env's tiling filled in) and the
+  environment's constructor arguments with their defaults;
+- ``dependencies`` (versions of the numerical libraries) and ``python``; ``host``, ``finished_at`` (UTC, ISO 8601) and
+  ``wall_time_s`` (seconds from the run's start to its end).
+
+:func:`compare_records` decides what a resume may mix. A missing record, a different ``sb3_er_version``,
+``code_sha256`` or any ``config`` field refuses. Runs of different commits with identical code (a commit that touched
+only the README, say) mix freely, so a long reproduction survives commits that leave the code alone. Records without
+``code_sha256`` fall back to the commit: a different or unknown commit refuses, the same commit with different
+uncommitted changes warns. Different ``dependencies`` or Python versions warn. ``resolved``, ``host``, times and wall time are never compared: the resolved
+values follow from the config and the code, which are compared already.
+"""
+
+from __future__ import annotations
+
+import datetime
+import functools
+import hashlib
+import importlib.metadata
+import inspect
+import json
+import os
+import platform
+import socket
+import subprocess
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+RECORD_FORMAT = 1
+# The directory that holds the sb3_er package: a checkout's top level, or site-packages for an installed wheel.
+PACKAGE_ROOT = Path(__file__).resolve().parents[2]
+DEPENDENCIES = ("stable-baselines3", "gymnasium", "numpy", "numba", "torch", "mujoco", "dm-control")
+# Constructor parameters that are no settings of the run.
+_NOT_CONSTRUCTOR = {"self", "policy", "env", "_init_setup_model"}
+
+
+def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
+    """Commit, dirtiness and a hash of the uncommitted changes of the git checkout whose top level is `root`.
+
+    Returns ``{"git_commit": str | None, "git_dirty": bool | None, "git_diff_sha256": str | None}``: the full commit
+    hash of HEAD; whether the work tree differs from HEAD (changed tracked files, or untracked files that are not
+    ignored: a new module changes the code as much as an edited one); and the SHA-256 hex digest of ``git diff HEAD
+    --binary`` followed by the path and content of every untracked, not ignored file (name and size only above 1 MB),
+    None when clean. All three are None when `root` is not the top level of a git work tree (so a wheel installed in a
+    virtual environment inside some other repository gets None, not that repository's commit), when git is not
+    installed, or when git fails (e.g. "dubious ownership").
+    """
+    unknown = {"git_commit": None, "git_dirty": None, "git_diff_sha256": None}
+    root = Path(root).resolve()
+
+    def git(*arguments: str) -> bytes:
+        return subprocess.run(
+            ["git", "-C", str(root), *arguments], capture_output=True, check=True, timeout=60
+        ).stdout
+
+    try:
+        top_level = Path(git("rev-parse", "--show-toplevel").decode().strip()).resolve()
+        if top_level != root:
+            return unknown
+        commit = git("rev-parse", "HEAD").decode().strip()
+        digest = hashlib.sha256(git("diff", "HEAD", "--binary"))
+        untracked = sorted(name for name in git("ls-files", "--others", "--exclude-standard", "-z").split(b"\0") if name)
+        changed = digest.digest() != hashlib.sha256(b"").digest() or bool(untracked)
+        for name in untracked:
+            path = root / os.fsdecode(name)
+            digest.update(b"\0untracked\0" + name + b"\0")
+            size = path.stat().st_size if path.is_file() else 0
+            digest.update(path.read_bytes() if 0 < size <= 1 << 20 else str(size).encode())
+    except (OSError, subprocess.SubprocessError, ValueError):
+        return unknown
+    return {
+        "git_commit": commit,
+        "git_dirty": changed,
+        "git_diff_sha256": digest.hexdigest() if changed else None,
+    }
+
+
+CODE_SUFFIXES = (".py", ".xml", ".yml", ".yaml")
+
+
+@functools.lru_cache(maxsize=1)
+def code_hash() -> str:
+    """SHA-256 of the source of the imported packages ``sb3_er`` and ``sb3_er_envs``: every file with a suffix in
+    CODE_SUFFIXES under their directories (caches excluded), by relative path and content, in sorted order.
+
+    Read once per process, the first time it is asked for (``execute_run`` and the driver ask before any run): the
+    code a process runs is the code it imported, not what is on disk later. Editing the checkout during a long
+    reproduction therefore neither changes the records of the runs already under way nor refuses them.
+    """
+    import sb3_er
+    import sb3_er_envs
+
+    digest = hashlib.sha256()
+    for package in (sb3_er, sb3_er_envs):
+        root = Path(package.__file__).resolve().parent
+        for path in sorted(p for p in root.rglob("*") if p.suffix in CODE_SUFFIXES and "__pycache__" not in p.parts):
+            digest.update(f"\0{package.__name__}/{path.relative_to(root).as_posix()}\0".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def code_version() -> dict[str, Any]:
+    """``sb3_er_version``, :func:`code_hash` and :func:`git_state` of the imported package's checkout."""
+    import sb3_er
+
+    return {"sb3_er_version": sb3_er.__version__, "code_sha256": code_hash(), **git_state()}
+
+
+def _jsonable(value: Any) -> Any:
+    """`value` as plain JSON data: numpy scalars and arrays as numbers and lists, classes and functions as their
+    qualified names, anything else as its str (e.g. a torch device as "cpu")."""
+    import numpy as np
+
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (np.ndarray, list, tuple)):
+        return [_jsonable(item) for item in (value.tolist() if isinstance(value, np.ndarray) else value)]
+    if isinstance(value, dict):
+        return {str(key): _jsonable(item) for key, item in value.items()}
+    if isinstance(value, type) or callable(value):
+        return f"{getattr(value, '__module__', '?')}.{getattr(value, '__qualname__', repr(value))}"
+    return str(value)
+
+
+def normalized(record: dict[str, Any]) -> dict[str, Any]:
+    """`record` as it reads back from its JSON file (tuples become lists, numpy numbers Python numbers)."""
+    return json.loads(json.dumps(_jsonable(record)))
+
+
+def run_config(job) -> dict[str, Any]:
+    """The configuration of `job` (a :class:`~sb3_er.experiments.runner.RunJob`) as the driver plans it.
+
+    Raises ValueError for an algorithm that has no class (the zoo lookup names the known ones) and KeyError when
+    ``zoo_configs/<algo>.yml`` has no entry for the experiment's env.
+    """
+    from sb3_er.experiments.runner import job_model_kwargs
+    from sb3_er.zoo import algorithm_classes
+
+    experiment = job.experiment
+    classes = algorithm_classes()
+    if job.algo not in classes:
+        raise ValueError(f"unknown algorithm {job.algo!r}; choose one of {', '.join(classes)}")
+    algorithm_class = classes[job.algo]
+    walking = experiment.protocol == "walking"
+    return normalized(
+        {
+            "experiment": experiment.name,
+            "algorithm": job.algo,
+            "algorithm_class": f"{algorithm_class.__module__}.{algorithm_class.__qualname__}",
+            "algorithm_kwargs": {"policy": "TileQ", "seed": job.seed, **job_model_kwargs(job)},
+            "env_id": experiment.env_id,
+            "env_kwargs": dict(getattr(job, "env_kwargs", ())),
+            "budget": float(job.budget),
+            "budget_unit": experiment.budget_unit,
+            "protocol": {
+                "name": experiment.protocol,
+                "eval_interval_s": experiment.eval_interval if walking else None,
+                "eval_runs": experiment.eval_runs if walking else None,
+                "eval_seed": 10_000 + job.seed if walking else None,
+            },
+        }
+    )
+
+
+def resolved_settings(model, env) -> dict[str, Any]:
+    """What `model` (a tile-coded sb3_er algorithm) and `env` (a Gymnasium env) hold after construction.
+
+    ``algorithm``: each constructor parameter of the model's classes defined in sb3_er, read back from the model's
+    attribute of that name when it has one. ``env``: the unwrapped env's constructor arguments, the ones given to
+    ``gymnasium.make`` with the defaults of the rest.
+    """
+    names: list[str] = []
+    for cls in type(model).__mro__:
+        if not cls.__module__.startswith("sb3_er") or "__init__" not in vars(cls):
+            continue
+        for parameter in inspect.signature(cls.__init__).parameters.values():
+            if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY) and (
+                parameter.name not in _NOT_CONSTRUCTOR and parameter.name not in names
+            ):
+                names.append(parameter.name)
+    algorithm = {name: getattr(model, name) for name in sorted(names) if hasattr(model, name)}
+    unwrapped = env.unwrapped
+    given = dict(env.spec.kwargs) if env.spec is not None else {}
+    try:
+        bound = inspect.signature(type(unwrapped)).bind_partial(**given)
+        bound.apply_defaults()
+        env_arguments = dict(bound.arguments)
+    except (TypeError, ValueError):
+        env_arguments = given
+    return normalized({"algorithm": algorithm, "env": env_arguments})
+
+
+def dependency_versions(names: Iterable[str] = DEPENDENCIES) -> dict[str, str | None]:
+    """Installed versions of `names` (distribution names), None for those not installed."""
+    versions = {}
+    for name in names:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def current_record(job, code: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The comparable part of the record that `job` would get from this process: code version, config, dependencies.
+
+    `code` is a :func:`code_version` result to reuse (git is asked once per call otherwise).
+    """
+    return normalized(
+        {
+            "format": RECORD_FORMAT,
+            "run": job.key,
+            **(code if code is not None else code_version()),
+            "config": run_config(job),
+            "dependencies": dependency_versions(),
+            "python": platform.python_version(),
+        }
+    )
+
+
+def finished_record(job, model, env, wall_time_s: float, code: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The full record of a finished run of `job`: :func:`current_record` plus resolved settings, host and times.
+
+    `code` is the :func:`code_version` read when the run started (read now when None).
+    """
+    return normalized(
+        {
+            **current_record(job, code),
+            "resolved": resolved_settings(model, env),
+            "host": socket.gethostname(),
+            "finished_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "wall_time_s": wall_time_s,
+        }
+    )
+
+
+def record_path(csv_path: str | Path) -> Path:
+    """Where the record of the run whose CSV is `csv_path` lives: the same name with ``.json``."""
+    return Path(csv_path).with_suffix(".json")
+
+
+def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
+    """Write `data` as indented JSON to `path` through a ``.partial`` file and a rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+    os.replace(partial, path)
+
+
+def read_record(csv_path: str | Path) -> dict[str, Any] | None:
+    """The record beside `csv_path`, or None when there is none. A file that is not a JSON object raises ValueError."""
+    path = record_path(csv_path)
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{path} is not valid JSON ({error}); delete it and its CSV to rerun the run") from error
+    if not isinstance(record, dict):
+        raise ValueError(f"{path} holds no version record (a JSON object); delete it and its CSV to rerun the run")
+    return record
+
+
+def _leaves(value: Any, prefix: str) -> dict[str, Any]:
+    if isinstance(value, dict) and value:
+        leaves = {}
+        for key, item in value.items():
+            leaves.update(_leaves(item, f"{prefix}.{key}" if prefix else str(key)))
+        return leaves
+    return {prefix: value}
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, str) and len(value) >= 40 and all(c in "0123456789abcdef" for c in value):
+        return value[:10]  # a commit or SHA-256 hash
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _differences(recorded: Any, current: Any, prefix: str) -> list[str]:
+    old, new = _leaves(recorded, prefix), _leaves(current, prefix)
+    return [
+        f"{key} {_short(old.get(key, '(absent)'))} -> {_short(new.get(key, '(absent)'))}"
+        for key in sorted(set(old) | set(new))
+        if old.get(key, "(absent)") != new.get(key, "(absent)")
+    ]
+
+
+def compare_records(recorded: dict[str, Any] | None, current: dict[str, Any]) -> tuple[list[str], list[str]]:
+    """(reasons to refuse, reasons to warn) when a run recorded as `recorded` meets the `current` record.
+
+    Each reason is one line naming the field with its recorded and current values, e.g.
+    ``"config.algorithm_kwargs.learning_rate 0.25 -> 0.3"``. `recorded` None (a run without a record) refuses as an
+    unknown version.
+    """
+    if recorded is None:
+        return ["no version record (a run made before records existed, or its .json was deleted): unknown version"], []
+    refusals = _differences(recorded.get("sb3_er_version"), current.get("sb3_er_version"), "sb3_er_version")
+    warnings = []
+    if recorded.get("code_sha256") is not None and current.get("code_sha256") is not None:
+        refusals += _differences(recorded.get("code_sha256"), current.get("code_sha256"), "code_sha256")
+    else:  # an older record: the commit is all we know of the code
+        refusals += _differences(recorded.get("git_commit"), current.get("git_commit"), "git_commit")
+        same_commit = recorded.get("git_commit") == current.get("git_commit") and current.get("git_commit") is not None
+        either_dirty = recorded.get("git_dirty") or current.get("git_dirty")
+        if same_commit and either_dirty and recorded.get("git_diff_sha256") != current.get("git_diff_sha256"):
+            warnings.append(
+                "same commit, different uncommitted changes (git_diff_sha256 "
+                f"{_short(recorded.get('git_diff_sha256'))} -> {_short(current.get('git_diff_sha256'))})"
+            )
+    refusals += _differences(recorded.get("config"), current.get("config"), "config")
+    warnings += _differences(recorded.get("dependencies"), current.get("dependencies"), "dependencies")
+    warnings += _differences(recorded.get("python"), current.get("python"), "python")
+    return refusals, warnings
+
+
+def grouped(reasons_by_run: dict[str, list[str]]) -> list[str]:
+    """Lines ``"run, run, ...: reason; reason"``, one per distinct list of reasons, runs in their given order."""
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for run, reasons in reasons_by_run.items():
+        if reasons:
+            groups.setdefault(tuple(reasons), []).append(run)
+    return [f"  {', '.join(runs)}: {'; '.join(reasons)}" for reasons, runs in groups.items()]
+
+
+def describe_code(record: dict[str, Any] | None) -> str:
+    """One-line description of the code version in `record`, e.g. ``"sb3-er 0.1.0, commit 91bd149ab1 (dirty)"``."""
+    if record is None:
+        return "unknown version (no record)"
+    commit = record.get("git_commit")
+    where = f"commit {commit[:10]}" + (" (dirty)" if record.get("git_dirty") else "") if commit else "no git commit"
+    return f"sb3-er {record.get('sb3_er_version')}, {where}"
+
+
+class MixedVersionsError(ValueError):
+    """Finished runs were made by other code or another configuration than the current one."""
+
+
+class MixedVersionsWarning(UserWarning):
+    """Finished runs share the commit and configuration but not the uncommitted changes or library versions."""
+
+
+OVERRIDE_HINT = "--allow-mixed-versions (reproduce(..., allow_mixed_versions=True))"
+
+
+def check_versions(
+    recorded: dict[str, dict[str, Any] | None],
+    current: dict[str, dict[str, Any]],
+    allow_mixed_versions: bool,
+    what: str,
+) -> None:
+    """Refuse (MixedVersionsError) or warn (MixedVersionsWarning) when `recorded` runs differ from `current`.
+
+    `recorded` and `current` map run keys (``"er/seed_3"``) to records (None: no record); `what` names the runs in the
+    message (e.g. ``"results/leo holds finished runs that"``). With `allow_mixed_versions` the reasons to refuse are
+    warned about instead.
+    """
+    import warnings
+
+    refusals, cautions = {}, {}
+    for key, record in recorded.items():
+        refusals[key], cautions[key] = compare_records(record, current[key])
+    refused = grouped(refusals)
+    if refused and not allow_mixed_versions:
+        raise MixedVersionsError(
+            f"{what} differ from the current code or configuration (recorded -> current):\n" + "\n".join(refused)
+            + f"\nUse another --out, delete these runs' .csv and .json files to rerun them, or pass {OVERRIDE_HINT} "
+            "to keep them beside runs of the current version."
+        )
+    if refused:
+        warnings.warn(
+            f"{what} differ from the current code or configuration, kept because mixed versions are allowed:\n"
+            + "\n".join(refused),
+            MixedVersionsWarning,
+            stacklevel=4,
+        )
+    cautioned = grouped(cautions)
+    if cautioned:
+        warnings.warn(
+            f"{what} differ in uncommitted changes or library versions (recorded -> current):\n"
+            + "\n".join(cautioned)
+            + "\nCommit your changes before a long reproduction so that its runs can be told apart.",
+            MixedVersionsWarning,
+            stacklevel=4,
+        )
+
+
+code_hash()  # the code this process imported, read now (see code_hash)

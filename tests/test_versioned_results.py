@@ -1,0 +1,192 @@
+"""Version records beside each run's CSV, and resumes that refuse (or, when allowed, warn about) mixed versions."""
+
+import datetime
+import json
+import shutil
+import subprocess
+import warnings
+
+import pandas as pd
+import pytest
+import yaml
+
+import sb3_er
+from sb3_er import zoo
+from sb3_er.cli import main
+from sb3_er.experiments import records
+from sb3_er.experiments.records import MixedVersionsError, MixedVersionsWarning
+from sb3_er.experiments.reproduce import reproduce
+from sb3_er.experiments.runner import RunFailure, plan_jobs, run_csv_path, run_jobs
+from sb3_er.experiments.specs import EXPERIMENTS
+
+# The pendulum with one learning episode per run is the cheapest reproduction (about a second per run).
+FAST = {"algos": ["er"], "budget": 1, "n_workers": 1, "show_progress": False}
+RUN_LEVEL_KEYS = {"n_timesteps", "policy"}  # keys of zoo_configs/er.yml that are no constructor arguments
+needs_git = pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")
+
+
+def _fake_commit(monkeypatch, commit, dirty=False, diff=None, code="from the commit"):
+    """Pretend the code is at `commit`; its code hash is the commit's letter repeated, or `code` (None: unknown)."""
+    state = {"git_commit": commit, "git_dirty": dirty, "git_diff_sha256": diff}
+    monkeypatch.setattr(records, "git_state", lambda root=records.PACKAGE_ROOT: dict(state))
+    monkeypatch.setattr(records, "code_hash", lambda: commit[0] * 64 if code == "from the commit" else code)
+
+
+def _git(cwd, *arguments):
+    return subprocess.run(["git", *arguments], cwd=cwd, capture_output=True, text=True, check=True).stdout.strip()
+
+
+@needs_git
+def test_git_state_of_a_checkout_a_dirty_tree_and_no_checkout(tmp_path):
+    repository = tmp_path / "repository"
+    (repository / "package").mkdir(parents=True)
+    _git(repository, "init", "-q")
+    (repository / "package" / "module.py").write_text("x = 1\n")
+    _git(repository, "add", ".")
+    _git(repository, "-c", "user.name=t", "-c", "user.email=t@example.org", "commit", "-qm", "first")
+    commit = _git(repository, "rev-parse", "HEAD")
+    assert records.git_state(repository) == {"git_commit": commit, "git_dirty": False, "git_diff_sha256": None}
+
+    (repository / "package" / "module.py").write_text("x = 2\n")
+    edited = records.git_state(repository)
+    assert (edited["git_commit"], edited["git_dirty"]) == (commit, True) and len(edited["git_diff_sha256"]) == 64
+    (repository / "package" / "new_module.py").write_text("y = 1\n")  # an untracked file changes the code too
+    assert records.git_state(repository)["git_diff_sha256"] not in (None, edited["git_diff_sha256"])
+
+    unknown = {"git_commit": None, "git_dirty": None, "git_diff_sha256": None}
+    assert records.git_state(tmp_path / "not_a_checkout") == unknown
+    # a package below a checkout's top level (a wheel in a virtual environment inside a repository) is no checkout
+    assert records.git_state(repository / "package") == unknown
+
+
+def test_record_holds_version_commit_and_resolved_configuration(tmp_path):
+    result = reproduce("pendulum", n_seeds=1, first_seed=3, out_dir=tmp_path, **FAST)
+    csv_path = run_csv_path(tmp_path, "er", 3)
+    record = json.loads(csv_path.with_suffix(".json").read_text())
+
+    assert record["run"] == "er/seed_3" and record["sb3_er_version"] == sb3_er.__version__
+    top_level = records.PACKAGE_ROOT
+    if shutil.which("git") and (top_level / ".git").exists():
+        assert record["git_commit"] == _git(top_level, "rev-parse", "HEAD")
+        changed = _git(top_level, "status", "--porcelain")
+        assert record["git_dirty"] == bool(changed) and (record["git_diff_sha256"] is None) == (not changed)
+    else:  # an installed wheel: no commit to record
+        assert record["git_commit"] is None and record["git_dirty"] is None
+
+    entry = yaml.safe_load((zoo.CONFIG_DIR / "er.yml").read_text())["sb3_er/PendulumSwingup-v0"]
+    config = record["config"]
+    assert config["algorithm_kwargs"] == {
+        "policy": "TileQ", "seed": 3, **{key: value for key, value in entry.items() if key not in RUN_LEVEL_KEYS}
+    }
+    assert (config["algorithm"], config["algorithm_class"]) == ("er", "sb3_er.er.ER")
+    assert (config["env_id"], config["env_kwargs"]) == ("sb3_er/PendulumSwingup-v0", {})
+    assert (config["budget"], config["budget_unit"], config["protocol"]["name"]) == (1.0, "episodes", "episodes")
+    # what the model and the env held: the thesis's settings (4.2.1) and ER's own defaults
+    resolved = record["resolved"]
+    assert (resolved["algorithm"]["learning_rate"], resolved["algorithm"]["gamma"]) == (0.2, 0.98)
+    assert resolved["algorithm"]["replay_order"] == "reversed" and resolved["algorithm"]["seed"] == 3
+    assert (resolved["env"]["dt"], resolved["env"]["episode_seconds"]) == (0.01, 15.0)
+    assert record["dependencies"]["stable-baselines3"] == __import__("stable_baselines3").__version__
+    assert 0 < record["wall_time_s"] < 600
+    assert datetime.datetime.fromisoformat(record["finished_at"]).tzinfo is not None
+    assert len(pd.read_csv(csv_path)) == 1
+    assert f"Code: sb3-er {sb3_er.__version__}" in result.table_markdown.read_text()
+
+
+def test_resume_refuses_a_changed_configuration(tmp_path, monkeypatch):
+    reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    original = zoo.load_hyperparameters
+
+    def other_learning_rate(algo, env_id):
+        return {**original(algo, env_id), "learning_rate": 0.3}
+
+    monkeypatch.setattr(zoo, "load_hyperparameters", other_learning_rate)
+    with pytest.raises(MixedVersionsError) as refusal:
+        reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
+    message = str(refusal.value)
+    assert "er/seed_0: config.algorithm_kwargs.learning_rate 0.2 -> 0.3" in message
+    assert "--allow-mixed-versions" in message
+    assert not run_csv_path(tmp_path, "er", 1).exists()  # refused before running anything
+
+
+def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_path, monkeypatch, capsys):
+    _fake_commit(monkeypatch, "a" * 40)
+    reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    _fake_commit(monkeypatch, "b" * 40)  # same configuration, other code
+    with pytest.raises(MixedVersionsError, match="er/seed_0: code_sha256 aaaaaaaaaa -> bbbbbbbbbb"):
+        reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
+
+    arguments = ["reproduce", "pendulum", "--seeds", "2", "--algos", "er", "--budget", "1", "--jobs", "1",
+                 "--no-progress", "--out", str(tmp_path)]
+    with pytest.raises(SystemExit) as exit_info:
+        main(arguments)
+    assert exit_info.value.code == 2
+    assert "code_sha256 aaaaaaaaaa -> bbbbbbbbbb" in capsys.readouterr().err
+
+    with pytest.warns(MixedVersionsWarning, match="kept because mixed versions are allowed"):
+        main([*arguments, "--allow-mixed-versions"])
+    assert "1 runs done, 1 already finished" in capsys.readouterr().out
+    assert records.read_record(run_csv_path(tmp_path, "er", 0))["git_commit"] == "a" * 40
+    assert records.read_record(run_csv_path(tmp_path, "er", 1))["git_commit"] == "b" * 40
+    summary = (tmp_path / "summary.md").read_text()
+    assert "commit aaaaaaaaaa (1 runs)" in summary and "commit bbbbbbbbbb (1 runs)" in summary
+    assert "Mixed versions" in summary
+
+
+def test_a_commit_that_leaves_the_code_alone_mixes_freely(tmp_path, monkeypatch):
+    _fake_commit(monkeypatch, "a" * 40, code="c" * 64)
+    reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    _fake_commit(monkeypatch, "b" * 40, code="c" * 64)  # e.g. a commit of the README during a long reproduction
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MixedVersionsWarning)
+        resumed = reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
+    assert (resumed.runs_done, resumed.runs_skipped) == (1, 1)
+
+
+def test_without_a_code_hash_the_same_commit_warns_only_when_the_uncommitted_changes_differ(tmp_path, monkeypatch):
+    _fake_commit(monkeypatch, "a" * 40, dirty=True, diff="1" * 64, code=None)
+    reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MixedVersionsWarning)
+        resumed = reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)  # the same changes: silent
+    assert (resumed.runs_done, resumed.runs_skipped) == (0, 1)
+    _fake_commit(monkeypatch, "a" * 40, dirty=True, diff="2" * 64, code=None)
+    with pytest.warns(MixedVersionsWarning, match="er/seed_0: same commit, different uncommitted changes"):
+        resumed = reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
+    assert (resumed.runs_done, resumed.runs_skipped) == (1, 1)
+
+
+def test_runs_without_a_record_are_an_unknown_version(tmp_path):
+    reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    run_csv_path(tmp_path, "er", 0).with_suffix(".json").unlink()  # as in a folder made before records existed
+    with pytest.raises(MixedVersionsError, match="er/seed_0: no version record .*unknown version"):
+        reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
+    with pytest.warns(MixedVersionsWarning):
+        result = reproduce("pendulum", n_seeds=1, out_dir=tmp_path, allow_mixed_versions=True, **FAST)
+    assert "unknown version (no record) (1 runs)" in result.table_markdown.read_text()
+
+
+def test_a_run_made_by_other_code_than_the_drivers_is_not_written(tmp_path, monkeypatch):
+    # the driver reads the commit before it starts a run, the run when it starts: a node with other code
+    codes = iter(["a" * 64, "b" * 64] * 2)
+    monkeypatch.setattr(records, "code_hash", lambda: next(codes))
+    jobs, _ = plan_jobs(EXPERIMENTS["pendulum"], ["er"], [0], 1, tmp_path)
+    expected = r"er/seed_0:\nran on .* other code .*\(worker -> driver\): code_sha256 bbbbbbbbbb -> aaaaaaaaaa"
+    with pytest.raises(RunFailure, match=expected):
+        run_jobs(jobs, 1, show_progress=False)
+    assert not run_csv_path(tmp_path, "er", 0).exists()
+    with pytest.warns(MixedVersionsWarning, match="er/seed_0 ran with .*code_sha256 bbbbbbbbbb -> aaaaaaaaaa"):
+        run_jobs(jobs, 1, show_progress=False, allow_mixed_versions=True)
+    assert records.read_record(run_csv_path(tmp_path, "er", 0))["code_sha256"] == "b" * 64
+
+
+def test_compare_records_names_each_differing_field():
+    current = {"sb3_er_version": "0.2.0", "git_commit": "c" * 40, "config": {"budget": 5.0, "protocol": {"x": 1}},
+               "dependencies": {"numpy": "2.1"}, "python": "3.11.7"}
+    recorded = {**current, "sb3_er_version": "0.1.0", "config": {"budget": 4.0, "protocol": {"x": 1, "y": 2}},
+                "dependencies": {"numpy": "2.0"}}
+    refusals, cautions = records.compare_records(recorded, current)
+    assert refusals == ['sb3_er_version "0.1.0" -> "0.2.0"', "config.budget 4.0 -> 5.0",
+                        'config.protocol.y 2 -> "(absent)"']
+    assert cautions == ['dependencies.numpy "2.0" -> "2.1"']
+    assert records.compare_records(current, current) == ([], [])
