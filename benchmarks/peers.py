@@ -1,4 +1,3 @@
-#!/usr/bin/env python
 """sb3-er beside its peers on Gymnasium's classic control: SB3's DQN with rl-zoo's tuned hyperparameters, and
 MushroomRL's tile-coded SARSA(lambda) (issue 12).
 
@@ -74,7 +73,8 @@ MUSHROOM_PINS = (
     "mushroom-rl==1.10.1", "numpy==1.26.4", "scipy==1.17.1", "scikit-learn==1.9.1", "matplotlib==3.11.2",
     "opencv-python==4.11.0.86", "pygame==2.6.1", "gymnasium==1.4.0",
 )
-DEFAULT_MUSHROOM_VENV = Path(os.environ.get("SB3_ER_MUSHROOM_VENV", Path.home() / ".cache" / "sb3-er" / "mushroom-venv"))
+DEFAULT_MUSHROOM_VENV = Path(os.environ.get("SB3_ER_MUSHROOM_VENV",
+                                            Path.home() / ".cache" / "sb3-er" / "mushroom-venv"))
 RESULT_PREFIX = "PEERS_RESULT "
 
 
@@ -200,7 +200,7 @@ def mushroom_tiles(n_tilings: int, tile_widths, low, high) -> list[int]:
     """Tiles per dimension for MushroomRL's ``Tiles.generate(n_tilings, n_tiles, low, high)`` whose width comes
     closest to ``tile_widths``: its tiles are (high - low) / (n - (N - 1) / N) wide (mushroom_rl/features/tiles)."""
     spill = (n_tilings - 1) / n_tilings
-    return [max(1, int(round((h - lo) / w + spill))) for w, lo, h in zip(tile_widths, low, high)]
+    return [max(1, round((h - lo) / w + spill)) for w, lo, h in zip(tile_widths, low, high)]
 
 
 def mushroom_widths(n_tilings: int, n_tiles, low, high) -> list[float]:
@@ -255,7 +255,7 @@ def _run_mushroom(config: dict) -> dict:
     agent = SARSALambdaContinuous(
         mdp.info, policy, LinearApproximator, learning_rate=Parameter(hyper["learning_rate"] / n_tilings),
         lambda_coeff=hyper["trace_lambda"], features=features,
-        approximator_params=dict(input_shape=(features.size,), output_shape=(n_actions,), n_actions=n_actions),
+        approximator_params={"input_shape": (features.size,), "output_shape": (n_actions,), "n_actions": n_actions},
     )
     baseline = _rss_mb()
 
@@ -303,7 +303,7 @@ def mushroom_ready(venv: Path) -> tuple[bool, str]:
     if not python.exists():
         return False, f"MushroomRL's venv {venv} is not built (python benchmarks/peers.py --build-mushroom)"
     probe = subprocess.run([str(python), "-c", "import mushroom_rl, gymnasium; print(mushroom_rl.__version__)"],
-                           capture_output=True, text=True)
+                           check=False, capture_output=True, text=True)
     if probe.returncode != 0:
         return False, f"MushroomRL's venv {venv} does not import mushroom_rl and gymnasium: {probe.stderr[-500:]}"
     return True, f"mushroom-rl {probe.stdout.strip()} in {venv}"
@@ -355,7 +355,7 @@ def mushroom_tiling(env_id: str) -> dict:
 def run_one(config: dict, python: str) -> dict:
     """One (method, env, seed) in a fresh subprocess; its result dict."""
     command = [python, os.path.abspath(__file__), "--worker", json.dumps(config)]
-    process = subprocess.run(command, capture_output=True, text=True)
+    process = subprocess.run(command, check=False, capture_output=True, text=True)
     lines = [line for line in process.stdout.splitlines() if line.startswith(RESULT_PREFIX)]
     if process.returncode != 0 or not lines:
         raise RuntimeError(f"{config['method']} on {config['env']} (seed {config['seed']}) failed:\n"
@@ -377,11 +377,11 @@ def _steps(results, key) -> str:
 
 def markdown_tables(results: list[dict]) -> str:
     """The summary table (one row per env and method) and the per-seed table."""
-    rows = ["| env | method | steps | steps to threshold (seeds) | steps to target (seeds) | final return (mean ± sd "
-            "over seeds) | learn wall s | learn CPU s | steps/CPU s | peak RSS MB | above imports MB |",
+    rows = [("| env | method | steps | steps to threshold (seeds) | steps to target (seeds) | final return (mean ± sd "
+             "over seeds) | learn wall s | learn CPU s | steps/CPU s | peak RSS MB | above imports MB |"),
             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    per_seed = ["| env | method | seed | final mean | final median | steps to threshold | steps to target | "
-                "learn CPU s | episodes |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    per_seed = [("| env | method | seed | final mean | final median | steps to threshold | steps to target | "
+                 "learn CPU s | episodes |"), "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     groups: dict[tuple[str, str], list[dict]] = {}
     for result in results:
         groups.setdefault((result["env"], result["method"]), []).append(result)
@@ -392,11 +392,12 @@ def markdown_tables(results: list[dict]) -> str:
             f"| {env_id} | {METHOD_LABELS[method]} | {group[0]['budget']:,} | {_steps(group, 'steps_to_threshold')} | "
             f"{_steps(group, 'steps_to_target')} | {statistics.fmean(finals):.1f} ± {spread:.1f} | "
             f"{_median([r['learn_wall_s'] for r in group]):.1f} | {_median([r['learn_cpu_s'] for r in group]):.1f} | "
-            f"{_median([r['steps_per_cpu_s'] for r in group]):,.0f} | {_median([r['peak_rss_mb'] for r in group]):.0f} | "
+            f"{_median([r['steps_per_cpu_s'] for r in group]):,.0f} | "
+            f"{_median([r['peak_rss_mb'] for r in group]):.0f} | "
             f"{_median([r['peak_rss_mb'] - r['baseline_rss_mb'] for r in group]):.0f} |"
         )
         for r in group:
-            fmt = lambda v: "-" if v is None else f"{v:,}"  # noqa: E731
+            fmt = lambda v: "-" if v is None else f"{v:,}"
             per_seed.append(
                 f"| {env_id} | {METHOD_LABELS[method]} | {r['seed']} | {r['final_mean']:.1f} | {r['final_median']:.1f} "
                 f"| {fmt(r['steps_to_threshold'])} | {fmt(r['steps_to_target'])} | {r['learn_cpu_s']:.1f} | "
