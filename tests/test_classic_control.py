@@ -5,8 +5,8 @@ Expected widths are computed here from the envs' own constants (bounds, terminat
 recipes, not read back from the package data.
 """
 
-import tomllib
 from pathlib import Path
+from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -16,12 +16,15 @@ from gymnasium.envs.classic_control import CartPoleEnv
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import SubprocVecEnv
 
-from sb3_er import ER, ERSigma, SarsaLambda
-from sb3_er import zoo
-from sb3_er.common.base_class import default_tile_widths, default_tiles_per_dimension, package_tilings
+from sb3_er import ER, ERSigma, SarsaLambda, zoo
+from sb3_er.common.base_class import (
+    default_tile_widths,
+    default_tiles_per_dimension,
+    package_tilings,
+)
 
 CLASSIC_IDS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
-SMALL = dict(memory_size=2**16)
+SMALL = {"memory_size": 2**16}
 
 
 def widths_of(model):
@@ -68,6 +71,7 @@ def test_constant_dimensions_do_not_count_in_the_budget():
 # --- sb3-er's tilings for the classic-control ids ------------------------------------------------------------------
 
 def test_package_data_is_declared_for_the_wheel():
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
     pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
     assert "sb3_er.data" in pyproject["tool"]["setuptools"]["packages"]
     assert "*.yml" in pyproject["tool"]["setuptools"]["package-data"]["sb3_er.data"]
@@ -131,7 +135,7 @@ def test_the_id_is_found_in_a_subproc_vec_env():
 class WithTileWidths(gym.Wrapper):
     """CartPole carrying its own ``tile_widths`` attribute, as sb3-er's envs do."""
 
-    tile_widths = [1.0, 2.0, 0.1, 2.0]
+    tile_widths: ClassVar[list[float]] = [1.0, 2.0, 0.1, 2.0]
 
 
 def test_precedence_policy_kwargs_then_env_then_package_then_generic():
@@ -148,7 +152,7 @@ def test_precedence_policy_kwargs_then_env_then_package_then_generic():
 
 
 def test_explicit_tiles_per_dimension_beats_the_envs_widths():
-    model = SarsaLambda("TileQ", WithTileWidths(gym.make("MountainCar-v0")), policy_kwargs=dict(tiles_per_dimension=2))
+    model = SarsaLambda("TileQ", WithTileWidths(gym.make("MountainCar-v0")), policy_kwargs={"tiles_per_dimension": 2})
     assert widths_of(model) == pytest.approx([1.8 / 2, 0.14 / 2])
 
 
@@ -182,7 +186,7 @@ def test_verbose_prints_the_tiling_and_its_source(capsys):
     out = capsys.readouterr().out
     assert ("Tile coding: 16 tilings, tile widths [0.18, 0.014] from sb3-er's tiling for MountainCar-v0 "
             "(Sutton & Barto (2018) section 10.1's tiling") in out
-    SarsaLambda("TileQ", UnitBoxEnv(), policy_kwargs=dict(n_tilings=4), verbose=1)
+    SarsaLambda("TileQ", UnitBoxEnv(), policy_kwargs={"n_tilings": 4}, verbose=1)
     out = capsys.readouterr().out
     assert "Tile coding: 4 tilings from policy_kwargs; tile widths [0.2, 0.2, 0.2, 0.2, 0.2, 0.2] from the generic " \
            "rule: 5 tiles per bounded dimension" in out
@@ -207,6 +211,19 @@ def test_zoo_entries_are_the_class_defaults_on_the_package_tilings(algo, env_id)
     assert "policy_kwargs" not in kwargs  # the tiling comes from sb3_er/data/tilings.yml
     assert zoo.load_hyperparameters(algo, env_id)["n_timesteps"] == 100_000
     assert kwargs.get("residual_zeta") == (0.5 if algo.startswith("residual") else None)
+
+
+@pytest.mark.parametrize("algo", zoo.FRAMEWORK_ALGORITHM_NAMES)
+@pytest.mark.parametrize("env_id", CLASSIC_IDS)
+def test_framework_zoo_entries_build_on_the_package_widths(algo, env_id):
+    kwargs = zoo.model_kwargs(algo, env_id)
+    assert (kwargs["gamma"], kwargs["exploration_rate"]) == (0.99, 0.05)
+    assert zoo.load_hyperparameters(algo, env_id)["n_timesteps"] == 100_000
+    model = zoo.algorithm_classes()[algo]("TileQ", env_id, **kwargs)
+    assert widths_of(model) == pytest.approx(package_tilings()[env_id]["tile_widths"])
+    # LSPI factorises a system in the touched features: its entries keep the widths but use 4 tilings
+    expected_tilings = 4 if algo == "lspi" else package_tilings()[env_id]["n_tilings"]
+    assert model.policy.tile_coder.n_tilings == expected_tilings
 
 
 def test_sb3_er_train_er_sigma_on_acrobot(tmp_path):

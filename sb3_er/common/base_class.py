@@ -26,9 +26,10 @@ DEFAULT_TOTAL_TIMESTEPS = 100_000
 #: The generic rule: at most this many tiles per bounded dimension (the rule of sb3-er before budgets), at least 2.
 DEFAULT_TILES_PER_DIMENSION = 10
 MIN_DEFAULT_TILES_PER_DIMENSION = 2
-#: The generic rule's cells per tiling, spread over the non-constant dimensions. Measured with Sarsa(lambda) on the
-#: bounded classic-control tasks (README, "Classic control and peers"): Acrobot's 6 dimensions learn best with 4-5
-#: tiles each (10 each, 1e6 cells, fails) and MountainCar's 2 with 8-10; 2^14 gives 5 and 10.
+#: The generic rule's cells per tiling, spread over the non-constant dimensions; 2^14 gives Acrobot's 6 dimensions 5
+#: tiles each and MountainCar's 2 the cap of 10. Measured on these bounded tasks (README, "Classic control and peers";
+#: 16 tilings, 100,000 steps, seeds 0-4): with 5 tiles per dimension ER-sigma's median greedy returns on Acrobot were
+#: -130 to -145, where 10 (1e6 cells per tiling) never reached the goal; MountainCar learned with 8 and with 10.
 DEFAULT_CELL_BUDGET = 2**14
 #: sb3-er's tilings for known env ids (package data, shipped in the wheel).
 PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
@@ -68,7 +69,7 @@ def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUD
         raise ValueError(f"cell_budget must be a positive integer, got {cell_budget!r}")
     if n_dims == 0:
         return DEFAULT_TILES_PER_DIMENSION
-    k = int(math.floor(cell_budget ** (1.0 / n_dims)))
+    k = math.floor(cell_budget ** (1.0 / n_dims))
     while (k + 1) ** n_dims <= cell_budget:  # floating-point roots can fall short of an exact integer root
         k += 1
     while k > 1 and k**n_dims > cell_budget:
@@ -77,7 +78,7 @@ def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUD
 
 
 def default_tile_widths(
-    observation_space: spaces.Box, tiles_per_dimension: Optional[int] = None, cell_budget: int = DEFAULT_CELL_BUDGET
+    observation_space: spaces.Box, tiles_per_dimension: int | None = None, cell_budget: int = DEFAULT_CELL_BUDGET
 ) -> list[float]:
     """Tile widths splitting each bounded observation dimension into equal tiles.
 
