@@ -4,6 +4,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium import spaces
+from gymnasium.envs.classic_control import CartPoleEnv
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback, StopTrainingOnRewardThreshold
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
@@ -156,7 +157,8 @@ class ImageObsEnv(LineWalkEnv):
         (lambda: gym.make("Pendulum-v1"), "Discrete or MultiDiscrete action space"),
         (DictObsEnv, "Dict observation"),
         (ImageObsEnv, "image observations"),
-        (lambda: gym.make("CartPole-v1"), r"dimensions \[1, 3\] are unbounded"),
+        # made without its id: sb3-er's tiling for CartPole-v1 (sb3_er/data/tilings.yml) does not apply
+        (CartPoleEnv, r"dimensions \[1, 3\] are unbounded"),
         (lambda: make_vec_env("MountainCar-v0", n_envs=2), "multiple envs"),
     ],
 )

@@ -1,5 +1,8 @@
 """Shared SB3 machinery of the tile-coded algorithms: spaces, the learn loop, online Sarsa(lambda), logging."""
 
+import functools
+import importlib.resources
+import inspect
 import math
 import sys
 import time
@@ -7,6 +10,7 @@ from typing import Any, ClassVar, Optional, TypeVar, Union
 
 import numpy as np
 import gymnasium as gym
+import yaml
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
@@ -19,7 +23,16 @@ from sb3_er.common import kernels
 from sb3_er.common.policies import TileQPolicy, action_nvec
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
+#: The generic rule: at most this many tiles per bounded dimension (the rule of sb3-er before budgets), at least 2.
 DEFAULT_TILES_PER_DIMENSION = 10
+MIN_DEFAULT_TILES_PER_DIMENSION = 2
+#: The generic rule's cells per tiling, spread over the non-constant dimensions; 2^14 gives Acrobot's 6 dimensions 5
+#: tiles each and MountainCar's 2 the cap of 10. Measured on these bounded tasks (README, "Classic control and peers";
+#: 16 tilings, 100,000 steps, seeds 0-4): with 5 tiles per dimension ER-sigma's median greedy returns on Acrobot were
+#: -130 to -145, where 10 (1e6 cells per tiling) never reached the goal; MountainCar learned with 8 and with 10.
+DEFAULT_CELL_BUDGET = 2**14
+#: sb3-er's tilings for known env ids (package data, shipped in the wheel).
+PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
 #: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
 PLACEHOLDER_BOUND = 1e30
 
@@ -43,14 +56,42 @@ def is_fall(info: dict[str, Any], terminated: bool) -> bool:
     return bool(info["fell"]) if "fell" in info else terminated
 
 
-def default_tile_widths(observation_space: spaces.Box, tiles_per_dimension: int) -> list[float]:
-    """Tile widths splitting each bounded observation dimension into ``tiles_per_dimension`` tiles.
+def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUDGET) -> int:
+    """Tiles per dimension of the generic rule: min(10, floor(cell_budget^(1/n_dims))), at least 2.
 
-    Bounds that are infinite, or placeholders for infinity (magnitude >= 1e30, such as +-float32 max), cannot be
-    split: those dimensions need explicit widths and the ValueError names them. A dimension whose bounds coincide
-    (a constant) gets width 1, one tile for its only value.
+    A cell budget per tiling spread evenly over the dimensions keeps a tiling's cell count near ``cell_budget``
+    whatever the dimension, where a fixed 10 per dimension gives 10^D cells (Acrobot's 6 dimensions: 10^6 cells per
+    tiling, which 100,000 steps cannot fill). The root is taken in integers, so 5^6 = 15,625 cells give exactly 5.
     """
-    if int(tiles_per_dimension) != tiles_per_dimension or tiles_per_dimension < 1:
+    if int(n_dims) != n_dims or n_dims < 0:
+        raise ValueError(f"n_dims must be a non-negative integer, got {n_dims!r}")
+    if int(cell_budget) != cell_budget or cell_budget < 1:
+        raise ValueError(f"cell_budget must be a positive integer, got {cell_budget!r}")
+    if n_dims == 0:
+        return DEFAULT_TILES_PER_DIMENSION
+    k = math.floor(cell_budget ** (1.0 / n_dims))
+    while (k + 1) ** n_dims <= cell_budget:  # floating-point roots can fall short of an exact integer root
+        k += 1
+    while k > 1 and k**n_dims > cell_budget:
+        k -= 1
+    return max(MIN_DEFAULT_TILES_PER_DIMENSION, min(DEFAULT_TILES_PER_DIMENSION, k))
+
+
+def default_tile_widths(
+    observation_space: spaces.Box, tiles_per_dimension: int | None = None, cell_budget: int = DEFAULT_CELL_BUDGET
+) -> list[float]:
+    """Tile widths splitting each bounded observation dimension into equal tiles.
+
+    ``tiles_per_dimension`` tiles per dimension if given; otherwise the generic rule,
+    ``default_tiles_per_dimension(D, cell_budget)`` with D the number of non-constant dimensions (at most 10, at
+    least 2 tiles each, ``cell_budget`` cells per tiling). Bounds that are infinite, or placeholders for infinity
+    (magnitude >= 1e30, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
+    ValueError names them. A dimension whose bounds coincide (a constant) gets width 1, one tile for its only value.
+    """
+    if tiles_per_dimension is not None and (
+        isinstance(tiles_per_dimension, bool) or int(tiles_per_dimension) != tiles_per_dimension
+        or tiles_per_dimension < 1
+    ):
         raise ValueError(f"tiles_per_dimension must be a positive integer, got {tiles_per_dimension!r}")
     low, high = observation_space.low.astype(np.float64), observation_space.high.astype(np.float64)
     bounded = np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
@@ -62,8 +103,26 @@ def default_tile_widths(observation_space: spaces.Box, tiles_per_dimension: int)
             "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
             "attribute"
         )
-    widths = (high - low) / tiles_per_dimension
+    spans = (high - low).reshape(-1)
+    if tiles_per_dimension is None:
+        tiles_per_dimension = default_tiles_per_dimension(int(np.count_nonzero(spans > 0.0)), cell_budget)
+    widths = spans / tiles_per_dimension
     return np.where(widths > 0.0, widths, 1.0).tolist()
+
+
+@functools.lru_cache(maxsize=1)
+def package_tilings() -> dict[str, dict[str, Any]]:
+    """sb3-er's tilings for known env ids, from the package data file ``sb3_er/data/tilings.yml`` (each entry:
+    ``observation_shape``, ``source`` and TileQ settings such as ``n_tilings`` and ``tile_widths``)."""
+    package, path = PACKAGE_TILINGS
+    with importlib.resources.files(package).joinpath(path).open("r", encoding="utf-8") as stream:
+        entries = yaml.safe_load(stream)
+    for env_id, entry in entries.items():
+        missing = {"observation_shape", "source", "tile_widths"} - set(entry)
+        if missing or len(entry["tile_widths"]) != int(np.prod(entry["observation_shape"])):
+            raise ValueError(f"{path}: the entry of {env_id} needs observation_shape, source and one tile width per "
+                             f"observation dimension, got {entry}")
+    return entries
 
 
 class DivergenceError(ArithmeticError):
@@ -75,7 +134,8 @@ class TileQAlgorithm(BaseAlgorithm):
 
     Subclasses react to each transition through ``_after_transition``. Tile coding defaults come from the env: its
     ``tile_widths``, ``wrap_periods``, ``action_values``, ``action_tile_widths`` and ``memory_size`` attributes, else
-    finite observation bounds split into ``tiles_per_dimension`` tiles (policy_kwargs).
+    sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1), else
+    finite observation bounds split into tiles by the generic rule (``default_tile_widths``).
 
     :param policy: "TileQ" or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
@@ -189,15 +249,66 @@ class TileQAlgorithm(BaseAlgorithm):
         return self.env.get_attr(name)[0]
 
     def _resolve_policy_kwargs(self) -> dict[str, Any]:
-        """Explicit tile-coding settings, defaults taken from the env, so that save/load rebuilds the same coder."""
+        """Explicit tile-coding settings, so that save/load rebuilds the same coder.
+
+        Each setting comes from the first of: ``policy_kwargs``; the env's attribute of that name; sb3-er's tiling for
+        the env's id (``package_tilings()``: only when neither ``policy_kwargs`` (``tile_widths`` or
+        ``tiles_per_dimension``) nor the env give tile widths, and the observation has the entry's shape); for tile
+        widths, the generic rule (``default_tile_widths``: ``tiles_per_dimension`` if given, else a cell budget per
+        tiling). At ``verbose >= 1`` the tiling in use is printed with where it came from.
+        """
         kwargs = dict(self.policy_kwargs)
-        tiles_per_dimension = kwargs.pop("tiles_per_dimension", DEFAULT_TILES_PER_DIMENSION)
+        tiles_per_dimension = kwargs.pop("tiles_per_dimension", None)
+        origins = {name: "policy_kwargs" for name, value in kwargs.items() if value is not None}
         for name in ENV_TILING_ATTRIBUTES:
-            if kwargs.get(name) is None:
+            if kwargs.get(name) is None and not (name == "tile_widths" and tiles_per_dimension is not None):
                 kwargs[name] = self._env_attribute(name)
+                if kwargs[name] is not None:
+                    origins[name] = f"the env's {name} attribute"
+        notes = []
+        if kwargs.get("tile_widths") is None and tiles_per_dimension is None:
+            spec = self._env_attribute("spec")
+            env_id = getattr(spec, "id", None)
+            entry = package_tilings().get(env_id) if isinstance(env_id, str) else None
+            shape = tuple(self.observation_space.shape)
+            if entry is not None and tuple(entry["observation_shape"]) != shape:
+                notes.append(f"sb3-er's tiling for {env_id} is for observations of shape "
+                             f"{tuple(entry['observation_shape'])}, not {shape}: not used")
+            elif entry is not None:
+                for name, value in entry.items():
+                    if name not in ("observation_shape", "source") and kwargs.get(name) is None:
+                        kwargs[name] = value
+                        origins[name] = f"sb3-er's tiling for {env_id} ({entry['source']})"
         if kwargs.get("tile_widths") is None:
             kwargs["tile_widths"] = default_tile_widths(self.observation_space, tiles_per_dimension)
-        return {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
+            if tiles_per_dimension is None:
+                spans = self.observation_space.high.astype(np.float64) - self.observation_space.low.astype(np.float64)
+                tiles_per_dimension = default_tiles_per_dimension(int(np.count_nonzero(spans > 0.0)))
+                origins["tile_widths"] = (f"the generic rule: {tiles_per_dimension} tiles per bounded dimension, "
+                                          f"min(10, floor({DEFAULT_CELL_BUDGET} cells ^ (1/D))), at least 2")
+            else:
+                origins["tile_widths"] = f"policy_kwargs: {tiles_per_dimension} tiles per bounded dimension"
+        resolved = {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
+        if self.verbose >= 1:
+            self._print_tiling(resolved, origins, notes)
+        return resolved
+
+    def _print_tiling(self, resolved: dict[str, Any], origins: dict[str, str], notes: list[str]) -> None:
+        """Print the tiling in use and where each setting came from (verbose >= 1), e.g.
+        ``Tile coding: 8 tilings, tile widths [0.225, 0.0175] from sb3-er's tiling for MountainCar-v0 (...)``."""
+        n_tilings = resolved.get("n_tilings")
+        if n_tilings is None:
+            n_tilings = inspect.signature(self.policy_class).parameters["n_tilings"].default
+            origins["n_tilings"] = f"{self.policy_class.__name__}'s default"
+        widths = [float(f"{w:.4g}") for w in resolved["tile_widths"]]
+        if origins["n_tilings"] == origins["tile_widths"]:
+            line = f"Tile coding: {n_tilings} tilings, tile widths {widths} from {origins['tile_widths']}"
+        else:
+            line = (f"Tile coding: {n_tilings} tilings from {origins['n_tilings']}; tile widths {widths} from "
+                    f"{origins['tile_widths']}")
+        others = [f"{name}={resolved[name]} from {origins[name]}" for name in resolved
+                  if name not in ("n_tilings", "tile_widths") and name in origins]
+        print("\n  ".join([line, *others, *[f"({note})" for note in notes]]))
 
     def _setup_model(self) -> None:
         self._check_hyperparameters()

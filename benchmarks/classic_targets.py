@@ -1,0 +1,67 @@
+"""Issue 12's targets for the shipped defaults on Gymnasium's classic control, seed by seed.
+
+    python benchmarks/classic_targets.py [--algos sarsa_lambda er_sigma] [--envs ...] [--seeds 0 1 2 3 4]
+
+Each run is exactly what a new user writes: ``Algo("TileQ", env_id, seed=seed).learn(100_000)``, nothing else passed
+(so the class defaults and sb3-er's tilings for the id, sb3_er/data/tilings.yml). Then 20 greedy episodes
+(``evaluate_policy(deterministic=True)``) on a fresh env reset with seed 1000 + seed. Printed per seed: the median and
+mean of the 20 returns, whether the median reaches the issue's level (CartPole-v1 450, MountainCar-v0 -140,
+Acrobot-v1 -120), learning CPU seconds and episodes; then a markdown table. Runs go one after another in this process;
+CPU time is this process's.
+"""
+
+import argparse
+import statistics
+import time
+
+import gymnasium as gym
+from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.monitor import Monitor
+
+from sb3_er.zoo import algorithm_classes
+
+#: Issue 12's level for the median greedy return of each seed.
+TARGETS = {"CartPole-v1": 450.0, "MountainCar-v0": -140.0, "Acrobot-v1": -120.0}
+STEPS = 100_000
+EVAL_EPISODES = 20
+
+
+def run(algo: str, env_id: str, seed: int) -> dict:
+    cpu = time.process_time()
+    model = algorithm_classes()[algo]("TileQ", env_id, seed=seed).learn(STEPS)
+    cpu = time.process_time() - cpu
+    env = Monitor(gym.make(env_id))
+    env.reset(seed=1000 + seed)
+    returns, _ = evaluate_policy(model, env, n_eval_episodes=EVAL_EPISODES, deterministic=True,
+                                 return_episode_rewards=True)
+    return {"median": statistics.median(returns), "mean": statistics.fmean(returns), "cpu": cpu,
+            "episodes": model._episode_num}
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--algos", nargs="+", default=["sarsa_lambda", "er_sigma"])
+    parser.add_argument("--envs", nargs="+", default=list(TARGETS), choices=list(TARGETS))
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    args = parser.parse_args(argv)
+    rows = ["| env | algorithm | median greedy return per seed | seeds at the level | learn CPU s per seed |",
+            "|---|---|---|---:|---|"]
+    for env_id in args.envs:
+        level = TARGETS[env_id]
+        for algo in args.algos:
+            results = []
+            for seed in args.seeds:
+                result = run(algo, env_id, seed)
+                results.append(result)
+                print(f"{env_id} {algo} seed {seed}: median {result['median']:.1f}, mean {result['mean']:.1f}, "
+                      f"{'reaches' if result['median'] >= level else 'misses'} {level:g}, "
+                      f"{result['cpu']:.1f} CPU s, {result['episodes']} episodes", flush=True)
+            medians = ", ".join(f"{r['median']:g}" for r in results)
+            reached = sum(r["median"] >= level for r in results)
+            cpus = ", ".join(f"{r['cpu']:.1f}" for r in results)
+            rows.append(f"| {env_id} (>= {level:g}) | {algo} | {medians} | {reached}/{len(results)} | {cpus} |")
+    print("\n".join(rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,483 @@
+"""sb3-er beside its peers on Gymnasium's classic control: SB3's DQN with rl-zoo's tuned hyperparameters, and
+MushroomRL's tile-coded SARSA(lambda) (issue 12).
+
+    python benchmarks/peers.py                                   # 5 seeds of everything (MushroomRL venv built once)
+    python benchmarks/peers.py --seeds 1 --budget 3000 --methods sarsa_lambda dqn --envs CartPole-v1   # tiny
+    python benchmarks/peers.py --build-mushroom                  # only build MushroomRL's venv
+
+Methods (``--methods``):
+- ``sarsa_lambda``, ``er_sigma``: sb3-er's ``SarsaLambda`` and ``ERSigma`` with their class defaults and sb3-er's
+  tilings for these ids (``sb3_er/data/tilings.yml``); 100,000 steps, ``learn()``'s default.
+- ``dqn``: Stable-Baselines3's DQN with rl-zoo's tuned hyperparameters, read from the installed rl_zoo3 package
+  (``rl_zoo3/hyperparams/dqn.yml``); rl-zoo's ``n_timesteps`` (CartPole-v1 50,000, MountainCar-v0 120,000, Acrobot-v1
+  100,000). Torch uses one thread.
+- ``mushroom``: MushroomRL 1.10.1's ``SARSALambdaContinuous`` on its ``Tiles.generate`` tilings with the same number of
+  tilings and displacements (2d + 1)k / N (``uniform=False``, Miller et al.'s asymmetric offsets as ours), with the
+  number of tiles per dimension whose width comes closest to ours over the observation range (CartPole's unbounded
+  velocities get +-MUSHROOM_VELOCITY_RANGE; the grid is anchored at the range, ours at 0), and sb3-er's default alpha
+  (per weight alpha / N), gamma, lambda and epsilon; 100,000 steps. What we cannot make equal: its trace accumulates
+  (ours replaces and drops traces below 0.01), its features and trace are dense vectors over all weights, greedy ties
+  are broken at random (ours: lowest index), and beyond the range a tiling contributes no feature. MushroomRL pins
+  old releases and wraps the old ``gym``, so it runs in its own venv (``--mushroom-venv``, default
+  ``~/.cache/sb3-er/mushroom-venv``, built on first use with CPU torch first and the pins of MUSHROOM_PINS), in a
+  subprocess, behind a small Gymnasium adapter (``_MushroomGymnasium``).
+
+Protocol. Every (method, env, seed) runs alone in a fresh subprocess, one after another, so that its CPU time and peak
+memory (the child's maximum resident set size, ``ru_maxrss``) are its own. Every ``--eval-freq`` environment steps the
+greedy policy plays ``--eval-episodes`` episodes on a separate env; *steps to threshold* is the first such point whose
+mean return reaches Gymnasium's ``reward_threshold`` (CartPole-v1 475, MountainCar-v0 -110, Acrobot-v1 -100), and
+*steps to target* the first to reach issue 12's target level (450, -140, -120). The *final return* is the mean over
+``--final-episodes`` (20) greedy episodes after learning (SB3's ``evaluate_policy(deterministic=True)``; for
+MushroomRL the same loop over Q's argmax) on an env reset with seed 1000 + seed. Wall and CPU seconds count learning
+only, without the evaluations; steps/s is steps per CPU second. Memory: the peak RSS of the run, and how far it rose
+above the RSS after imports and env creation (the learner's own memory).
+
+The first table has one row per (env, method): medians over seeds for the steps (with how many seeds got there), mean
+and standard deviation over seeds of the final return, medians of the rest. The second lists every seed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ENVS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
+METHODS = ("sarsa_lambda", "er_sigma", "dqn", "mushroom")
+METHOD_LABELS = {
+    "sarsa_lambda": "sb3-er SarsaLambda",
+    "er_sigma": "sb3-er ERSigma",
+    "dqn": "SB3 DQN (rl-zoo tuned)",
+    "mushroom": "MushroomRL SARSA(λ)",
+}
+#: Gymnasium's reward_threshold of each env (checked against env.spec at run time).
+THRESHOLDS = {"CartPole-v1": 475.0, "MountainCar-v0": -110.0, "Acrobot-v1": -100.0}
+#: Issue 12's target levels for the greedy return after 100,000 steps.
+TARGETS = {"CartPole-v1": 450.0, "MountainCar-v0": -140.0, "Acrobot-v1": -120.0}
+DEFAULT_BUDGET = 100_000
+#: MushroomRL's tiles need a finite range: CartPole's velocities get +-this (|velocities| of learning runs stay within).
+MUSHROOM_VELOCITY_RANGE = 4.0
+#: CartPole's cart position and pole angle end the episode beyond +-2.4 and +-12 degrees: MushroomRL tiles that range.
+CARTPOLE_RANGE = ((-2.4, 2.4), (-MUSHROOM_VELOCITY_RANGE, MUSHROOM_VELOCITY_RANGE), (-0.2095, 0.2095),
+                  (-MUSHROOM_VELOCITY_RANGE, MUSHROOM_VELOCITY_RANGE))
+#: A combination that installs from PyPI with this machine's CPU torch: mushroom-rl 1.10.2 pins torch 2.5.1 (a CUDA
+#: build from PyPI), 1.10.1 does not pin torch; numpy < 2 for its old code.
+MUSHROOM_TORCH = "torch==2.13.0"
+MUSHROOM_PINS = (
+    "mushroom-rl==1.10.1", "numpy==1.26.4", "scipy==1.17.1", "scikit-learn==1.9.1", "matplotlib==3.11.2",
+    "opencv-python==4.11.0.86", "pygame==2.6.1", "gymnasium==1.4.0",
+)
+DEFAULT_MUSHROOM_VENV = Path(os.environ.get("SB3_ER_MUSHROOM_VENV",
+                                            Path.home() / ".cache" / "sb3-er" / "mushroom-venv"))
+RESULT_PREFIX = "PEERS_RESULT "
+
+
+# --- measurements shared by every worker --------------------------------------------------------------------------
+
+def _rss_mb() -> float:
+    """Peak resident set size of this process so far, in MB (Linux reports KB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+class _Clock:
+    """Wall and CPU time of a stretch, minus the evaluations inside it."""
+
+    def __init__(self):
+        self.wall0, self.cpu0 = time.perf_counter(), time.process_time()
+        self.eval_wall = self.eval_cpu = 0.0
+
+    def evaluation(self, function, *args):
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = function(*args)
+        self.eval_wall += time.perf_counter() - wall
+        self.eval_cpu += time.process_time() - cpu
+        return result
+
+    def learning(self) -> tuple[float, float]:
+        return (time.perf_counter() - self.wall0 - self.eval_wall, time.process_time() - self.cpu0 - self.eval_cpu)
+
+
+def _first_reaching(evaluations: list[tuple[int, float]], level: float):
+    return next((step for step, value in evaluations if value >= level), None)
+
+
+def _result(config: dict, evaluations, final_returns, learning: tuple[float, float], baseline_mb: float, episodes: int,
+            extra=None) -> dict:
+    wall, cpu = learning
+    threshold, target = THRESHOLDS[config["env"]], TARGETS[config["env"]]
+    return {
+        **config,
+        "threshold": threshold,
+        "target": target,
+        "evaluations": evaluations,
+        "steps_to_threshold": _first_reaching(evaluations, threshold),
+        "steps_to_target": _first_reaching(evaluations, target),
+        "final_returns": [float(r) for r in final_returns],
+        "final_mean": float(statistics.fmean(final_returns)),
+        "final_median": float(statistics.median(final_returns)),
+        "learn_wall_s": wall,
+        "learn_cpu_s": cpu,
+        "steps_per_cpu_s": config["budget"] / max(cpu, 1e-9),
+        "peak_rss_mb": _rss_mb(),
+        "baseline_rss_mb": baseline_mb,
+        "episodes": episodes,
+        **(extra or {}),
+    }
+
+
+# --- sb3-er and DQN (this venv) ------------------------------------------------------------------------------------
+
+def rl_zoo_dqn_hyperparameters(env_id: str) -> tuple[int, dict]:
+    """rl-zoo's tuned DQN settings for env_id from the installed rl_zoo3 package: (n_timesteps, DQN kwargs)."""
+    import rl_zoo3
+    import yaml
+
+    with open(Path(rl_zoo3.__file__).parent / "hyperparams" / "dqn.yml") as stream:
+        hyperparameters = dict(yaml.safe_load(stream)[env_id])
+    n_timesteps = int(hyperparameters.pop("n_timesteps"))
+    hyperparameters.pop("policy")
+    if isinstance(hyperparameters.get("policy_kwargs"), str):  # rl-zoo evaluates this string the same way
+        hyperparameters["policy_kwargs"] = eval(hyperparameters["policy_kwargs"], {"__builtins__": {}, "dict": dict})
+    return n_timesteps, hyperparameters
+
+
+def _run_sb3(config: dict) -> dict:
+    import torch
+
+    torch.set_num_threads(1)
+    import gymnasium as gym
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.monitor import Monitor
+
+    env_id, seed, method = config["env"], config["seed"], config["method"]
+    train_env, eval_env, final_env = (Monitor(gym.make(env_id)) for _ in range(3))
+    if train_env.spec.reward_threshold != THRESHOLDS[env_id]:
+        raise RuntimeError(f"{env_id}'s reward_threshold is {train_env.spec.reward_threshold}, "
+                           f"not {THRESHOLDS[env_id]}: update THRESHOLDS")
+    eval_env.reset(seed=2000 + seed)
+    final_env.reset(seed=1000 + seed)
+    baseline = _rss_mb()
+    if method == "dqn":
+        _, kwargs = rl_zoo_dqn_hyperparameters(env_id)
+        model = DQN("MlpPolicy", train_env, seed=seed, device="cpu", **kwargs)
+    else:  # imported only here, so that DQN's memory does not count sb3-er's imports
+        from sb3_er import ERSigma, SarsaLambda
+
+        model = {"sarsa_lambda": SarsaLambda, "er_sigma": ERSigma}[method]("TileQ", train_env, seed=seed)
+    clock = _Clock()
+    evaluations = []
+
+    def greedy_mean() -> float:
+        mean, _ = evaluate_policy(model, eval_env, n_eval_episodes=config["eval_episodes"], deterministic=True)
+        return float(mean)
+
+    class Evaluations(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps % config["eval_freq"] == 0 or self.num_timesteps == config["budget"]:
+                evaluations.append((self.num_timesteps, clock.evaluation(greedy_mean)))
+            return True
+
+    model.learn(config["budget"], callback=Evaluations())
+    learning = clock.learning()
+    returns, _ = evaluate_policy(model, final_env, n_eval_episodes=config["final_episodes"], deterministic=True,
+                                 return_episode_rewards=True)
+    episodes = len(train_env.get_episode_rewards())
+    extra = {"tiling": model.policy_kwargs if method != "dqn" else None}
+    return _result(config, evaluations, returns, learning, baseline, episodes, extra)
+
+
+# --- MushroomRL (its own venv) -------------------------------------------------------------------------------------
+
+def mushroom_tiles(n_tilings: int, tile_widths, low, high) -> list[int]:
+    """Tiles per dimension for MushroomRL's ``Tiles.generate(n_tilings, n_tiles, low, high)`` whose width comes
+    closest to ``tile_widths``: its tiles are (high - low) / (n - (N - 1) / N) wide (mushroom_rl/features/tiles)."""
+    spill = (n_tilings - 1) / n_tilings
+    return [max(1, round((h - lo) / w + spill)) for w, lo, h in zip(tile_widths, low, high)]
+
+
+def mushroom_widths(n_tilings: int, n_tiles, low, high) -> list[float]:
+    """The tile widths of ``Tiles.generate(n_tilings, n_tiles, low, high)``."""
+    spill = (n_tilings - 1) / n_tilings
+    return [(h - lo) / (n - spill) for n, lo, h in zip(n_tiles, low, high)]
+
+
+def _run_mushroom(config: dict) -> dict:
+    import gymnasium as gym
+    import numpy as np
+    from mushroom_rl.algorithms.value import SARSALambdaContinuous
+    from mushroom_rl.approximators.parametric import LinearApproximator
+    from mushroom_rl.core import Core, Environment, MDPInfo
+    from mushroom_rl.features import Features
+    from mushroom_rl.features.tiles import Tiles
+    from mushroom_rl.policy import EpsGreedy
+    from mushroom_rl.utils import spaces
+    from mushroom_rl.utils.parameters import Parameter
+
+    class _MushroomGymnasium(Environment):
+        """A Gymnasium env as a MushroomRL Environment: absorbing = terminated; time limits end the episode at the
+        horizon (the spec's max_episode_steps), where MushroomRL bootstraps, as sb3-er does at a truncation."""
+
+        def __init__(self, env_id: str, gamma: float, seed: int):
+            self.env = gym.make(env_id)
+            self._seed = seed
+            box = self.env.observation_space
+            info = MDPInfo(spaces.Box(box.low.astype(np.float64), box.high.astype(np.float64)),
+                           spaces.Discrete(int(self.env.action_space.n)), gamma, self.env.spec.max_episode_steps)
+            super().__init__(info)
+
+        def reset(self, state=None):
+            obs, _ = self.env.reset(seed=self._seed)
+            self._seed = None
+            return np.asarray(obs, dtype=np.float64)
+
+        def step(self, action):
+            obs, reward, terminated, _, info = self.env.step(int(np.asarray(action).reshape(-1)[0]))
+            return np.asarray(obs, dtype=np.float64), float(reward), bool(terminated), info
+
+    env_id, seed, tiling, hyper = config["env"], config["seed"], config["tiling"], config["hyperparameters"]
+    np.random.seed(seed)  # MushroomRL draws from NumPy's global generator
+    mdp = _MushroomGymnasium(env_id, hyper["gamma"], seed)
+    n_tilings = int(tiling["n_tilings"])
+    low, high = (np.array(bound, dtype=np.float64) for bound in zip(*tiling["range"]))
+    n_tiles = mushroom_tiles(n_tilings, tiling["tile_widths"], low, high)
+    tilings = Tiles.generate(n_tilings, n_tiles, low, high, uniform=False)
+    features = Features(tilings=tilings)
+    n_actions = mdp.info.action_space.n
+    policy = EpsGreedy(epsilon=Parameter(hyper["exploration_rate"]))
+    agent = SARSALambdaContinuous(
+        mdp.info, policy, LinearApproximator, learning_rate=Parameter(hyper["learning_rate"] / n_tilings),
+        lambda_coeff=hyper["trace_lambda"], features=features,
+        approximator_params={"input_shape": (features.size,), "output_shape": (n_actions,), "n_actions": n_actions},
+    )
+    baseline = _rss_mb()
+
+    def greedy_returns(env, n_episodes: int, reset_seed=None) -> list[float]:
+        returns = []
+        for episode in range(n_episodes):
+            obs, _ = env.reset(seed=reset_seed if episode == 0 else None)
+            total, done = 0.0, False
+            while not done:
+                action = int(np.argmax(agent.Q.predict(features(obs))))
+                obs, reward, terminated, truncated, _ = env.step(action)
+                total += float(reward)
+                done = terminated or truncated
+            returns.append(total)
+        return returns
+
+    eval_env, final_env = gym.make(env_id), gym.make(env_id)
+    eval_env.reset(seed=2000 + seed)
+    clock = _Clock()
+    evaluations = []
+    counter = {"steps": 0, "episodes": 0}
+
+    def on_step(samples):
+        counter["steps"] += 1
+        counter["episodes"] += int(samples[0][-1])
+        if counter["steps"] % config["eval_freq"] == 0 or counter["steps"] == config["budget"]:
+            value = clock.evaluation(lambda: float(np.mean(greedy_returns(eval_env, config["eval_episodes"]))))
+            evaluations.append((counter["steps"], value))
+
+    Core(agent, mdp, callback_step=on_step).learn(n_steps=config["budget"], n_steps_per_fit=1, quiet=True)
+    learning = clock.learning()
+    returns = greedy_returns(final_env, config["final_episodes"], reset_seed=1000 + seed)
+    extra = {"mushroom_n_tiles": n_tiles, "mushroom_tile_widths": mushroom_widths(n_tilings, n_tiles, low, high),
+             "mushroom_features": int(features.size)}
+    return _result(config, evaluations, returns, learning, baseline, counter["episodes"], extra)
+
+
+def mushroom_python(venv: Path) -> Path:
+    return venv / "bin" / "python"
+
+
+def mushroom_ready(venv: Path) -> tuple[bool, str]:
+    """Whether MushroomRL's venv exists and imports what the benchmark needs; the reason if not."""
+    python = mushroom_python(venv)
+    if not python.exists():
+        return False, f"MushroomRL's venv {venv} is not built (python benchmarks/peers.py --build-mushroom)"
+    probe = subprocess.run([str(python), "-c", "import mushroom_rl, gymnasium; print(mushroom_rl.__version__)"],
+                           check=False, capture_output=True, text=True)
+    if probe.returncode != 0:
+        return False, f"MushroomRL's venv {venv} does not import mushroom_rl and gymnasium: {probe.stderr[-500:]}"
+    return True, f"mushroom-rl {probe.stdout.strip()} in {venv}"
+
+
+def build_mushroom_venv(venv: Path) -> None:
+    """Create MushroomRL's venv: CPU torch first (from this machine's wheels or PyPI), then the pinned releases."""
+    venv.parent.mkdir(parents=True, exist_ok=True)
+    print(f"building MushroomRL's venv in {venv} (a few minutes) ...", file=sys.stderr, flush=True)
+    subprocess.run([sys.executable, "-m", "venv", "--clear", str(venv)], check=True)
+    pip = [str(mushroom_python(venv)), "-m", "pip", "install", "--quiet"]
+    subprocess.run([*pip, MUSHROOM_TORCH], check=True)
+    subprocess.run([*pip, *MUSHROOM_PINS], check=True)
+    ready, reason = mushroom_ready(venv)
+    if not ready:
+        raise RuntimeError(reason)
+
+
+# --- the driver ----------------------------------------------------------------------------------------------------
+
+def sb3_er_defaults() -> dict:
+    """sb3-er's default alpha, gamma, epsilon and lambda (SarsaLambda's constructor), for MushroomRL."""
+    import inspect
+
+    from sb3_er import SarsaLambda
+    from sb3_er.common.base_class import TileQAlgorithm
+
+    base = inspect.signature(TileQAlgorithm).parameters
+    return {
+        "learning_rate": base["learning_rate"].default,
+        "gamma": base["gamma"].default,
+        "exploration_rate": base["exploration_rate"].default,
+        "trace_lambda": inspect.signature(SarsaLambda).parameters["trace_lambda"].default,
+    }
+
+
+def mushroom_tiling(env_id: str) -> dict:
+    """sb3-er's tiling for env_id and the finite range MushroomRL's tiles cover."""
+    import gymnasium as gym
+
+    from sb3_er.common.base_class import package_tilings
+
+    entry = package_tilings()[env_id]
+    space = gym.make(env_id).observation_space
+    ranges = CARTPOLE_RANGE if env_id == "CartPole-v1" else tuple(zip(space.low.tolist(), space.high.tolist()))
+    return {"n_tilings": int(entry["n_tilings"]), "tile_widths": list(entry["tile_widths"]), "range": ranges}
+
+
+def run_one(config: dict, python: str) -> dict:
+    """One (method, env, seed) in a fresh subprocess; its result dict."""
+    command = [python, os.path.abspath(__file__), "--worker", json.dumps(config)]
+    process = subprocess.run(command, check=False, capture_output=True, text=True)
+    lines = [line for line in process.stdout.splitlines() if line.startswith(RESULT_PREFIX)]
+    if process.returncode != 0 or not lines:
+        raise RuntimeError(f"{config['method']} on {config['env']} (seed {config['seed']}) failed:\n"
+                           f"{process.stderr[-3000:]}")
+    return json.loads(lines[-1][len(RESULT_PREFIX):])
+
+
+def _median(values):
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def _steps(results, key) -> str:
+    reached = [r[key] for r in results if r[key] is not None]
+    if not reached:
+        return f"not reached (0/{len(results)})"
+    return f"{statistics.median(reached):,.0f} ({len(reached)}/{len(results)})"
+
+
+def markdown_tables(results: list[dict]) -> str:
+    """The summary table (one row per env and method) and the per-seed table."""
+    rows = [("| env | method | steps | steps to threshold (seeds) | steps to target (seeds) | final return (mean ± sd "
+             "over seeds) | learn wall s | learn CPU s | steps/CPU s | peak RSS MB | above imports MB |"),
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    per_seed = [("| env | method | seed | final mean | final median | steps to threshold | steps to target | "
+                 "learn CPU s | episodes |"), "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for result in results:
+        groups.setdefault((result["env"], result["method"]), []).append(result)
+    for (env_id, method), group in groups.items():
+        finals = [r["final_mean"] for r in group]
+        spread = statistics.stdev(finals) if len(finals) > 1 else 0.0
+        rows.append(
+            f"| {env_id} | {METHOD_LABELS[method]} | {group[0]['budget']:,} | {_steps(group, 'steps_to_threshold')} | "
+            f"{_steps(group, 'steps_to_target')} | {statistics.fmean(finals):.1f} ± {spread:.1f} | "
+            f"{_median([r['learn_wall_s'] for r in group]):.1f} | {_median([r['learn_cpu_s'] for r in group]):.1f} | "
+            f"{_median([r['steps_per_cpu_s'] for r in group]):,.0f} | "
+            f"{_median([r['peak_rss_mb'] for r in group]):.0f} | "
+            f"{_median([r['peak_rss_mb'] - r['baseline_rss_mb'] for r in group]):.0f} |"
+        )
+        for r in group:
+            fmt = lambda v: "-" if v is None else f"{v:,}"
+            per_seed.append(
+                f"| {env_id} | {METHOD_LABELS[method]} | {r['seed']} | {r['final_mean']:.1f} | {r['final_median']:.1f} "
+                f"| {fmt(r['steps_to_threshold'])} | {fmt(r['steps_to_target'])} | {r['learn_cpu_s']:.1f} | "
+                f"{r['episodes']} |"
+            )
+    return "\n".join(rows) + "\n\n" + "\n".join(per_seed)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--seeds", type=int, default=5, help="seeds per (env, method) (default 5)")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--budget", type=int, default=None,
+                        help="environment steps for every method (default: 100,000; rl-zoo's n_timesteps for DQN)")
+    parser.add_argument("--eval-freq", type=int, default=5000, help="steps between greedy evaluations (default 5000)")
+    parser.add_argument("--eval-episodes", type=int, default=10, help="episodes per periodic evaluation (default 10)")
+    parser.add_argument("--final-episodes", type=int, default=20, help="episodes of the final evaluation (default 20)")
+    parser.add_argument("--mushroom-venv", type=Path, default=DEFAULT_MUSHROOM_VENV)
+    parser.add_argument("--no-build", action="store_true",
+                        help="do not build MushroomRL's venv: leave MushroomRL out (with the reason) if it is missing")
+    parser.add_argument("--build-mushroom", action="store_true", help="build MushroomRL's venv and exit")
+    parser.add_argument("--json", type=Path, default=None, help="also write every result to this JSON file")
+    parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
+    return parser
+
+
+def main(argv=None) -> None:
+    args = _parser().parse_args(argv)
+    if args.worker is not None:
+        config = json.loads(args.worker)
+        result = _run_mushroom(config) if config["method"] == "mushroom" else _run_sb3(config)
+        print(RESULT_PREFIX + json.dumps(result), flush=True)
+        return
+    if args.build_mushroom:
+        build_mushroom_venv(args.mushroom_venv)
+        print(mushroom_ready(args.mushroom_venv)[1])
+        return
+    methods = list(args.methods)
+    notes = []
+    if "mushroom" in methods:
+        ready, reason = mushroom_ready(args.mushroom_venv)
+        if not ready and not args.no_build:
+            build_mushroom_venv(args.mushroom_venv)
+            ready, reason = mushroom_ready(args.mushroom_venv)
+        if not ready:
+            methods.remove("mushroom")
+            notes.append(f"MushroomRL left out: {reason}")
+        else:
+            notes.append(f"MushroomRL: {reason}")
+    hyperparameters = sb3_er_defaults() if "mushroom" in methods else None
+    results = []
+    for env_id in args.envs:
+        for method in methods:
+            if args.budget is not None:
+                budget = args.budget
+            elif method == "dqn":
+                budget = rl_zoo_dqn_hyperparameters(env_id)[0]
+            else:
+                budget = DEFAULT_BUDGET
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
+                config = {"method": method, "env": env_id, "seed": seed, "budget": budget,
+                          "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
+                          "final_episodes": args.final_episodes}
+                python = sys.executable
+                if method == "mushroom":
+                    config.update(tiling=mushroom_tiling(env_id), hyperparameters=hyperparameters)
+                    python = str(mushroom_python(args.mushroom_venv))
+                result = run_one(config, python)
+                results.append(result)
+                print(f"{env_id} {method} seed {seed}: final {result['final_mean']:.1f}, "
+                      f"{result['learn_cpu_s']:.1f} CPU s", file=sys.stderr, flush=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps(results, indent=1))
+    print(markdown_tables(results))
+    for note in notes:
+        print(f"\n{note}")
+
+
+if __name__ == "__main__":
+    main()
