@@ -181,9 +181,9 @@ def reproduce_command(argv: Sequence[str]) -> None:
         parser.exit(2, f"sb3-er reproduce: error: {error}\n")
     print(result.table_markdown.read_text())
     print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
-    print(f"table:   {result.table_markdown}  and  {result.table_csv}")
+    print(f"table:      {result.table_markdown}  and  {result.table_csv}")
     for figure in result.figures:
-        print(f"figure:  {figure}")
+        print(f"{'animation:' if figure.suffix == '.gif' else 'figure:   '} {figure}")
     runs = result.out_dir / "runs"
     print(f"per-run CSVs: {runs if runs.is_dir() else result.out_dir / '<problem>' / 'runs'}")
 

@@ -36,7 +36,7 @@ from dm_control.rl import control  # noqa: E402
 from dm_control.suite import base  # noqa: E402
 from dm_env import specs  # noqa: E402
 
-#: The OpenGL backend dm_control took ("glfw", "egl", "osmesa", or "disable" when rendering is unavailable).
+#: The OpenGL backend dm_control took ("glfw", "egl", "osmesa", or "off" when rendering is unavailable).
 RENDER_BACKEND = _render.BACKEND
 if _USER_MUJOCO_GL is None:
     os.environ.pop("MUJOCO_GL", None)  # dm_control has read our choice; leave the user's environment as it was
