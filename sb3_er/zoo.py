@@ -17,6 +17,8 @@ from typing import Any
 
 import yaml
 
+from sb3_er.er import REPLAY_ORDERS, SIGMAS
+
 ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma")
 # The other sample re-use methods of thesis chapter 3 (Dyna, FQI, LSPI): trainable through rl-zoo, not in the thesis's
 # experiments (their zoo configs hold our settings, not the thesis's).
@@ -24,7 +26,7 @@ FRAMEWORK_ALGORITHM_NAMES = ("dyna", "fqi", "lspi")
 ALL_ALGORITHM_NAMES = ALGORITHM_NAMES + FRAMEWORK_ALGORITHM_NAMES
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "zoo_configs"
 ENV_PACKAGE = "sb3_er_envs"
-SIGMA_DEFINITIONS = ("worst", "average_worst", "average", "average_best", "best")
+SIGMA_DEFINITIONS = tuple(name for name in SIGMAS if name is not None)  # Appendix B, numbered 1-5 in this order
 # rl_zoo3 keys that configure the run rather than the algorithm's constructor.
 ZOO_ONLY_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "env_wrapper", "frame_stack", "callback", "env_kwargs")
 
@@ -88,10 +90,11 @@ def sample_sarsa_lambda_params(trial, n_actions: int, n_envs: int, additional_ar
 
 
 def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of vanilla ER: alpha, gamma, epsilon and the replay order (thesis Appendix A)."""
+    """Optuna search space of vanilla ER: alpha, gamma, epsilon and the replay order: every order ER has (reversed,
+    forward and uniform of thesis Appendix A, and prioritized sweeping of section 3.2)."""
     return {
         **_sample_common(trial),
-        "replay_order": trial.suggest_categorical("replay_order", ["reversed", "forward", "uniform"]),
+        "replay_order": trial.suggest_categorical("replay_order", list(REPLAY_ORDERS)),
     }
 
 

@@ -87,6 +87,40 @@ def test_optuna_study_with_two_trials(tmp_path):
     assert trials["params_learning_rate"].between(0.02, 0.6).all()
 
 
+class _EveryChoiceTrial:
+    """An optuna trial stand-in that records every categorical search space and returns its first choice."""
+
+    def __init__(self):
+        self.spaces = {}
+
+    def suggest_categorical(self, name, choices):
+        self.spaces[name] = list(choices)
+        return choices[0]
+
+    def suggest_float(self, name, low, high, log=False):
+        return low
+
+    def suggest_int(self, name, low, high, log=False):
+        return low
+
+
+@pytest.mark.parametrize("algo", zoo.ALL_ALGORITHM_NAMES)
+def test_every_choice_of_the_search_space_builds_a_model(algo):
+    import sb3_er_envs  # noqa: F401  (registers the environment ids)
+
+    zoo.register_algorithms()
+    trial = _EveryChoiceTrial()
+    hyperparams_opt.HYPERPARAMS_SAMPLER[algo](trial, 3, 1, {})
+    algorithm = zoo.algorithm_classes()[algo]
+    for name, choices in trial.spaces.items():
+        for choice in choices:
+            algorithm("TileQ", "sb3_er/WindyCliff-v0", **{name: choice})
+    if algo == "er":  # every replay order ER has, prioritized sweeping included
+        assert trial.spaces["replay_order"] == ["reversed", "forward", "uniform", "prioritized"]
+    if algo in ("er_sigma", "residual_er_sigma"):
+        assert sorted(trial.spaces["sigma"]) == sorted(["worst", "average_worst", "average", "average_best", "best"])
+
+
 def test_two_optimize_workers_share_one_sqlite_study(tmp_path):
     optuna = pytest.importorskip("optuna")
     storage = f"sqlite:///{tmp_path / 'study.db'}"
