@@ -10,6 +10,14 @@ algorithm takes). The issue's target is grid world + pendulum + walker, all five
     python benchmarks/reproduce_wall_time.py --seeds 2 --experiments walker
     python benchmarks/reproduce_wall_time.py --from-results results/measured   # report finished reproductions only
 
+``--cpu-estimate`` is for a machine that is not quiet: it runs each reproduction with ``--seeds`` seeds (say 2) in
+this process, one run after another, and measures its CPU time (this process and its children), which other jobs on
+the machine barely change (a short warm-up run first takes the imports and kernel compiles out); scaled to 20 seeds
+(the summary and figures too, so the estimate leans high) and divided by ``--jobs`` it estimates the wall time of the full
+reproduction on an otherwise idle machine with that many cores.
+
+    python benchmarks/reproduce_wall_time.py --cpu-estimate --seeds 2
+
 ``--from-results DIR`` reads finished reproductions (``DIR/<experiment>/runs/*/*.csv``) instead of running them:
 the sum of run times divided by the jobs is then a lower bound of the wall time, since it ignores the summary,
 figures and idle workers at the end.
@@ -19,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -29,6 +38,13 @@ from sb3_er.experiments.reproduce import ALL_ALGORITHMS, reproduce
 
 DEFAULT_EXPERIMENTS = ("gridworld", "pendulum", "walker")
 TARGET_S = 15 * 60
+FULL_SEEDS = 20
+
+
+def cpu_seconds() -> float:
+    """CPU time (user + system) of this process and its finished children."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def run_times(out_dir: Path) -> dict[str, tuple[int, float]]:
@@ -59,6 +75,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--algos", nargs="+", default=list(ALL_ALGORITHMS), choices=list(ALL_ALGORITHMS))
+    parser.add_argument("--cpu-estimate", action="store_true",
+                        help="run --seeds seeds one after another and estimate the 20-seed wall time from CPU time")
     parser.add_argument("--from-results", type=Path, default=None,
                         help="report finished reproductions in DIR/<experiment> instead of running them")
     args = parser.parse_args()
@@ -72,6 +90,21 @@ def main() -> None:
                 continue
             total += report(experiment, None, run_times(folder), args.jobs)
             continue
+        if args.cpu_estimate:
+            with tempfile.TemporaryDirectory(prefix=f"sb3er_{experiment}_warmup_") as tmp:  # imports and kernel compiles
+                reproduce(experiment, n_seeds=1, algos=args.algos, out_dir=Path(tmp), n_workers=1, budget=2,
+                          show_progress=False)
+            with tempfile.TemporaryDirectory(prefix=f"sb3er_{experiment}_") as tmp:
+                start = cpu_seconds()
+                reproduce(experiment, n_seeds=args.seeds, algos=args.algos, out_dir=Path(tmp), n_workers=1,
+                          show_progress=False)
+                cpu = cpu_seconds() - start
+                estimate = cpu * FULL_SEEDS / args.seeds / args.jobs
+                print(f"{experiment}: {cpu:,.0f} CPU s for {args.seeds} seeds -> {cpu * FULL_SEEDS / args.seeds:,.0f} "
+                      f"CPU s for {FULL_SEEDS} seeds -> about {estimate:,.0f} s on {args.jobs} idle cores")
+                report(experiment, None, run_times(Path(tmp)), args.jobs)
+                total += estimate
+            continue
         with tempfile.TemporaryDirectory(prefix=f"sb3er_{experiment}_") as tmp:
             start = time.perf_counter()
             reproduce(experiment, n_seeds=args.seeds, algos=args.algos, out_dir=Path(tmp), n_workers=args.jobs,
@@ -79,8 +112,9 @@ def main() -> None:
             wall = time.perf_counter() - start
             total += report(experiment, wall, run_times(Path(tmp)), args.jobs)
     verdict = "within" if total <= TARGET_S else "over"
+    seeds = f"estimated for {FULL_SEEDS} seeds from {args.seeds}" if args.cpu_estimate else f"{args.seeds} seeds"
     print(f"all: {total:,.0f} s ({total / 60:.1f} min), {verdict} the {TARGET_S // 60}-minute target "
-          f"({args.seeds} seeds, {args.jobs} jobs)")
+          f"({seeds}, {args.jobs} jobs)")
 
 
 if __name__ == "__main__":
