@@ -4,6 +4,7 @@ MushroomRL's tile-coded SARSA(lambda) (issue 12).
     python benchmarks/peers.py                                   # 5 seeds of everything (MushroomRL venv built once)
     python benchmarks/peers.py --seeds 1 --budget 3000 --methods sarsa_lambda dqn --envs CartPole-v1   # tiny
     python benchmarks/peers.py --build-mushroom                  # only build MushroomRL's venv
+    python benchmarks/peers.py --json peers.json                 # resumable: runs already in peers.json are skipped
 
 Methods (``--methods``):
 - ``sarsa_lambda``, ``er_sigma``: sb3-er's ``SarsaLambda`` and ``ERSigma`` with their class defaults and sb3-er's
@@ -31,6 +32,9 @@ mean return reaches Gymnasium's ``reward_threshold`` (CartPole-v1 475, MountainC
 MushroomRL the same loop over Q's argmax) on an env reset with seed 1000 + seed. Wall and CPU seconds count learning
 only, without the evaluations; steps/s is steps per CPU second. Memory: the peak RSS of the run, and how far it rose
 above the RSS after imports and env creation (the learner's own memory).
+
+With ``--json FILE`` every result is written to FILE as soon as its run ends, and runs already in FILE (same env,
+method, seed and budget) are skipped, so an interrupted benchmark resumes; the tables then cover every result in FILE.
 
 The first table has one row per (env, method): medians over seeds for the steps (with how many seeds got there), mean
 and standard deviation over seeds of the final return, medians of the rest. The second lists every seed.
@@ -422,7 +426,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-build", action="store_true",
                         help="do not build MushroomRL's venv: leave MushroomRL out (with the reason) if it is missing")
     parser.add_argument("--build-mushroom", action="store_true", help="build MushroomRL's venv and exit")
-    parser.add_argument("--json", type=Path, default=None, help="also write every result to this JSON file")
+    parser.add_argument("--json", type=Path, default=None,
+                        help="write every result to this JSON file as its run ends; runs already in it are skipped "
+                             "(resume), and the tables cover all of its results")
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     return parser
 
@@ -451,7 +457,8 @@ def main(argv=None) -> None:
         else:
             notes.append(f"MushroomRL: {reason}")
     hyperparameters = sb3_er_defaults() if "mushroom" in methods else None
-    results = []
+    results = json.loads(args.json.read_text()) if args.json is not None and args.json.exists() else []
+    done = {(result["env"], result["method"], result["seed"], result["budget"]) for result in results}
     for env_id in args.envs:
         for method in methods:
             if args.budget is not None:
@@ -461,6 +468,8 @@ def main(argv=None) -> None:
             else:
                 budget = DEFAULT_BUDGET
             for seed in range(args.first_seed, args.first_seed + args.seeds):
+                if (env_id, method, seed, budget) in done:
+                    continue
                 config = {"method": method, "env": env_id, "seed": seed, "budget": budget,
                           "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
                           "final_episodes": args.final_episodes}
@@ -470,10 +479,10 @@ def main(argv=None) -> None:
                     python = str(mushroom_python(args.mushroom_venv))
                 result = run_one(config, python)
                 results.append(result)
+                if args.json is not None:
+                    args.json.write_text(json.dumps(results, indent=1))
                 print(f"{env_id} {method} seed {seed}: final {result['final_mean']:.1f}, "
                       f"{result['learn_cpu_s']:.1f} CPU s", file=sys.stderr, flush=True)
-    if args.json is not None:
-        args.json.write_text(json.dumps(results, indent=1))
     print(markdown_tables(results))
     for note in notes:
         print(f"\n{note}")

@@ -5,6 +5,7 @@ builds it: the MushroomRL test runs only where `python benchmarks/peers.py --bui
 """
 
 import importlib.util
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -69,3 +70,18 @@ def test_tiny_benchmark_with_mushroom_rl():
         pytest.skip(f"{reason}; the test suite does not build it")
     rows = table_rows(run("mushroom"), "CartPole-v1")
     assert any("| MushroomRL SARSA(λ) | 1,000 |" in row for row in rows)
+
+
+@pytest.mark.slow
+def test_json_resume_skips_finished_runs_and_tables_cover_them(tmp_path):
+    results = tmp_path / "peers.json"
+    first = subprocess.run([sys.executable, str(SCRIPT), *TINY, "--methods", "sarsa_lambda", "--json", str(results)],
+                           check=True, capture_output=True, text=True, timeout=900)
+    assert "sarsa_lambda seed 0" in first.stderr
+    second = subprocess.run([sys.executable, str(SCRIPT), *TINY, "--methods", "sarsa_lambda", "er_sigma",
+                             "--json", str(results)], check=True, capture_output=True, text=True, timeout=900)
+    assert "sarsa_lambda seed 0" not in second.stderr  # finished: skipped
+    assert "er_sigma seed 0" in second.stderr
+    labels = [row.split("|")[2].strip() for row in table_rows(second.stdout, "CartPole-v1")]
+    assert labels.count("sb3-er SarsaLambda") == 2 and labels.count("sb3-er ERSigma") == 2  # summary + per-seed rows
+    assert [(r["method"], r["seed"]) for r in json.loads(results.read_text())] == [("sarsa_lambda", 0), ("er_sigma", 0)]
