@@ -221,3 +221,28 @@ def test_a_reading_other_than_the_defaults_runs_and_is_recorded(tmp_path):
                   show_progress=False, algo_kwargs={"replay_units": "segment"})
     with pytest.raises(SystemExit):
         main(["reproduce", "walker", "--env-kwargs", "n_actions=3"])
+
+
+class _BrokenQueue:
+    """A progress queue whose connection is gone, as a process-pool worker's manager proxy can be."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def put(self, item):
+        self.calls += 1
+        raise TypeError("'NoneType' object cannot be interpreted as an integer")
+
+
+def test_a_broken_progress_queue_never_fails_the_run(tmp_path):
+    from sb3_er.experiments.runner import RunJob, execute_run, run_csv_path
+    from sb3_er.experiments.specs import EXPERIMENTS
+
+    job = RunJob(EXPERIMENTS["gridworld"], "er", 0, 3, run_csv_path(tmp_path, "er", 0))
+    broken = _BrokenQueue()
+    with pytest.warns(RuntimeWarning, match="er/seed_0: progress reports stopped, the run goes on"):
+        result = execute_run(job, broken)
+    assert broken.calls == 1  # tried once, then no more
+    assert len(result.frame) == 3  # every episode of the run recorded
+    plain = execute_run(job)
+    pd.testing.assert_frame_equal(result.frame.drop(columns="wall_time_s"), plain.frame.drop(columns="wall_time_s"))

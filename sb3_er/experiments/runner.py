@@ -174,7 +174,8 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     """Learn one run and return its result; writes nothing. The one code path of both backends.
 
     `progress_queue` (anything with ``put((key, fraction))``: a queue.SimpleQueue, a multiprocessing or a Ray queue)
-    receives the finished fraction of the run in steps of at least 1 %, and 1.0 at the end. A run whose Q-function
+    receives the finished fraction of the run in steps of at least 1 %, and 1.0 at the end. A queue whose ``put`` raises
+gets no more reports from this run (a RuntimeWarning says so); the run itself goes on. A run whose Q-function
     diverges is finished too: its frame holds the records up to the divergence and every row has ``diverged`` set, so
     that the summary can count it instead of averaging a truncated curve. Errors of the run (an unknown env id, a
     missing zoo config entry, ...) propagate.
@@ -191,11 +192,24 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     code = records.code_version()  # the code this run starts with
     experiment = job.experiment
     last_reported = [-1.0]
+    reports_to = [progress_queue]
+
+    def send(fraction: float) -> None:
+        # The progress bar is a convenience: a queue that breaks (a worker's connection to the manager lost, seen
+        # intermittently in long process-pool runs) stops this run's reports, with a warning, and never the run.
+        if reports_to[0] is None:
+            return
+        try:
+            reports_to[0].put((job.key, fraction))
+        except Exception as error:  # noqa: BLE001  (any transport error of any backend's queue)
+            reports_to[0] = None
+            warnings.warn(f"{job.key}: progress reports stopped, the run goes on ({type(error).__name__}: {error})",
+                          RuntimeWarning, stacklevel=2)
 
     def report(fraction: float) -> None:
-        if progress_queue is not None and fraction - last_reported[0] >= 0.01:
+        if fraction - last_reported[0] >= 0.01:
             last_reported[0] = fraction
-            progress_queue.put((job.key, fraction))
+            send(fraction)
 
     env_kwargs = dict(job.env_kwargs)
     env = gym.make(experiment.env_id, **env_kwargs)
@@ -205,8 +219,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
         env.close()
         wall_time_s = time.perf_counter() - start
         record = records.finished_record(job, output.model, env, wall_time_s, code)
-        if progress_queue is not None:
-            progress_queue.put((job.key, 1.0))
+        send(1.0)
         return RunResult(job.key, output.frame, record, wall_time_s, output.artifacts)
     model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **job_model_kwargs(job))
     callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report, env_kwargs)
@@ -222,8 +235,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     artifacts = figure_artifacts(job, model) if job.figure_run and not diverged else {}
     wall_time_s = time.perf_counter() - start
     record = records.finished_record(job, model, env, wall_time_s, code)
-    if progress_queue is not None:
-        progress_queue.put((job.key, 1.0))
+    send(1.0)
     return RunResult(job.key, frame, record, wall_time_s, artifacts)
 
 
