@@ -77,6 +77,11 @@ def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUD
     return max(MIN_DEFAULT_TILES_PER_DIMENSION, min(DEFAULT_TILES_PER_DIMENSION, k))
 
 
+def varying_dimensions(observation_space: spaces.Box) -> int:
+    """The number of observation dimensions whose bounds differ (the generic rule's D; a constant needs no tiles)."""
+    return int(np.count_nonzero(observation_space.high.astype(np.float64) > observation_space.low.astype(np.float64)))
+
+
 def default_tile_widths(
     observation_space: spaces.Box, tiles_per_dimension: int | None = None, cell_budget: int = DEFAULT_CELL_BUDGET
 ) -> list[float]:
@@ -103,10 +108,9 @@ def default_tile_widths(
             "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
             "attribute"
         )
-    spans = (high - low).reshape(-1)
     if tiles_per_dimension is None:
-        tiles_per_dimension = default_tiles_per_dimension(int(np.count_nonzero(spans > 0.0)), cell_budget)
-    widths = spans / tiles_per_dimension
+        tiles_per_dimension = default_tiles_per_dimension(varying_dimensions(observation_space), cell_budget)
+    widths = (high - low).reshape(-1) / tiles_per_dimension
     return np.where(widths > 0.0, widths, 1.0).tolist()
 
 
@@ -280,14 +284,13 @@ class TileQAlgorithm(BaseAlgorithm):
                         kwargs[name] = value
                         origins[name] = f"sb3-er's tiling for {env_id} ({entry['source']})"
         if kwargs.get("tile_widths") is None:
-            kwargs["tile_widths"] = default_tile_widths(self.observation_space, tiles_per_dimension)
             if tiles_per_dimension is None:
-                spans = self.observation_space.high.astype(np.float64) - self.observation_space.low.astype(np.float64)
-                tiles_per_dimension = default_tiles_per_dimension(int(np.count_nonzero(spans > 0.0)))
+                tiles_per_dimension = default_tiles_per_dimension(varying_dimensions(self.observation_space))
                 origins["tile_widths"] = (f"the generic rule: {tiles_per_dimension} tiles per bounded dimension, "
                                           f"min(10, floor({DEFAULT_CELL_BUDGET} cells ^ (1/D))), at least 2")
             else:
                 origins["tile_widths"] = f"policy_kwargs: {tiles_per_dimension} tiles per bounded dimension"
+            kwargs["tile_widths"] = default_tile_widths(self.observation_space, tiles_per_dimension)
         resolved = {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
         if self.verbose >= 1:
             self._print_tiling(resolved, origins, notes)
