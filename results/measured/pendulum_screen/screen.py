@@ -1,8 +1,8 @@
 """Screen pendulum readings (issue 10): one process, runs one after another; one CSV per (candidate, algo, seed)."""
-import argparse, json, os, resource, sys, time
+import argparse, os, time
 os.environ.setdefault("OMP_NUM_THREADS", "1"); os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 from pathlib import Path
-import gymnasium as gym, numpy as np, pandas as pd, torch
+import gymnasium as gym, pandas as pd, torch
 import sb3_er_envs  # noqa: F401
 from sb3_er.zoo import algorithm_classes, model_kwargs
 from sb3_er.experiments import EpisodeReturnProtocol
