@@ -175,7 +175,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
 
     `progress_queue` (anything with ``put((key, fraction))``: a queue.SimpleQueue, a multiprocessing or a Ray queue)
     receives the finished fraction of the run in steps of at least 1 %, and 1.0 at the end. A queue whose ``put`` raises
-gets no more reports from this run (a RuntimeWarning says so); the run itself goes on. A run whose Q-function
+    gets no more reports from this run (a RuntimeWarning says so); the run itself goes on. A run whose Q-function
     diverges is finished too: its frame holds the records up to the divergence and every row has ``diverged`` set, so
     that the summary can count it instead of averaging a truncated curve. Errors of the run (an unknown env id, a
     missing zoo config entry, ...) propagate.
