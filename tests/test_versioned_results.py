@@ -194,3 +194,23 @@ def test_compare_records_names_each_differing_field():
                         'config.protocol.y 2 -> "(absent)"']
     assert cautions == ['dependencies.numpy "2.0" -> "2.1"']
     assert records.compare_records(current, current) == ([], [])
+
+
+@needs_git
+@pytest.mark.parametrize(
+    "out_dir",
+    ["results/measured/walker", "results/measured/framework/pendulum", "results/measured/walker_screens/segments"],
+)
+def test_measured_runs_are_not_git_ignored(out_dir):
+    """Committed measurements keep their per-run files: the CSV and version record a reproduction writes under
+    results/measured/ at any depth must not match the repository's .gitignore (once, `runs/` two levels down did)."""
+    root = records.PACKAGE_ROOT
+    if subprocess.run(["git", "rev-parse", "--git-dir"], cwd=root, capture_output=True).returncode != 0:
+        pytest.skip("not a git checkout")
+    csv = run_csv_path(root / out_dir, "er", 0)
+    for path in (csv, csv.with_suffix(".json")):
+        relative = str(path.relative_to(root))
+        ignored = subprocess.run(["git", "check-ignore", "-q", "--no-index", relative], cwd=root).returncode == 0
+        assert not ignored, f"{relative} is git-ignored"
+    scratch = str(run_csv_path(root / "results/framework", "er", 0).relative_to(root))
+    assert subprocess.run(["git", "check-ignore", "-q", "--no-index", scratch], cwd=root).returncode == 0
