@@ -18,9 +18,9 @@ $(STAMP): pyproject.toml
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadfile -q
 
-# The main job in about 1 minute on 2 cores (after make test built the venv): Sarsa(lambda) and ER-sigma on the
-# simplest walker, 4 seeds, 2500 s of learning each (half the thesis's 5000 s; whole-episode replay makes ER-sigma's
-# runs about 60 s of CPU each).
+# The main job in 30-60 s on 2 cores (after make test built the venv): Sarsa(lambda) and ER-sigma on the simplest
+# walker, 4 seeds, 2500 s of learning each (half the thesis's 5000 s; whole-episode replay makes an ER-sigma run take
+# 8-11 s against Sarsa(lambda)'s 1-2 s).
 demo: $(STAMP)
 	$(BIN)/sb3-er reproduce walker --seeds 4 --algos sarsa_lambda er_sigma --budget 2500 --out results/demo
 

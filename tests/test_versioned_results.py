@@ -9,6 +9,8 @@ import warnings
 import pandas as pd
 import pytest
 import yaml
+from hypothesis import given
+from hypothesis import strategies as st
 
 import sb3_er
 from sb3_er import zoo
@@ -214,3 +216,32 @@ def test_measured_runs_are_not_git_ignored(out_dir):
         assert not ignored, f"{relative} is git-ignored"
     scratch = str(run_csv_path(root / "results/framework", "er", 0).relative_to(root))
     assert subprocess.run(["git", "check-ignore", "-q", "--no-index", scratch], cwd=root).returncode == 0
+
+
+def test_compact_runs_joins_seeds_into_ranges():
+    runs = ["pendulum/er/seed_0", "pendulum/er/seed_1", "pendulum/er/seed_2", "pendulum/er/seed_5", "lspi/seed_3",
+            "pendulum/er/seed_6", "summary"]
+    assert records.compact_runs(runs) == "pendulum/er/seed_0-2, 5-6, lspi/seed_3, summary"
+    assert records.grouped({"er/seed_0": ["a"], "er/seed_1": ["a"], "dyna/seed_0": ["b"], "fqi/seed_0": []}) == [
+        "  er/seed_0-1: a", "  dyna/seed_0: b"]
+
+
+def _expand(compact):
+    """The run keys a compact list names (the inverse of records.compact_runs, written independently)."""
+    keys, prefix = set(), None
+    for item in compact.split(", "):
+        if "seed_" in item:
+            prefix, item = item.rsplit("seed_", 1)
+            prefix += "seed_"
+        first, _, last = item.partition("-")
+        keys.update(f"{prefix}{seed}" for seed in range(int(first), int(last or first) + 1))
+    return keys
+
+
+@given(st.lists(st.tuples(st.sampled_from(["er/", "pendulum/er_sigma/", "gridworld/lspi/"]),
+                          st.integers(0, 40)), min_size=1, max_size=60))
+def test_compact_runs_names_every_run_and_no_other(pairs):
+    runs = [f"{prefix}seed_{seed}" for prefix, seed in pairs]
+    compact = records.compact_runs(runs)
+    assert _expand(compact) == set(runs)
+    assert len(compact) <= len(", ".join(dict.fromkeys(runs)))

@@ -333,13 +333,40 @@ def compare_records(recorded: dict[str, Any] | None, current: dict[str, Any]) ->
     return refusals, warnings
 
 
+def compact_runs(runs: Iterable[str]) -> str:
+    """Run keys as a short list: the seeds of one ``<prefix>seed_<n>`` joined into ranges, prefixes in first-seen order.
+
+    e.g. ``["pendulum/er/seed_0", "pendulum/er/seed_1", "pendulum/er/seed_2", "pendulum/er/seed_5", "lspi/seed_3"]``
+    -> ``"pendulum/er/seed_0-2, 5, lspi/seed_3"``; keys without a seed are kept as they are. A resume of hundreds of
+    runs names them in a line or two instead of one name per run.
+    """
+    seeds_by_prefix: dict[str, list[int]] = {}
+    for run in runs:
+        prefix, separator, seed = run.rpartition("seed_")
+        if separator and seed.isdigit():
+            seeds_by_prefix.setdefault(prefix + separator, []).append(int(seed))
+        else:
+            seeds_by_prefix.setdefault(run, [])
+    parts = []
+    for prefix, seeds in seeds_by_prefix.items():
+        ranges = []
+        for seed in sorted(set(seeds)):
+            if ranges and seed == ranges[-1][1] + 1:
+                ranges[-1][1] = seed
+            else:
+                ranges.append([seed, seed])
+        spans = ", ".join(str(first) if first == last else f"{first}-{last}" for first, last in ranges)
+        parts.append(prefix + spans)
+    return ", ".join(parts)
+
+
 def grouped(reasons_by_run: dict[str, list[str]]) -> list[str]:
-    """Lines ``"run, run, ...: reason; reason"``, one per distinct list of reasons, runs in their given order."""
+    """Lines ``"runs: reason; reason"``, one per distinct list of reasons, runs as :func:`compact_runs` writes them."""
     groups: dict[tuple[str, ...], list[str]] = {}
     for run, reasons in reasons_by_run.items():
         if reasons:
             groups.setdefault(tuple(reasons), []).append(run)
-    return [f"  {', '.join(runs)}: {'; '.join(reasons)}" for reasons, runs in groups.items()]
+    return [f"  {compact_runs(runs)}: {'; '.join(reasons)}" for reasons, runs in groups.items()]
 
 
 def describe_code(record: dict[str, Any] | None) -> str:
