@@ -24,5 +24,7 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sb3-er reproduce walker --seeds 4 --algos sarsa_lambda er_sigma --budget 2500 --out results/demo
 
+# Removes the venv and what test and demo write; the committed measurements in results/measured/ stay.
 clean:
-	rm -rf $(VENV) .pytest_cache results
+	rm -rf $(VENV) .pytest_cache .hypothesis
+	find results -mindepth 1 -maxdepth 1 ! -name measured -exec rm -rf {} + 2>/dev/null || true
