@@ -24,7 +24,8 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sb3-er reproduce walker --seeds 4 --algos sarsa_lambda er_sigma --budget 2500 --out results/demo
 
-# Removes the venv and what test and demo write; the committed measurements in results/measured/ stay.
+# Removes the venv, caches, build files and what the demo writes; the committed measurements in results/measured/ stay.
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis
+	rm -rf $(VENV) .pytest_cache .hypothesis *.egg-info
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 	find results -mindepth 1 -maxdepth 1 ! -name measured -exec rm -rf {} + 2>/dev/null || true
