@@ -20,6 +20,7 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
+from sb3_er.common.checks import check_number
 from sb3_er.common.policies import TileQPolicy, action_nvec
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
@@ -154,6 +155,8 @@ class TileQAlgorithm(BaseAlgorithm):
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"TileQ": TileQPolicy, "TileQPolicy": TileQPolicy}
     policy: TileQPolicy
+    #: The name users give lambda of online Sarsa(lambda) (ER calls it online_lambda), for error messages.
+    _trace_lambda_parameter: ClassVar[str] = "trace_lambda"
 
     def __init__(
         self,
@@ -201,17 +204,11 @@ class TileQAlgorithm(BaseAlgorithm):
     def _check_hyperparameters(self) -> None:
         """Validate every hyperparameter; runs wherever a model is built, loaded (``load(..., **kwargs)``) or rebuilt."""
         learning_rate = self.learning_rate(1.0) if callable(self.learning_rate) else self.learning_rate
-        if not (isinstance(learning_rate, (int, float, np.floating)) and math.isfinite(learning_rate)
-                and learning_rate >= 0.0):
-            raise ValueError(f"learning_rate (alpha) must be a finite number >= 0, got {learning_rate!r}")
-        if not 0.0 <= self.gamma <= 1.0:
-            raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
-        if not 0.0 <= self.exploration_rate <= 1.0:
-            raise ValueError(f"exploration_rate must be in [0, 1], got {self.exploration_rate}")
-        if self.trace_lambda is not None and not 0.0 <= self.trace_lambda <= 1.0:
-            raise ValueError(f"the trace decay lambda must be in [0, 1], got {self.trace_lambda}")
-        if not 0.0 < self.trace_cutoff < 1.0:
-            raise ValueError(f"trace_cutoff must be in (0, 1), got {self.trace_cutoff}")
+        check_number("learning_rate (alpha)", learning_rate, 0.0)
+        check_number("gamma", self.gamma, 0.0, 1.0)
+        check_number("exploration_rate", self.exploration_rate, 0.0, 1.0)
+        check_number(self._trace_lambda_parameter, self.trace_lambda, 0.0, 1.0, optional=True)
+        check_number("trace_cutoff", self.trace_cutoff, 0.0, 1.0, low_open=True, high_open=True)
 
     @staticmethod
     def _check_env_wrappers(env: VecEnv) -> None:
