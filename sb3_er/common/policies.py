@@ -1,5 +1,7 @@
 """TileQ: a tile-coded linear action-value function Q(s, a) = theta . phi(s, a) as an SB3 policy."""
 
+import pathlib
+import pickle
 from collections.abc import Sequence
 from typing import Optional, Union
 
@@ -11,6 +13,7 @@ from stable_baselines3.common.type_aliases import Schedule
 from stable_baselines3.common.utils import is_vectorized_observation
 
 from sb3_er.common import kernels
+from sb3_er.common.serialization import atomic_path, decode_plain, encode_plain
 from sb3_er.common.tile_coding import TileCoder
 
 
@@ -191,6 +194,45 @@ class TileQPolicy(BasePolicy):
     def load_from_vector(self, vector: np.ndarray) -> None:
         """Write a 1D array of weights into theta in place (the inverse of ``parameters_to_vector``)."""
         self.load_state_dict({"theta": th.as_tensor(np.asarray(vector, dtype=np.float64))})
+
+    def save(self, path: Union[str, pathlib.Path]) -> None:
+        """Save the weights and the constructor settings (SB3's policy file, ``TileQPolicy.load`` reads it back), the
+        spaces in plain form, so that loading needs no pickle; written atomically."""
+        data = encode_plain(self._get_constructor_parameters())
+        with atomic_path(path, ".pth") as partial:
+            th.save({"state_dict": self.state_dict(), "data": data}, partial)
+
+    @classmethod
+    def load(cls, path: Union[str, pathlib.Path], device: Union[th.device, str] = "auto",
+             allow_pickle: bool = True) -> "TileQPolicy":
+        """Load a policy saved by ``save``. Its file is read with ``torch.load(weights_only=True)``: no pickle runs.
+        A policy file in SB3's own format (spaces pickled) needs ``allow_pickle`` (the default, as in SB3), as
+        unpickling it can run code from the file. ValueError naming the file for anything unreadable or inconsistent.
+
+        :param device: accepted for SB3's signature; the weights live on the CPU.
+        """
+        try:
+            try:
+                saved = th.load(path, map_location="cpu", weights_only=True)
+                plain = True
+            except pickle.UnpicklingError:
+                if not allow_pickle:
+                    raise ValueError("a policy file with pickled settings, refused with allow_pickle=False") from None
+                saved = th.load(path, map_location="cpu", weights_only=False)
+                plain = False
+            if not (isinstance(saved, dict) and set(saved) == {"state_dict", "data"}):
+                raise ValueError("not a policy file: expected the entries state_dict and data")
+            data = decode_plain(saved["data"], {}) if plain else dict(saved["data"])
+            if not isinstance(data, dict):
+                raise ValueError("the data entry is not a dict of constructor settings")
+            data.pop("normalize_images", None)  # written by SB3's BaseModel, not a setting of tile coding
+            model = cls(**data)
+            model.load_state_dict(saved["state_dict"])
+        except (ValueError, TypeError, RuntimeError, EOFError, OSError) as error:
+            if isinstance(error, FileNotFoundError):
+                raise
+            raise ValueError(f"{path}: {error}") from error
+        return model
 
     def _get_constructor_parameters(self) -> dict:
         data = super()._get_constructor_parameters()
