@@ -480,10 +480,9 @@ class TileQAlgorithm(BaseAlgorithm):
             beside them (spaces, generators, arrays, the policy class), ``custom_objects`` supplies any other, and a
             file that needs more is refused with the entry named.
         """
-        source = path
         try:
+            data, source = read_zip_data(path)
             if not allow_pickle:
-                data, source = read_zip_data(path)
                 classes = {f"{c.__module__}:{c.__qualname__}": c for c in cls.policy_aliases.values()}
                 custom_objects = custom_objects_without_pickle(data, classes, custom_objects)
             with warnings.catch_warnings(record=True) as caught:

@@ -171,18 +171,23 @@ class TileQPolicy(BasePolicy):
     def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
                               error_msgs) -> None:
         """Check incoming weights before they are copied into theta (set_parameters, load, ``TileQPolicy.load``): the
-        tile coding's number of weights, all finite. On failure the weights in place stay as they were."""
+        tile coding's number of weights, all finite. A problem is reported as PyTorch reports a size mismatch (a
+        RuntimeError of ``load_state_dict``), and the weights in place stay as they were."""
         theta = state_dict.get(prefix + "theta")
+        problem = None
         if theta is not None:
             if not isinstance(theta, th.Tensor) or not theta.dtype.is_floating_point:
-                raise ValueError(f"the weights theta must be a floating-point tensor, got {type(theta).__name__} "
-                                 f"{getattr(theta, 'dtype', '')}")
-            if tuple(theta.shape) != (self.tile_coder.n_weights,):
-                raise ValueError(f"the weights theta have shape {tuple(theta.shape)}, but this tile coding has "
-                                 f"{self.tile_coder.n_weights} weights: they were saved with another tile coding")
-            if not bool(th.isfinite(theta).all()):
+                problem = (f"the weights theta must be a floating-point tensor, got {type(theta).__name__} "
+                           f"{getattr(theta, 'dtype', '')}")
+            elif tuple(theta.shape) != (self.tile_coder.n_weights,):
+                problem = (f"the weights theta have shape {tuple(theta.shape)}, but this tile coding has "
+                           f"{self.tile_coder.n_weights} weights: they were saved with another tile coding")
+            elif not bool(th.isfinite(theta).all()):
                 bad = th.nonzero(~th.isfinite(theta)).reshape(-1)[:5].tolist()
-                raise ValueError(f"the weights theta hold non-finite values (at indices {bad}...)")
+                problem = f"the weights theta hold non-finite values (at indices {bad})"
+        if problem is not None:
+            error_msgs.append(problem)
+            return
         super()._load_from_state_dict(state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
                                       error_msgs)
 

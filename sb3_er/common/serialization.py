@@ -173,7 +173,8 @@ def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[li
 
 
 def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[dict[str, Any], Any]:
-    """The JSON ``data`` entry of a model zip (parsed, never unpickled) and a path or buffer to pass on to SB3."""
+    """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and a path
+    or buffer to pass on to SB3."""
     if isinstance(path, (str, pathlib.Path)):
         path = pathlib.Path(path)
         if not path.exists() and not path.suffix and path.with_suffix(".zip").exists():
@@ -183,12 +184,18 @@ def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[di
         source = io.BytesIO(path.read())
     try:
         with zipfile.ZipFile(source) as archive:
-            raw = archive.read("data")
-        data = json.loads(raw.decode())
+            corrupt = archive.testzip()  # every member's CRC, also those SB3 never reads
+            raw = archive.read("data") if corrupt is None else b""
     except KeyError:
         raise ValueError("the zip has no data entry") from None
-    except (zipfile.BadZipFile, ValueError, EOFError) as error:
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError) as error:
         raise ValueError(f"not a readable model zip ({type(error).__name__}: {error})") from None
+    if corrupt is not None:
+        raise ValueError(f"member {corrupt!r} of the zip fails its CRC check: the file is corrupt")
+    try:
+        data = json.loads(raw.decode())
+    except ValueError as error:
+        raise ValueError(f"the data entry is not JSON ({error})") from None
     if isinstance(source, io.BytesIO):
         source.seek(0)
     if not isinstance(data, dict):
