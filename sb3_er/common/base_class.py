@@ -36,6 +36,7 @@ from sb3_er.common.serialization import (
     custom_objects_without_pickle,
     plain_state,
     read_zip_data,
+    resolve_zip_path,
 )
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
@@ -480,6 +481,8 @@ class TileQAlgorithm(BaseAlgorithm):
             beside them (spaces, generators, arrays, the policy class), ``custom_objects`` supplies any other, and a
             file that needs more is refused with the entry named.
         """
+        if isinstance(path, (str, pathlib.Path)):
+            path = resolve_zip_path(path)  # so that errors name the file read
         try:
             data, source = read_zip_data(path)
             if not allow_pickle:

@@ -172,16 +172,18 @@ def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[li
     return plain
 
 
+def resolve_zip_path(path: Union[str, pathlib.Path]) -> pathlib.Path:
+    """SB3's convention: a path without suffix that does not exist is read with .zip added."""
+    path = pathlib.Path(path)
+    if not path.exists() and not path.suffix and path.with_suffix(".zip").exists():
+        return path.with_suffix(".zip")
+    return path
+
+
 def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[dict[str, Any], Any]:
     """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and a path
     or buffer to pass on to SB3."""
-    if isinstance(path, (str, pathlib.Path)):
-        path = pathlib.Path(path)
-        if not path.exists() and not path.suffix and path.with_suffix(".zip").exists():
-            path = path.with_suffix(".zip")
-        source = path
-    else:
-        source = io.BytesIO(path.read())
+    source = resolve_zip_path(path) if isinstance(path, (str, pathlib.Path)) else io.BytesIO(path.read())
     try:
         with zipfile.ZipFile(source) as archive:
             corrupt = archive.testzip()  # every member's CRC, also those SB3 never reads
