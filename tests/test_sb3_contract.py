@@ -227,3 +227,33 @@ def test_load_without_reset_continues_the_episode(allow_pickle, tmp_path):
     assert loaded.num_timesteps == 128
     again = SarsaLambda.load(tmp_path / "model.zip", env=LineWalkEnv(), allow_pickle=allow_pickle)
     assert again._last_obs is None
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and a.dtype == b.dtype and np.array_equal(a, b)
+    if isinstance(a, np.random.Generator):
+        return a.bit_generator.state == b.bit_generator.state
+    if isinstance(a, (list, tuple)) or type(a).__name__ == "deque":
+        return type(a) is type(b) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b)) and (
+            getattr(a, "maxlen", None) == getattr(b, "maxlen", None))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    return a == b and type(a) is type(b)
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_loading_without_pickle_restores_what_unpickling_does(algo, tmp_path):
+    """Every attribute SB3 pickles and sb3-er also keeps in plain form comes back identical without unpickling."""
+    from sb3_er.common.serialization import plain_state
+
+    model = algo("TileQ", LineWalkEnv(), seed=0, **SMALL).learn(150)
+    model.save(tmp_path / "model")
+    with_pickle = algo.load(tmp_path / "model.zip")
+    without = algo.load(tmp_path / "model.zip", allow_pickle=False)
+    plain = plain_state(model)
+    assert {"observation_space", "action_space", "action_rng", "predict_rng", "ep_info_buffer", "_last_obs",
+            "policy_class"} <= set(plain)
+    for name in plain:
+        assert _same(getattr(without, name), getattr(with_pickle, name)), name
+    np.testing.assert_array_equal(without.policy.q_values(PROBES), with_pickle.policy.q_values(PROBES))
