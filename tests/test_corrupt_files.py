@@ -360,3 +360,56 @@ def test_a_failed_save_leaves_the_previous_file(tmp_path, monkeypatch):
         model.save(tmp_path / "model")
     assert (tmp_path / "model.zip").read_bytes() == saved and not list(tmp_path.glob("*.partial"))
     assert zipfile.ZipFile(tmp_path / "model.zip").testzip() is None
+
+
+def _rewrite_data(path: Path, change) -> None:
+    with zipfile.ZipFile(path) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    data = json.loads(members["data"])
+    change(data)
+    members["data"] = json.dumps(data).encode()
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+
+
+def test_an_entry_that_cannot_be_unpickled_is_an_error_not_a_default(tmp_path):
+    """SB3's test_load_invalid_object: SB3 warns and silently keeps the constructor's learning rate; sb3-er refuses,
+    naming the entry, and loads once custom_objects supplies it."""
+    import base64
+
+    path = tmp_path / "model.zip"
+    SarsaLambda("TileQ", LineWalkEnv(), learning_rate=lambda _: 0.3, **KWARGS).save(path)
+
+    def corrupt(data):
+        entry = data["learning_rate"]
+        raw = base64.b64decode(entry[":serialized:"]).replace(b"CodeType", b"CodeTyps")
+        entry[":serialized:"] = base64.b64encode(raw).decode()
+
+    _rewrite_data(path, corrupt)
+    with pytest.raises(ValueError, match=r"model.zip: data entry 'learning_rate' cannot be unpickled.*custom_objects"):
+        SarsaLambda.load(path)
+    loaded = SarsaLambda.load(path, custom_objects={"learning_rate": 0.3})
+    assert loaded.learning_rate == 0.3
+
+
+def test_a_plain_copy_that_disagrees_with_its_type_is_refused(tmp_path):
+    """A crafted plain copy (an array of the wrong dtype, a space with mismatched bounds) is refused by name."""
+    path = tmp_path / "model.zip"
+    ER("TileQ", LineWalkEnv(), **KWARGS).learn(50).save(path)
+
+    def bad_rng(data):
+        data["_plain_state"]["action_rng"] = {"__ndarray__": ["|O", [4], [1, 2, 3, 4]]}
+
+    _rewrite_data(path, bad_rng)
+    with pytest.raises(ValueError, match=r"data entry 'action_rng': expected a numeric dtype, got '\|O'"):
+        ER.load(path, allow_pickle=False)
+    ER("TileQ", LineWalkEnv(), **KWARGS).save(path)
+
+    def bad_space(data):
+        space = data["_plain_state"]["observation_space"]["__space__"]
+        space["high"] = {"__ndarray__": ["<f8", [2], [1.0, 2.0]]}
+
+    _rewrite_data(path, bad_space)
+    with pytest.raises(ValueError, match=r"data entry 'observation_space': malformed Box space"):
+        ER.load(path, allow_pickle=False)

@@ -181,3 +181,15 @@ def test_a_deep_copy_mid_episode_continues_like_the_original(algo):
     copied.learn(200, reset_num_timesteps=False)
     np.testing.assert_array_equal(copied.policy.theta_array, model.policy.theta_array)
     assert np.shares_memory(copied.policy.theta_array, copied.policy.theta.numpy())
+
+
+def test_assigning_theta_rebuilds_the_kernels_view():
+    model = SarsaLambda("TileQ", LineWalkEnv(), seed=0, **KWARGS)
+    n = model.policy.tile_coder.n_weights
+    model.policy.theta = th.ones(n, dtype=th.float64)
+    assert np.shares_memory(model.policy.theta_array, model.policy.theta.numpy())
+    np.testing.assert_array_equal(model.policy.q_values(PROBES), 8.0)  # 8 tilings of weight 1
+    with pytest.raises(ValueError, match="one contiguous float64 CPU tensor of 32768 entries"):
+        model.policy.theta = th.ones(n, dtype=th.float32)
+    np.testing.assert_array_equal(model.policy.q_values(PROBES), 8.0)  # refused before it replaced anything
+    assert model.policy.theta.dtype == th.float64

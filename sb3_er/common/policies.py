@@ -141,17 +141,22 @@ class TileQPolicy(BasePolicy):
     # ``.to()``, a deep copy, unpickling) rather than derived at each access, which would cost every step.
 
     def __setattr__(self, name, value) -> None:
+        if name == "theta":
+            self._check_theta(value)  # before it replaces the weights in place
         super().__setattr__(name, value)
         if name == "theta":
             self._share_theta()
 
-    def _share_theta(self) -> None:
-        theta = self.theta
-        if theta.device.type != "cpu" or theta.dtype != th.float64 or tuple(theta.shape) != (self.tile_coder.n_weights,) \
-                or not theta.is_contiguous():
+    def _check_theta(self, theta) -> None:
+        if not (isinstance(theta, th.Tensor) and theta.device.type == "cpu" and theta.dtype == th.float64
+                and tuple(theta.shape) == (self.tile_coder.n_weights,) and theta.is_contiguous()):
             raise ValueError(f"TileQPolicy keeps its weights as one contiguous float64 CPU tensor of "
-                             f"{self.tile_coder.n_weights} entries, got {theta.dtype} {tuple(theta.shape)} on {theta.device}")
-        self.__dict__["theta_array"] = theta.numpy()
+                             f"{self.tile_coder.n_weights} entries, got {getattr(theta, 'dtype', type(theta).__name__)} "
+                             f"{tuple(getattr(theta, 'shape', ()))} on {getattr(theta, 'device', '?')}")
+
+    def _share_theta(self) -> None:
+        self._check_theta(self.theta)
+        self.__dict__["theta_array"] = self.theta.numpy()
 
     def _apply(self, fn, recurse=True):
         """Keep theta a CPU float64 tensor whose NumPy view the kernels share (``.to(device)`` must not rebind it)."""
