@@ -141,7 +141,7 @@ def test_predict_names_the_gym_vecenv_mix_up(algo):
 
 # --- hyperparameter types: every numeric parameter of every algorithm --------------------------------------------------
 
-COMMON = ["learning_rate", "gamma", "exploration_rate", "trace_cutoff"]
+COMMON = ["learning_rate", "gamma", "exploration_rate", "trace_cutoff", "stats_window_size", "seed"]
 ER_NUMERIC = ["buffer_size", "replay_every", "n_replays", "replays_per_stored_trajectory", "residual_zeta",
               "priority_threshold", "max_predecessors", "prioritized_updates", "online_lambda"]
 FITTED = ["buffer_size", "fit_every", "n_iterations", "ridge"]

@@ -253,6 +253,7 @@ class TileQAlgorithm(BaseAlgorithm):
         check_number("exploration_rate", self.exploration_rate, 0.0, 1.0)
         check_number(self._trace_lambda_parameter, self.trace_lambda, 0.0, 1.0, optional=True)
         check_number("trace_cutoff", self.trace_cutoff, 0.0, 1.0, low_open=True, high_open=True)
+        check_integer("stats_window_size", self._stats_window_size, minimum=1)
         check_bool("value_watch", self.value_watch)
         check_choice("value_bound_action", self.value_bound_action, VALUE_BOUND_ACTIONS)
 
@@ -489,6 +490,7 @@ class TileQAlgorithm(BaseAlgorithm):
             self._seed_generators(seed)
 
     def _seed_generators(self, seed: Optional[int]) -> None:
+        check_integer("seed", seed, minimum=0, optional=True)
         self.action_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_ACTIONS)
         self.predict_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(kernels.RNG_STREAM_PREDICT,)))
 
@@ -633,9 +635,9 @@ class TileQAlgorithm(BaseAlgorithm):
         last_obs = self._last_obs
         if last_obs is not None:
             shape = (self.n_envs, *self.observation_space.shape)
-            if not (isinstance(last_obs, np.ndarray) and last_obs.shape == shape and last_obs.dtype.kind == "f"
+            if not (isinstance(last_obs, np.ndarray) and last_obs.shape == shape and last_obs.dtype.kind in "biuf"
                     and np.all(np.isfinite(last_obs))):
-                raise ValueError(f"_last_obs: expected finite floats of shape {shape}, got {last_obs!r}")
+                raise ValueError(f"_last_obs: expected finite numbers of shape {shape}, got {last_obs!r}")
         for name in ("ep_info_buffer", "ep_success_buffer"):
             if not isinstance(getattr(self, name), (deque, type(None))):
                 raise ValueError(f"{name}: expected a deque, got {type(getattr(self, name)).__name__}")
