@@ -193,3 +193,13 @@ def test_assigning_theta_rebuilds_the_kernels_view():
         model.policy.theta = th.ones(n, dtype=th.float32)
     np.testing.assert_array_equal(model.policy.q_values(PROBES), 8.0)  # refused before it replaced anything
     assert model.policy.theta.dtype == th.float64
+
+
+def test_a_model_that_logged_to_tensorboard_can_be_copied(tmp_path, capsys):
+    """A logger's writers hold open files; copies leave it out and log on their own from their next learn()."""
+    model = ER("TileQ", LineWalkEnv(), seed=0, verbose=1, tensorboard_log=str(tmp_path / "tb"), **KWARGS).learn(100)
+    for copied in (copy.deepcopy(model), pickle.loads(pickle.dumps(model))):
+        assert np.shares_memory(copied.policy.theta_array, copied.policy.theta.numpy())
+        copied.learn(100)  # a new TensorBoard run, as a new learn() of the original would start
+        assert copied.logger.dir != model.logger.dir and copied.logger is not model.logger
+    assert sorted(p.name for p in (tmp_path / "tb").iterdir()) == ["ER_1", "ER_2", "ER_3"]

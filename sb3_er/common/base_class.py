@@ -568,6 +568,15 @@ class TileQAlgorithm(BaseAlgorithm):
         if getattr(self, "policy", None) is not None:
             self._setup_value_watch()  # the new env's rewards
 
+    def __getstate__(self) -> dict[str, Any]:
+        """What a copy keeps (``copy.deepcopy``, pickling by Ray or ``multiprocessing``): everything but the logger,
+        whose writers hold open files (stdout, TensorBoard); the copy configures its own at its next ``learn()``, as a
+        new model does (``set_logger`` gives it another)."""
+        state = self.__dict__.copy()
+        state.pop("_logger", None)
+        state["_custom_logger"] = False
+        return state
+
     # --- files: SB3's save and load, written atomically, checked when read, and loadable without pickle ------------
 
     def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase], exclude: Optional[Iterable[str]] = None,
