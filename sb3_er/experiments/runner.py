@@ -185,6 +185,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
 
     import sb3_er_envs  # noqa: F401  (registers the environment ids)
     from sb3_er import DivergenceError
+    from sb3_er.common.base_class import ValueBoundWarning
     from sb3_er.zoo import algorithm_classes
 
     torch.set_num_threads(1)
@@ -224,7 +225,9 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **job_model_kwargs(job))
     callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report, env_kwargs)
     try:
-        model.learn(total_timesteps=total_timesteps, callback=callback)
+        with warnings.catch_warnings():  # counted in the CSV and the record instead (values_out_of_range)
+            warnings.simplefilter("ignore", ValueBoundWarning)
+            model.learn(total_timesteps=total_timesteps, callback=callback)
         diverged = False
     except DivergenceError:
         diverged = True
@@ -235,6 +238,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     artifacts = figure_artifacts(job, model) if job.figure_run and not diverged else {}
     wall_time_s = time.perf_counter() - start
     record = records.finished_record(job, model, env, wall_time_s, code)
+    record["value_excursion"] = getattr(model, "value_excursion", None)  # the first value outside the returns
     send(1.0)
     return RunResult(job.key, frame, record, wall_time_s, artifacts)
 
