@@ -110,6 +110,7 @@ TASKS = {
     "replay_order": "sb3_er.experiments.replay_order:replay_order_run",
     "pessimistic": "sb3_er.experiments.pessimistic:pessimistic_run",
     "framework": "sb3_er.experiments.framework:framework_run",
+    "sigma_regime": "sb3_er.experiments.sigma_regime:sigma_regime_run",
 }
 """Runs that are no learning run under a protocol (see :class:`~sb3_er.experiments.specs.Analysis`): the task name
 of the job's experiment to ``module:function``. The function takes ``(job, env, report)`` (the env made from the
