@@ -62,6 +62,20 @@ def recorded_buffer(env: gym.Env, coder: TileCoder, n_transitions: int) -> Traje
     return buffer
 
 
+def _alternate(rate, size, watch, rounds) -> tuple[float, float]:
+    """(median rate without the watch, median ratio of the time per unit with it to without it) over ``rounds``
+    alternating calls ``rate(size, watch_array)``, after one small call of each to compile."""
+    rate(1, kernels.NO_WATCH)
+    rate(1, watch)
+    without, ratios = [], []
+    for _ in range(rounds):
+        off = rate(size, kernels.NO_WATCH)
+        on = rate(size, watch)
+        without.append(off)
+        ratios.append(off / on)
+    return float(np.median(without)), float(np.median(ratios))
+
+
 def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays, rounds=5) -> tuple[float, float]:
     """(updates per CPU second without the value watch, time per update with it over time without it): the median
     of ``rounds`` alternating pairs of phases from the same weights and generators."""
@@ -80,15 +94,7 @@ def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays, rounds=5) -
         )[0]
         return updates / (time.process_time() - start)
 
-    phase(1, kernels.NO_WATCH)
-    phase(1, watch)
-    without, ratios = [], []
-    for _ in range(rounds):
-        off = phase(n_replays, kernels.NO_WATCH)
-        on = phase(n_replays, watch)
-        without.append(off)
-        ratios.append(off / on)
-    return float(np.median(without)), float(np.median(ratios))
+    return _alternate(phase, n_replays, watch, rounds)
 
 
 def numpy_updates_per_second(coder, buffer, sigma_on, zeta, n_updates) -> float:
@@ -165,16 +171,7 @@ def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, floa
         _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, steps, kernels.new_rng_state(0), watch)
         return steps / (time.process_time() - start)
 
-    watch = kernels.new_watch(-1e6, 1e6)
-    run(10, kernels.NO_WATCH)
-    run(10, watch)
-    without, ratios = [], []
-    for _ in range(rounds):
-        off = run(n_steps, kernels.NO_WATCH)
-        on = run(n_steps, watch)
-        without.append(off)
-        ratios.append(off / on)
-    return float(np.median(without)), float(np.median(ratios))
+    return _alternate(run, n_steps, kernels.new_watch(-1e6, 1e6), rounds)
 
 
 def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
