@@ -580,7 +580,7 @@ def _worker_main(connection, parent_pid: int) -> None:
     driver dies. Ctrl-C is the driver's to handle (it ends the workers)."""
     import signal
 
-    lifetime.die_with_parent(parent_pid)
+    lifetime.die_with_parent(parent_pid, name=WORKER_NAME)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     reports = _PipeReports(connection)
     while True:
@@ -600,6 +600,10 @@ def _worker_main(connection, parent_pid: int) -> None:
             return
         except Exception:  # noqa: BLE001  (a result that does not pickle)
             connection.send(("error", traceback.format_exc()))
+
+
+WORKER_NAME = "sb3-er-worker"
+"""The name of a local worker process (``ps -C sb3-er-worker``), set once it dies with its driver."""
 
 
 class _Worker:
