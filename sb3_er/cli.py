@@ -11,9 +11,10 @@ from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
 # The analyses, and the framework experiment (thesis Table 3.1, sb3_er.experiments.framework), which runs three envs.
-ANALYSIS_NAMES = (*ANALYSES, "framework")
+ANALYSIS_NAMES = (*ANALYSES, "framework", "sigma-regime")
 FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
 FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
+SIGMA_REGIME_READINGS = ("gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-optimistic")
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -36,7 +37,8 @@ def _reproduce_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "experiment", choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
         help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
-        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar)",
+        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar), "
+        "sigma-regime (which way ER-sigma moves its targets, per env and reading)",
     )
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds per algorithm (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
@@ -50,7 +52,8 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
         "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
-        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200)",
+        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200); sigma-regime: episodes or "
+        "seconds of the chosen --readings, which must share a unit (defaults: 100 episodes, walker 2500 s)",
     )
     parser.add_argument(
         "--jobs", type=int, default=None,
@@ -91,6 +94,8 @@ def _reproduce_parser() -> argparse.ArgumentParser:
                           help="framework: the problems to run (default all three)")
     analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
                           help="framework: the methods to run (default all seven)")
+    analyses.add_argument("--readings", nargs="+", default=None, choices=SIGMA_REGIME_READINGS,
+                          help="sigma-regime: the env readings to run (default all five)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
         help="resume next to finished runs made by other code (version, git commit) or another configuration; "
@@ -105,6 +110,7 @@ ANALYSIS_OPTIONS = {
     "sigma": {"sigmas": "sigmas", "algo_kwargs": "algo_kwargs"},
     "pessimistic": {"initial_value": "initial_value"},
     "framework": {"problems": "problems", "methods": "methods"},
+    "sigma-regime": {"readings": "readings"},
 }
 
 
@@ -113,7 +119,7 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
     experiment or analysis that has no use for it."""
     own = ANALYSIS_OPTIONS.get(args.experiment, {"algo_kwargs": "algo_kwargs"})
     given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs",
-                                      "problems", "methods")
+                                      "problems", "methods", "readings")
              if (value := getattr(args, dest)) not in (None, [])}
     if args.experiment in ANALYSIS_NAMES and args.algos is not None:
         given["algos"] = args.algos
@@ -214,7 +220,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(
             "usage: sb3-er {reproduce,train,enjoy,optimize} ...\n\n"
             "  reproduce EXPERIMENT   run a thesis experiment (gridworld, pendulum, walker, leo) or analysis\n"
-            "                         (replay-order, sigma, pessimistic, framework); see reproduce -h\n"
+            "                         (replay-order, sigma, pessimistic, framework, sigma-regime); see reproduce -h\n"
             "  train --algo A --env E rl-zoo training with the thesis hyperparameters from zoo_configs/\n"
             "  enjoy --algo A --env E rl-zoo enjoy of a trained agent (-f FOLDER, --no-render)\n"
             "  optimize --algo A --env E  rl-zoo optuna search (--n-trials N, --n-timesteps T)\n\n"
