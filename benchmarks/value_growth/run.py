@@ -71,7 +71,7 @@ VARIANTS = {
                     "pendulum: vanilla ER at velocity tile width 0.33 rad/s"),
 }
 #: The runs whose checkpoints at GAIN_AT also measure the replay operator's gain per sigma definition.
-GAIN_VARIANTS = ("er", "er_sigma")
+GAIN_VARIANTS = ("er", "er_sigma", "er_sigma_volume")
 SIGMAS_FOR_GAIN = (None, "worst", "average_worst", "average", "best")
 
 
@@ -102,9 +102,9 @@ class Checkpoints(BaseCallback):
     """Every `interval` steps: the target comparison and the value range over the stored transitions; at `gain_at`
     the replay operator's gain per sigma definition."""
 
-    def __init__(self, interval: int, gain_at: tuple[int, ...]):
+    def __init__(self, interval: int, gain_at: tuple[int, ...], last: int):
         super().__init__()
-        self.interval, self.gain_at, self.rows = interval, gain_at, []
+        self.interval, self.gain_at, self.last, self.rows = interval, gain_at, last, []
 
     def _on_step(self) -> bool:
         if self.num_timesteps % self.interval:
@@ -117,6 +117,10 @@ class Checkpoints(BaseCallback):
         row["min_q_sa"] = float(comparison["q_sa"].min())
         row["mean_max_q_next"] = float(((comparison["target_vanilla"][keep] - model.replay_buffer.rewards[
             vg.stored_transitions(model.replay_buffer)[0]][keep]) / model.gamma).mean())
+        if self.num_timesteps == self.last:  # how many distinct stored tiles share a hashed slot
+            buffer = model.replay_buffer
+            observations = buffer.observations[vg.stored_transitions(buffer)[0]]
+            row["collision_rate"] = model.policy.tile_coder.memory_report(observations)["collision_rate"]
         if self.num_timesteps in self.gain_at:
             for sigma in SIGMAS_FOR_GAIN:
                 row[gain_column(sigma)] = vg.replay_gain(model, sigma=sigma)
@@ -134,7 +138,8 @@ def run(problem: str, variant: str, seed: int, out: Path) -> Path:
     start = time.perf_counter()
     env = gym.make(settings["env_id"], **env_kwargs)
     model = algorithm_classes()[algo]("TileQ", env, seed=seed, **kwargs)
-    callback = Checkpoints(settings["checkpoint"], settings["gain_at"] if variant in GAIN_VARIANTS else ())
+    callback = Checkpoints(settings["checkpoint"], settings["gain_at"] if variant in GAIN_VARIANTS else (),
+                           settings["steps"])
     diverged = False
     try:
         model.learn(settings["steps"], callback=callback)
@@ -265,22 +270,33 @@ def values_figure(out: Path, problem: str, runs) -> Path:
     return path
 
 
+def _per_seed(values, form: str) -> str:
+    return ", ".join(format(value, form) for value in values)
+
+
 def run_table(problem: str, runs) -> list[str]:
+    """One row per variant: figures of the last checkpoint, per seed where they differ much between seeds."""
     steps = PROBLEMS[problem]["steps"]
-    lines = [f"| Variant (what it changes) | seeds | largest Q(s,a) at {steps:,} steps (per seed) | mean max_a Q(s',a) "
-             "| σ raises / lowers targets | T_σ - T_vanilla (mean, % of mean abs Q) | s' with no action visited | "
-             "mean share of tiles s' shares with s (σ's a') |", "|---|---|---|---|---|---|---|---|"]
+    lines = [f"| Variant (what it changes) | largest Q(s,a) at {steps:,} steps | mean max_a Q(s',a) | σ raises / "
+             "lowers targets | mean T_σ - T_vanilla / mean abs Q | s' without a visited action (all checkpoints) | "
+             "tiles of φ(s,a) in σ's φ(s',a') | replay updates per phase | stored tiles sharing a slot |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for variant, (_, _, _, what) in VARIANTS.items():
         seeds = runs.get((problem, variant))
         if not seeds:
             continue
         last = pd.DataFrame([frame.iloc[-1] for frame in seeds.values()])
+        every = pd.concat(list(seeds.values()))
+        no_visit = int(round((every["share_no_action_visited"] * every["transitions"]).sum()))
         diverged = " (diverged)" if last["diverged"].any() else ""
+        collisions = (_per_seed(last["collision_rate"] * 100, ".2f") + " %") if "collision_rate" in last and \
+            last["collision_rate"].notna().all() else "-"
         lines.append(
-            f"| {variant} ({what}) | {len(seeds)} | {', '.join(f'{v:.3g}' for v in last['max_q_sa'])}{diverged} | "
-            f"{last['mean_max_q_next'].mean():.3g} | {last['share_raised'].mean():.0%} / "
-            f"{last['share_lowered'].mean():.0%} | {last['mean_shift_relative'].mean():+.2%} | "
-            f"{last['share_no_action_visited'].mean():.2%} | {last['mean_overlap_sigma'].mean():.2f} |")
+            f"| {variant} ({what}) | {_per_seed(last['max_q_sa'], '.4g')}{diverged} | "
+            f"{_per_seed(last['mean_max_q_next'], '.4g')} | {_per_seed(last['share_raised'] * 100, '.1f')} % / "
+            f"{_per_seed(last['share_lowered'] * 100, '.1f')} % | {_per_seed(last['mean_shift_relative'] * 100, '+.2f')} % "
+            f"| {no_visit} of {int(every['transitions'].sum()):,} | {_per_seed(last['mean_overlap_sigma'] * 100, '.1f')} % "
+            f"| {_per_seed(last['replay_updates'] / last['replay_phases'], ',.0f')} | {collisions} |")
     return lines
 
 
@@ -307,7 +323,8 @@ def write_summary(out: Path, figure_lines: list[str], figures: list[Path], comma
                 "## Figure 5.6: one self-affecting sample", "",
                 "One stored transition whose s' shares 3 of the 4 tiles of s, replayed alone through `model.replay` "
                 "(the kernels); the closed form of `sb3_er.experiments.value_growth.closed_form` beside it.", "",
-                *figure_lines, "", "![Figure 5.6](figure_5_6.png)", "",
+                "<!-- figure-start -->", "", *figure_lines, "", "<!-- figure-end -->", "",
+                "![Figure 5.6](figure_5_6.png)", "",
                 "![Limit against shared tiles](limit_vs_shared_tiles.png)", ""]
     for problem in PROBLEMS:
         if not any(key[0] == problem for key in runs):
@@ -317,10 +334,12 @@ def write_summary(out: Path, figure_lines: list[str], figures: list[Path], comma
         sections += [f"## {problem} ({settings['env_id']}, {settings['steps']:,} steps per run, the env's default "
                      "reading)", "",
                      f"Instrumented every {settings['checkpoint']:,} steps on the stored transitions; the last "
-                     "checkpoint per run:", "", *run_table(problem, runs), "",
+                     "checkpoint per run, one figure per seed:", "", f"<!-- {problem}-runs-start -->", "",
+                     *run_table(problem, runs), "", f"<!-- {problem}-runs-end -->", "",
                      "Gain of the replay operator per replay phase with every reward set to 0 (the learned weights, "
                      "the stored data, one phase as the run replays it; > 1: replay expands the values whatever the "
-                     "rewards):", "", *gain_table(problem, runs), "",
+                     "rewards):", "", f"<!-- {problem}-gain-start -->", "", *gain_table(problem, runs), "",
+                     f"<!-- {problem}-gain-end -->", "",
                      f"![{problem}]({problem}_values.png)", ""]
     all_records = [records.read_record(csv) for csv in sorted((out / "runs").glob("*/*/seed_*.csv"))]
     if all_records:
