@@ -156,3 +156,18 @@ def test_residual_er_sigma_replaces_what_the_residual_term_wrote():
     shared = np.intersect1d(coder.feature_indices(sample.next_state, 0), coder.feature_indices(sample.state, 0))
     comparison = vg.target_comparison(model)
     assert comparison["target_sigma"][0] == pytest.approx(10 + 0.99 * 16 * model.policy.theta_array[shared].sum())
+
+
+def test_the_value_watch_sees_figure_5_6_leave_the_possible_returns():
+    """Case (b) pays -1 per step: every return is -50, every value in [-50, -5] with the initial values. Vanilla ER's
+    value turns positive, so the watch counts it; the replay gain's replays stay unseen."""
+    sample = vg.self_affecting_model("ER", "b")
+    model = sample.model
+    assert model.value_bounds == pytest.approx((-50.0, -5.0))
+    vg.replay_values(sample, 5)
+    assert model.values_out_of_range == 0  # -10 rising towards -5: still possible
+    vg.replay_values(sample, 100)
+    assert sample.q_state() > 0 and model.values_out_of_range > 0
+    seen = model.values_out_of_range
+    vg.replay_gain(model, n_phases=12, n_trajectories=1, skip=2)
+    assert model.values_out_of_range == seen

@@ -550,7 +550,9 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
             value = (1.0 - epsilon) * value + epsilon * np.mean(q)
     if not (want_plain and sigma_kind != SIGMA_NONE):
         return value, next_action, value
-    # the plain values Q(s', .): undo the sigma terms, or (initial weights not zero) sum the weights again into w
+    # the plain values Q(s', .): undo the sigma terms, or (initial weights not zero) sum the weights again into w.
+    # Undone, they are Q_v, which equals Q with zero initial weights except for what residual ER-sigma's term
+    # wrote into unvisited features: its plain value leaves those out too (see all_q_values_and_visit_counts).
     if initial_low == 0.0 and initial_span == 0.0:
         for a in range(q.shape[0]):
             q[a] -= (n_tilings - w[a]) * sigma

@@ -59,14 +59,17 @@ FIGURE_ALPHA, FIGURE_GAMMA = 0.25, 0.98
 
 class ArtificialSamplesEnv(gym.Env):
     """A stand-in env that only gives a model its spaces (thesis 5.3.1: "artificial samples"): a 1-D state in
-    [-2, 2] tiled with width 1, and ``n_actions`` actions. It is never stepped: samples are written into the buffer."""
+    [-2, 2] tiled with width 1, and ``n_actions`` actions. It is never stepped: samples are written into the buffer.
+    ``reward_bounds`` are those of the rewards its samples will pay (``rewards``: (low, high), no termination), so
+    that the value watch knows the possible returns."""
 
     metadata = {"render_modes": []}
     tile_widths = (1.0,)
 
-    def __init__(self, n_actions: int = 1):
+    def __init__(self, n_actions: int = 1, rewards: tuple[float, float] = (0.0, 0.0)):
         self.observation_space = spaces.Box(-2.0, 2.0, shape=(1,), dtype=np.float64)
         self.action_space = spaces.Discrete(n_actions)
+        self.reward_bounds = {"step": (float(rewards[0]), float(rewards[1]))}
 
     def reset(self, *, seed=None, options=None):
         raise RuntimeError("ArtificialSamplesEnv only gives a model its spaces; store samples in the buffer instead")
@@ -96,7 +99,8 @@ class SelfAffectingSample:
 
 def self_affecting_model(variant: str, case: str = "a", n_tilings: int = 4, shared: int = 3,
                          learning_rate: float = FIGURE_ALPHA, gamma: float = FIGURE_GAMMA,
-                         residual_zeta: float = 1.0, memory_size: int = 2**16) -> SelfAffectingSample:
+                         residual_zeta: float = 1.0, memory_size: int = 2**16,
+                         value_bound_action: str = "ignore") -> SelfAffectingSample:
     """Figure 5.6's example: a model of `variant` (a key of :data:`VARIANTS`) whose buffer holds one transition
     (s_k, a_k, r, s_{k+1}), s_{k+1} sharing `shared` of the `n_tilings` tiles of s_k, with the case's reward and
     initial values (a key of :data:`CASES`).
@@ -120,8 +124,10 @@ def self_affecting_model(variant: str, case: str = "a", n_tilings: int = 4, shar
         raise ValueError("with every tile shared s_{k+1} has the value of s_k: the case needs shared < n_tilings")
     class_name, _, residual = VARIANTS[variant]
     kwargs = {"residual_zeta": residual_zeta} if residual else {}
+    env = ArtificialSamplesEnv(rewards=(values["reward"], values["reward"]))
     model = getattr(sb3_er, class_name)(
-        "TileQ", ArtificialSamplesEnv(), learning_rate=learning_rate, gamma=gamma, exploration_rate=0.0, seed=0,
+        "TileQ", env, learning_rate=learning_rate, gamma=gamma, exploration_rate=0.0, seed=0,
+        value_bound_action=value_bound_action,
         policy_kwargs={"n_tilings": n_tilings, "initial_value": values["q_next"], "memory_size": memory_size},
         **kwargs)
     coder = model.policy.tile_coder
@@ -209,7 +215,7 @@ def _compare_targets(theta, visits, slots, actions, rewards, next_slots, termina
         kernels.all_q_values(theta, next_slots[i], stride, action_columns, columns_are_actions, q)
         greedy = kernels.argmax_first(q)
         out[i, 1] = rewards[i] + gamma * q[greedy]
-        value, chosen = kernels.next_state_value(theta, visits, next_slots[i], stride, action_columns,
+        value, chosen, _ = kernels.next_state_value(theta, visits, next_slots[i], stride, action_columns,
                                                  columns_are_actions, n_tilings, kernels.TARGET_Q_LEARNING,
                                                  sigma_kind, 0.0, rng, q, w, initial_low, initial_span, initial_seed)
         out[i, 2] = rewards[i] + gamma * value
@@ -310,10 +316,10 @@ def replay_gain(model, n_phases: int = 30, n_trajectories: int | None = None, si
                 skip: int = 10, seed: int = 1) -> float:
     """The growth factor per replay phase of the replay operator on `model`'s stored data with every reward 0.
 
-    Replays ``n_phases`` phases of `n_trajectories` (default: the model's own per phase) from the model's weights on a
-    copy of its weights, rewards set to 0 (restored afterwards), ``sigma`` the model's own ("keep") or another
-    definition (None: vanilla); returns (m_end / m_skip)^(1 / (n_phases - skip)) for m the mean over stored states
-    of max_a Q(s, a) in magnitude. The model's weights, sigma and rewards are left as they were.
+    Replays ``n_phases`` phases of `n_trajectories` (default: the model's own per phase) from the model's weights,
+    rewards set to 0, ``sigma`` the model's own ("keep") or another definition (None: vanilla), unseen by the value
+    watch; returns (m_end / m_skip)^(1 / (n_phases - skip)) for m the mean over stored states of max_a Q(s, a) in
+    magnitude. The model's weights, sigma, rewards, generators, counters and watch are restored afterwards.
     """
     buffer = model.replay_buffer
     rows, _, _ = stored_transitions(buffer)
@@ -322,8 +328,10 @@ def replay_gain(model, n_phases: int = 30, n_trajectories: int | None = None, si
     saved_theta, saved_rewards, saved_sigma = theta.copy(), buffer.rewards.copy(), model.sigma
     saved_replay_rng, saved_action_rng = model.replay_rng.copy(), model.action_rng.copy()
     saved_counts = (model.replay_updates, model.replay_phases, model._td_error_sum, model._td_error_count)
+    saved_watch = model._watch_array
     per_phase = n_trajectories if n_trajectories is not None else model._replays_per_phase()
     try:
+        model._watch_array = np.zeros(0)  # the value watch does not see these replays
         buffer.rewards[:] = 0.0
         if sigma != "keep":
             model.sigma = sigma
@@ -338,4 +346,5 @@ def replay_gain(model, n_phases: int = 30, n_trajectories: int | None = None, si
         model.sigma = saved_sigma
         model.replay_rng[:], model.action_rng[:] = saved_replay_rng, saved_action_rng
         model.replay_updates, model.replay_phases, model._td_error_sum, model._td_error_count = saved_counts
+        model._watch_array = saved_watch
     return (sizes[-1] / sizes[skip - 1]) ** (1.0 / (n_phases - skip))
