@@ -188,9 +188,14 @@ def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, 
     """Q_v(s, .) and W(s, .) = w . phi(s, .) (Eq. 5.1-5.2: how many active features of (s, a) were ever visited) in
     one pass over the same rows.
 
-    Q_v(s, a) is Q(s, a) without the initial values of its unvisited features: sum_k theta_k - sum_{k unvisited}
-    theta_init_k, the value carried by experience (and by updates that reached unvisited features). With zero initial
-    weights (the thesis's Alg. 9-14, line 1) it is Q(s, a) itself.
+    Q_v(s, a) is the sum of the weights of the visited features of (s, a) only: the value carried by experience, so
+    that Eq. 5.4 *replaces* the unvisited ones by sigma(s') ("the unvisited parameters have been replaced with the
+    value of sigma(s')", thesis 5.2.2). An unvisited weight is left out whatever it holds: its initial value, or what
+    the residual term of Eq. 5.7-5.9 wrote into phi(s', a) (residual ER-sigma, Alg. 14), which Eq. 5.4's literal
+    Q(s', a) + u sigma N would count and then extrapolate again through sigma. Where no unvisited weight was ever
+    written (every variant but the residual ones) this is Q(s, a) minus the initial values of its unvisited
+    features, bit for bit (each is subtracted as it was added); with zero initial weights, Q(s, a) itself. The
+    initial-value arguments are not needed for that and kept for the callers.
     """
     n_actions = np.uint64(out_q.shape[0])
     has_initial = initial_low != 0.0 or initial_span != 0.0
@@ -203,15 +208,15 @@ def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, 
         visited = visits[base : base + stride]
         if columns_are_actions and not has_initial:
             for a in range(n_actions):
-                out_q[a] += row[a]
+                out_q[a] += row[a] * visited[a]
                 out_w[a] += visited[a]
         else:
             for a in range(n_actions):
                 column = np.uint64(a) if columns_are_actions else np.uint64(action_columns[k, a])
                 out_q[a] += row[column]
                 out_w[a] += visited[column]
-                if has_initial and visited[column] == 0:
-                    out_q[a] -= initial_weight(base + np.int64(column), initial_low, initial_span, initial_seed)
+                if visited[column] == 0:
+                    out_q[a] -= row[column]
 
 
 @nb.njit(inline="always", cache=True)
@@ -545,7 +550,9 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
             value = (1.0 - epsilon) * value + epsilon * np.mean(q)
     if not (want_plain and sigma_kind != SIGMA_NONE):
         return value, next_action, value
-    # the plain values Q(s', .): undo the sigma terms, or (initial weights not zero) sum the weights again into w
+    # the plain values Q(s', .): undo the sigma terms, or (initial weights not zero) sum the weights again into w.
+    # Undone, they are Q_v, which equals Q with zero initial weights except for what residual ER-sigma's term
+    # wrote into unvisited features: its plain value leaves those out too (see all_q_values_and_visit_counts).
     if initial_low == 0.0 and initial_span == 0.0:
         for a in range(q.shape[0]):
             q[a] -= (n_tilings - w[a]) * sigma
