@@ -505,7 +505,8 @@ def sigma_of_state(q, w, sigma_kind):
 
 @nb.njit(inline="always", cache=True)
 def next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
-                     sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, want_plain=False):
+                     sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, want_plain=False,
+                     unvisited_written=False):
     """The bootstrap value at s' and the action a' it belongs to, on sigma-adjusted values for ER-sigma; with
     ``want_plain``, also the value without sigma (the vanilla-ER value of the same a', see below), else that value
     is the returned value itself.
@@ -550,10 +551,10 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
             value = (1.0 - epsilon) * value + epsilon * np.mean(q)
     if not (want_plain and sigma_kind != SIGMA_NONE):
         return value, next_action, value
-    # the plain values Q(s', .): undo the sigma terms, or (initial weights not zero) sum the weights again into w.
-    # Undone, they are Q_v, which equals Q with zero initial weights except for what residual ER-sigma's term
-    # wrote into unvisited features: its plain value leaves those out too (see all_q_values_and_visit_counts).
-    if initial_low == 0.0 and initial_span == 0.0:
+    # the plain values Q(s', .): undo the sigma terms, which gives Q_v, equal to Q when every unvisited weight is 0;
+    # else (initial weights not zero, or ``unvisited_written``: residual ER-sigma's term writes into unvisited
+    # features) sum the weights again into w, so that the plain value is vanilla ER's Q(s', .) exactly.
+    if initial_low == 0.0 and initial_span == 0.0 and not unvisited_written:
         for a in range(q.shape[0]):
             q[a] -= (n_tilings - w[a]) * sigma
         plain = q
@@ -592,7 +593,7 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
     if not terminal:
         value, next_action, plain_value = next_state_value(
             theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
-            sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, watching)
+            sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, watching, residual_zeta > 0.0)
         target += gamma * value
         if residual_next_action:
             residual_action = next_action
