@@ -47,6 +47,12 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   never marks a state absorbing and ends every episode at its timeout (2.99 s of 0.03 s steps, 100 steps);
   ``terminate_at_goal=False`` runs every episode for ``episode_seconds``, as GRL does.
 
+* Reward units, ``reward_units``. Eq. 4.1 prints no units; ``"radians"`` (default) or ``"degrees"`` (theta in
+  degrees, theta' in degrees/s: 3283 times the angle and rate costs).
+* Integration, ``integrator`` and ``substeps``. The thesis simulated in ODE (MatODE) and names no scheme; ``"rk4"``
+  (default) takes ``substeps`` classical Runge-Kutta steps per control step, ``"euler"`` semi-implicit Euler steps
+  (rate first, then the angle with the new rate), the scheme of ODE's ``dWorldStep``.
+
 The angular rate is clipped to ``[-max_velocity, max_velocity]`` (40 rad/s) after each control step, which keeps the
 observation bounded; the clip never binds in a swing-up (from rest hanging down, upright is passed at about 18 rad/s
 with the centre-of-mass inertia, 31 rad/s with J about the pivot, 22 rad/s in the DCSC model). ``info["fell"]`` is
@@ -69,6 +75,9 @@ _IMAGE_PIXELS = 128
 
 INERTIA_AXES = ("center_of_mass", "pivot")
 ACTUATIONS = ("torque", "voltage")
+REWARD_UNITS = ("radians", "degrees")
+INTEGRATORS = ("rk4", "euler")
+_DEGREES_PER_RADIAN = 180.0 / math.pi
 
 # Table 4.1 of the thesis.
 TABLE_4_1 = {"mass": 1.113, "inertia": 3.773e-3, "length": 8.5e-2, "gravity": 9.81}
@@ -126,6 +135,20 @@ def pendulum_rk4_step(theta, velocity, torque, gravity_torque, damping, inertia,
     return theta, velocity
 
 
+@numba.njit(cache=True)
+def pendulum_euler_step(theta, velocity, torque, gravity_torque, damping, inertia, dt, substeps):
+    """Advance (theta, theta') by ``dt`` seconds with ``substeps`` semi-implicit (symplectic) Euler steps.
+
+    Each step of length h first updates the rate, theta' += h * theta'', then the angle with the new rate, theta += h *
+    theta': the first-order scheme of ODE's ``dWorldStep``, in which MatODE simulated the thesis's pendulum (4.2.1).
+    """
+    h = dt / substeps
+    for _ in range(substeps):
+        velocity += h * _angular_acceleration(theta, velocity, torque, gravity_torque, damping, inertia)
+        theta += h * velocity
+    return theta, velocity
+
+
 def wrap_angle(theta: float) -> float:
     """``theta`` wrapped into ``[-pi, pi)``."""
     return (theta + math.pi) % (2.0 * math.pi) - math.pi
@@ -170,10 +193,15 @@ class PendulumSwingupEnv(gym.Env):
         With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
         ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s): our definition, the thesis gives
         none. ``False`` runs every episode to its time limit, as GRL's swing-up task does.
+    reward_units:
+        Units of theta and theta' in Eq. 4.1: ``"radians"`` (default, rad and rad/s) or ``"degrees"`` (degrees and
+        degrees/s; the thesis prints no unit for the reward).
     episode_seconds:
         Simulated seconds after which the episode is truncated (15, thesis 4.2.1).
-    dt, substeps:
-        Control period in seconds (0.01, thesis 4.2.1) and RK4 steps per control period (5).
+    dt, substeps, integrator:
+        Control period in seconds (0.01, thesis 4.2.1), integration steps per control period (5) and the scheme:
+        ``"rk4"`` (default, classical Runge-Kutta) or ``"euler"`` (semi-implicit Euler, the first-order scheme of ODE's
+        ``dWorldStep`` in which the thesis's MatODE model ran).
     mass, length, gravity, damping:
         m in kg, l (pivot to centre of mass) in m and g in m/s^2 from Table 4.1; viscous damping b in N m s/rad (0).
     max_velocity:
@@ -210,6 +238,8 @@ class PendulumSwingupEnv(gym.Env):
         motor_constant: float | None = None,
         motor_resistance: float | None = None,
         terminate_at_goal: bool = True,
+        reward_units: str = "radians",
+        integrator: str = "rk4",
     ) -> None:
         values = {}
         for name, value in (
@@ -231,6 +261,10 @@ class PendulumSwingupEnv(gym.Env):
             raise ValueError(f"inertia_about must be one of {INERTIA_AXES}, got {inertia_about!r}")
         if actuation not in ACTUATIONS:
             raise ValueError(f"actuation must be one of {ACTUATIONS}, got {actuation!r}")
+        if reward_units not in REWARD_UNITS:
+            raise ValueError(f"reward_units must be one of {REWARD_UNITS}, got {reward_units!r}")
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
         if not isinstance(terminate_at_goal, (bool, np.bool_)):
             raise ValueError(f"terminate_at_goal must be True or False, got {terminate_at_goal!r}")
         if isinstance(n_actions, bool) or int(n_actions) != n_actions or n_actions < 2:
@@ -289,6 +323,10 @@ class PendulumSwingupEnv(gym.Env):
         self.motor_constant = None if actuation == "torque" else float(constant)
         self.motor_resistance = None if actuation == "torque" else float(resistance)
         self.terminate_at_goal = bool(terminate_at_goal)
+        self.reward_units = reward_units
+        self._reward_scale = _DEGREES_PER_RADIAN if reward_units == "degrees" else 1.0
+        self.integrator = integrator
+        self._integrate = pendulum_rk4_step if integrator == "rk4" else pendulum_euler_step
         self.goal_angle = values["goal_angle"]
         self.goal_velocity = values["goal_velocity"]
         self.dt = values["dt"]
@@ -332,7 +370,9 @@ class PendulumSwingupEnv(gym.Env):
         return self.torque_per_unit * action_value - (self.total_damping - self.damping) * velocity
 
     def reward(self, theta: float, velocity: float, action_value: float) -> float:
-        """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V)."""
+        """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V), theta and
+        theta' in rad and rad/s, or in degrees and degrees/s with ``reward_units="degrees"``."""
+        theta, velocity = self._reward_scale * theta, self._reward_scale * velocity
         return -5.0 * theta * theta - 0.1 * velocity * velocity - action_value * action_value
 
     def set_state(self, theta: float, velocity: float) -> None:
@@ -354,7 +394,7 @@ class PendulumSwingupEnv(gym.Env):
 
     def step(self, action):
         action_value = self.action_levels[discrete_action_index(action, len(self.action_levels))]
-        theta, velocity = pendulum_rk4_step(
+        theta, velocity = self._integrate(
             self.theta,
             self.velocity,
             self.torque_per_unit * action_value,

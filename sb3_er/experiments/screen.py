@@ -1,0 +1,167 @@
+"""Screens of readings on Sarsa(lambda): the readings rule's distance to the thesis's Sarsa(lambda) row.
+
+The rule (README, Readings): a value the thesis prints is the default unless no screened candidate with it brings
+Sarsa(lambda) within 50 % of each figure of the thesis's Sarsa(lambda) row; among screened candidates for what the text
+leaves open, the default is the one nearest that row. "Nearest" is the sum of the relative errors of rise time, end
+performance and falls (where the table has falls), each ``|ours - thesis| / |thesis|``. A figure we cannot measure
+(no gait learned, a rise time beyond the run) has an infinite error, so such a candidate ranks last.
+
+A screen is one ``sb3-er reproduce`` folder per candidate (Sarsa(lambda) only), so that every run keeps its version
+record; :func:`run_screen` runs or resumes them and :func:`write_screen_summary` writes ``summary.md`` and
+``summary.csv`` ranking the candidates.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from sb3_er.experiments import records
+from sb3_er.experiments.specs import EXPERIMENTS, Experiment
+from sb3_er.experiments.summary import load_curves, summarize
+
+CONTROL_ARM = "sarsa_lambda"
+FIGURES = ("rise_time", "end_performance", "falls")
+WITHIN = 0.5
+"""The rule's bound on each figure's relative error for a printed value to stay the default."""
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One reading to screen: a name (its folder), the env keyword arguments and a line saying what it tests."""
+
+    name: str
+    env_kwargs: Mapping
+    description: str
+
+
+def relative_error(ours: float | None, thesis: float) -> float:
+    """``|ours - thesis| / |thesis|``; infinite when ours is missing or NaN (not measurable in the run)."""
+    if not isinstance(thesis, (int, float)) or thesis == 0 or math.isnan(thesis):
+        raise ValueError(f"the thesis's figure must be a non-zero number, got {thesis!r}")
+    if ours is None or math.isnan(ours):
+        return math.inf
+    return abs(ours - thesis) / abs(thesis)
+
+
+def score(figures: Mapping[str, float | None], thesis_row: Mapping[str, tuple]) -> dict[str, float]:
+    """Relative error of each figure the thesis row prints (``rise_time``, ``end_performance``, ``falls``), their sum
+    (``score``) and whether every error is within the rule's 50 % (``within_50``)."""
+    errors = {}
+    for figure in FIGURES:
+        if figure in thesis_row:
+            errors[figure] = relative_error(figures.get(figure), float(thesis_row[figure][0]))
+    if not errors:
+        raise ValueError(f"the thesis row {dict(thesis_row)} has none of the figures {FIGURES}")
+    return {
+        **{f"{figure}_error": error for figure, error in errors.items()},
+        "score": sum(errors.values()),
+        "within_50": all(error <= WITHIN for error in errors.values()),
+    }
+
+
+def _experiment(name: str) -> Experiment:
+    if name not in EXPERIMENTS or not EXPERIMENTS[name].thesis_table:
+        raise ValueError(f"a screen needs an experiment with a thesis table, got {name!r}")
+    return EXPERIMENTS[name]
+
+
+def _checked_candidates(candidates) -> list[Candidate]:
+    candidates = list(candidates)
+    names = [candidate.name for candidate in candidates]
+    if not candidates or len(set(names)) != len(names):
+        raise ValueError(f"candidates need distinct names, got {names}")
+    return candidates
+
+
+def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10, budget: float | None = None,
+               n_workers: int = 1, only: list[str] | None = None) -> None:
+    """Run (or resume) Sarsa(lambda) on every candidate in ``out_dir/<candidate>`` with `sb3-er reproduce`."""
+    from sb3_er.experiments.reproduce import reproduce
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    _experiment(experiment_name)
+    for candidate in _checked_candidates(candidates):
+        if only and candidate.name not in only:
+            continue
+        result = reproduce(experiment_name, n_seeds=n_seeds, algos=[CONTROL_ARM], out_dir=Path(out_dir) / candidate.name,
+                           budget=budget, n_workers=n_workers, show_progress=False, env_kwargs=dict(candidate.env_kwargs))
+        print(f"{candidate.name}: {result.runs_done} runs done, {result.runs_skipped} resumed, "
+              f"{result.wall_time_s:.0f} s", flush=True)
+
+
+def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10) -> pd.DataFrame:
+    """One row per candidate with finished runs: seeds, rise time, end performance, falls, relative errors, score,
+    ranked by score (best first)."""
+    experiment = _experiment(experiment_name)
+    thesis_row = experiment.thesis_table[CONTROL_ARM]
+    rows = []
+    for candidate in _checked_candidates(candidates):
+        curves = load_curves(experiment, Path(out_dir) / candidate.name, CONTROL_ARM, range(n_seeds))
+        if curves is None:
+            continue
+        summary = summarize(experiment, curves)
+        figures = {"rise_time": math.nan, "end_performance": math.nan, "falls": None}
+        if summary is not None:
+            figures = {"rise_time": summary.rise_time, "end_performance": summary.end_performance,
+                       "falls": summary.falls}
+        rows.append({"candidate": candidate.name, "reading": candidate.description, "seeds": len(curves.seeds),
+                     "diverged": len(curves.diverged_seeds), **figures, **score(figures, thesis_row)})
+    table = pd.DataFrame(rows)
+    if not table.empty:
+        table = table.sort_values("score", kind="stable").reset_index(drop=True)
+        table.insert(0, "rank", range(1, len(table) + 1))
+    return table
+
+
+def _number(value) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "NA"
+    if isinstance(value, float) and math.isinf(value):
+        return "inf"
+    if abs(value) >= 1000:
+        return f"{value:.0f}"
+    return f"{value:.3g}"
+
+
+def _percent(value: float) -> str:
+    return "NA" if math.isinf(value) else f"{100 * value:.0f} %"
+
+
+def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title: str, notes: str = "",
+                         n_seeds: int = 10) -> pd.DataFrame:
+    """Write ``out_dir/summary.md`` and ``summary.csv`` (the ranking of :func:`screen_table`) and return the table."""
+    experiment = _experiment(experiment_name)
+    out_dir = Path(out_dir)
+    table = screen_table(experiment_name, candidates, out_dir, n_seeds)
+    thesis_row = experiment.thesis_table[CONTROL_ARM]
+    has_falls = "falls" in thesis_row
+    header = ["rank", "candidate", "reading", "seeds", f"rise time [{experiment.rise_time_unit}]", "end performance"]
+    header += ["falls"] if has_falls else []
+    header += ["rise error", "end error"] + (["falls error"] if has_falls else []) + ["score", "all within 50 %"]
+    lines = [f"# {title}", "", notes.strip(), "",
+             "Thesis Sarsa(λ) row: " + ", ".join(f"{name.replace('_', ' ')} {value[0]}"
+                                                 for name, value in thesis_row.items()) + ".", "",
+             "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for row in table.itertuples():
+        cells = [str(row.rank), row.candidate, row.reading, f"{row.seeds}" + (f" (+{row.diverged} diverged)"
+                                                                              if row.diverged else ""),
+                 _number(row.rise_time), _number(row.end_performance)]
+        cells += [_number(row.falls)] if has_falls else []
+        cells += [_percent(row.rise_time_error), _percent(row.end_performance_error)]
+        cells += [_percent(row.falls_error)] if has_falls else []
+        cells += [_percent(row.score), "yes" if row.within_50 else "no"]
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", "Score: the sum of the relative errors |ours - thesis| / |thesis| of the figures above against the "
+              "thesis's Sarsa(λ) row (NA: not measurable in the run, ranked last). Rise time and end performance by "
+              "the fixed metrics of thesis 6.1 on the mean curve of the seeds.", ""]
+    run_records = [records.read_record(path) for path in sorted(out_dir.glob(f"*/runs/{CONTROL_ARM}/seed_*.csv"))]
+    lines.append(records.code_versions_line(run_records))
+    (out_dir / "summary.md").write_text("\n".join(lines) + "\n")
+    table.to_csv(out_dir / "summary.csv", index=False)
+    return table
