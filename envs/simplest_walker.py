@@ -327,8 +327,10 @@ FALL_CRITERIA = ("angles", "hip")
 """Values of ``fall``: GRL's angle limits (default) and the hip touching the slope (the thesis's words)."""
 OBSERVATIONS = ("thesis", "grl")
 """Values of ``observation``: GRL's coordinates (default) and the state of Eq. 4.2."""
-STARTS = ("grl", "impact")
-"""Values of ``start``: GRL's start distribution (default) and ours on the impact manifold."""
+STARTS = ("grl", "impact", "grl_footstep")
+"""Values of ``start``: GRL's start distribution, ours on the impact manifold and GRL's redrawn until it steps."""
+PASSIVE_FOOTSTEP_STEPS = 50
+"""``start="grl_footstep"`` keeps a draw whose zero-action walk makes a footstep within this many control steps."""
 
 THESIS_TILE_WIDTHS = (0.10, 0.10, 0.11, 0.21)
 """Table 4.2: stance leg angle and rate 0.10, 0.11; "hip joint" angle and rate 0.10, 0.21, in observation order (stance
@@ -442,7 +444,7 @@ class SimplestWalkerEnv(gym.Env):
         self.observation = _choice("observation", observation, OBSERVATIONS)
         self.start = _choice("start", start, STARTS)
         if initial_state_variation is None:
-            initial_state_variation = 0.2 if self.start == "grl" else 0.1
+            initial_state_variation = 0.1 if self.start == "impact" else 0.2
         for name, value in (("dt", dt), ("episode_seconds", episode_seconds)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be a positive finite number, got {value}")
@@ -542,15 +544,38 @@ class SimplestWalkerEnv(gym.Env):
         the stance leg's kinetic energy lifts the hip over phi_st = 0. ``"impact"``: a post-impact state with stance
         angle 0.1534 (1 +- v) and energy 1 + [0.4, 1.6] e*."""
         v = self.initial_state_variation
-        if self.start == "grl":
+        if self.start != "impact":
             cos_slope = math.cos(self.slope)
             while True:
                 state = GARCIA_FIXED_POINT * rng.uniform(1.0 - v, 1.0 + v, size=4)
-                if 0.5 * state[2] ** 2 + math.cos(state[0]) * cos_slope >= cos_slope:
+                if 0.5 * state[2] ** 2 + math.cos(state[0]) * cos_slope >= cos_slope and (
+                    self.start == "grl" or self.makes_passive_footstep(state)
+                ):
                     return state
         stance_angle = GARCIA_FIXED_POINT[0] * (1.0 + v * rng.uniform(-1.0, 1.0))
         energy = 1.0 + rng.uniform(*self.start_energy_surplus)
         return impact_manifold_state(stance_angle, energy, self.slope)
+
+    def makes_passive_footstep(self, state) -> bool:
+        """Whether the walker started in ``state`` makes a heel strike with zero hip acceleration before this env's
+        fall test ends the episode, within :data:`PASSIVE_FOOTSTEP_STEPS` control steps."""
+        state = self._checked_state(state).copy()
+        outcome = np.zeros(OUTCOME_SIZE)
+        for _ in range(PASSIVE_FOOTSTEP_STEPS):
+            simulate_control_step(state, 0.0, self.slope, self.dt, self.substeps, outcome)
+            if outcome[FOOTSTEPS] != 0.0:
+                # a heel strike ending a step that the angle test calls a fall is no footstep the walker survives
+                return not self._fell(state, outcome)
+            if self._fell(state, outcome):
+                return False
+        return False
+
+    def _fell(self, state: np.ndarray, outcome: np.ndarray) -> bool:
+        """The fall test on the state at the end of a control step (``fall=`` reading)."""
+        stance, hip = float(state[0]), float(state[1])
+        return outcome[FELL] != 0.0 or (
+            self._angle_fall and (abs(stance) > FALL_STANCE_ANGLE or abs(hip - 2.0 * stance) > FALL_LEG_GAP)
+        )
 
     def step(self, action):
         index = int(action)
@@ -561,11 +586,9 @@ class SimplestWalkerEnv(gym.Env):
         outcome = self._outcome
         simulate_control_step(self.state, self.hip_accelerations[index], self.slope, self.dt, self.substeps, outcome)
         self._steps += 1
-        footsteps, step_length, fell_flag, _ = outcome[:4].tolist()
+        footsteps, step_length = float(outcome[FOOTSTEPS]), float(outcome[STEP_LENGTH])
         stance, hip, stance_rate, hip_rate = self.state.tolist()
-        fell = fell_flag != 0.0 or (
-            self._angle_fall and (abs(stance) > FALL_STANCE_ANGLE or abs(hip - 2.0 * stance) > FALL_LEG_GAP)
-        )
+        fell = self._fell(self.state, outcome)
         footstep = footsteps != 0.0
         if fell:
             reward = self.fall_reward
