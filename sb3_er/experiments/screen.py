@@ -33,11 +33,19 @@ WITHIN = 0.5
 
 @dataclass(frozen=True)
 class Candidate:
-    """One reading to screen: a name (its folder), the env keyword arguments and a line saying what it tests."""
+    """One reading to screen: a name (its folder), the env keyword arguments and a line saying what it tests.
+
+    ``folder``: an existing `sb3-er reproduce` folder of this reading (e.g. a committed reproduction of the defaults)
+    to read instead of ``<screen>/<name>``; :func:`run_screen` leaves such a candidate alone.
+    """
 
     name: str
     env_kwargs: Mapping
     description: str
+    folder: Path | None = None
+
+    def run_folder(self, screen_dir: Path) -> Path:
+        return Path(self.folder) if self.folder is not None else Path(screen_dir) / self.name
 
 
 def relative_error(ours: float | None, thesis: float) -> float:
@@ -87,7 +95,7 @@ def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 1
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     _experiment(experiment_name)
     for candidate in _checked_candidates(candidates):
-        if only and candidate.name not in only:
+        if (only and candidate.name not in only) or candidate.folder is not None:
             continue
         result = reproduce(experiment_name, n_seeds=n_seeds, algos=[CONTROL_ARM], out_dir=Path(out_dir) / candidate.name,
                            budget=budget, n_workers=n_workers, show_progress=False, env_kwargs=dict(candidate.env_kwargs))
@@ -102,7 +110,7 @@ def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int =
     thesis_row = experiment.thesis_table[CONTROL_ARM]
     rows = []
     for candidate in _checked_candidates(candidates):
-        curves = load_curves(experiment, Path(out_dir) / candidate.name, CONTROL_ARM, range(n_seeds))
+        curves = load_curves(experiment, candidate.run_folder(out_dir), CONTROL_ARM, range(n_seeds))
         if curves is None:
             continue
         summary = summarize(experiment, curves)
@@ -160,7 +168,9 @@ def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title:
     lines += ["", "Score: the sum of the relative errors |ours - thesis| / |thesis| of the figures above against the "
               "thesis's Sarsa(λ) row (NA: not measurable in the run, ranked last). Rise time and end performance by "
               "the fixed metrics of thesis 6.1 on the mean curve of the seeds.", ""]
-    run_records = [records.read_record(path) for path in sorted(out_dir.glob(f"*/runs/{CONTROL_ARM}/seed_*.csv"))]
+    run_records = [records.read_record(path) for candidate in _checked_candidates(candidates)
+                   for path in sorted(candidate.run_folder(out_dir).glob(f"runs/{CONTROL_ARM}/seed_*.csv"))
+                   if int(path.stem.split("_")[1]) < n_seeds]
     lines.append(records.code_versions_line(run_records))
     (out_dir / "summary.md").write_text("\n".join(lines) + "\n")
     table.to_csv(out_dir / "summary.csv", index=False)

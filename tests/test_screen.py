@@ -1,0 +1,52 @@
+"""The readings rule's score (sb3_er.experiments.screen) against hand computations, and a screen end to end."""
+
+import math
+
+import pandas as pd
+import pytest
+
+from sb3_er.experiments.screen import Candidate, relative_error, run_screen, score, write_screen_summary
+from sb3_er.experiments.thesis import PENDULUM, WALKER
+
+
+def test_the_score_sums_the_relative_errors_of_the_printed_figures():
+    # walker: rise 1500 s, end 11.7 m, falls 74. Ours 1200 s, 12.87 m, 111 falls: 20 % + 10 % + 50 %.
+    result = score({"rise_time": 1200.0, "end_performance": 12.87, "falls": 111.0}, WALKER["sarsa_lambda"])
+    assert result["rise_time_error"] == pytest.approx(0.2)
+    assert result["end_performance_error"] == pytest.approx(0.1)
+    assert result["falls_error"] == pytest.approx(0.5)
+    assert result["score"] == pytest.approx(0.8) and result["within_50"]  # 50 % exactly is within
+
+
+def test_negative_returns_use_the_magnitude_and_the_pendulum_has_no_falls():
+    # pendulum: rise 22, end -16730. Ours 33 episodes, -25095: 50 % + 50 %; falls are not in Table 6.1.
+    result = score({"rise_time": 33.0, "end_performance": -25095.0, "falls": 3.0}, PENDULUM["sarsa_lambda"])
+    assert set(result) == {"rise_time_error", "end_performance_error", "score", "within_50"}
+    assert result["score"] == pytest.approx(1.0) and result["within_50"]
+    assert not score({"rise_time": 34.0, "end_performance": -16730.0}, PENDULUM["sarsa_lambda"])["within_50"]
+
+
+def test_a_figure_that_was_not_measured_ranks_last():
+    assert relative_error(float("nan"), 11.7) == math.inf and relative_error(None, 74) == math.inf
+    result = score({"rise_time": 1500.0, "end_performance": float("nan"), "falls": 74.0}, WALKER["sarsa_lambda"])
+    assert result["score"] == math.inf and not result["within_50"]
+    with pytest.raises(ValueError, match="non-zero"):
+        relative_error(1.0, 0.0)
+
+
+def test_a_screen_ranks_its_candidates_and_writes_its_summary(tmp_path):
+    candidates = [Candidate("weak", {"max_torque": 0.3}, "0.3 N m"), Candidate("printed", {}, "defaults")]
+    run_screen("pendulum", candidates, tmp_path, n_seeds=2, budget=2)
+    table = write_screen_summary("pendulum", candidates, tmp_path, "A screen", n_seeds=2)
+    assert list(table["rank"]) == [1, 2] and table["score"].is_monotonic_increasing
+    assert set(table["candidate"]) == {"weak", "printed"} and set(table["seeds"]) == {2}
+    for row in table.itertuples():  # each score is recomputed from the row's own figures
+        expected = abs(row.rise_time - 22) / 22 + abs(row.end_performance + 16730) / 16730
+        assert row.score == pytest.approx(expected)
+    text = (tmp_path / "summary.md").read_text()
+    assert "| 1 | " + table["candidate"][0] + " |" in text and "rise time 22" in text
+    written = pd.read_csv(tmp_path / "summary.csv")
+    assert list(written["candidate"]) == list(table["candidate"])
+    assert written["score"].tolist() == pytest.approx(table["score"].tolist())
+    with pytest.raises(ValueError, match="distinct names"):
+        run_screen("pendulum", candidates + candidates[:1], tmp_path)
