@@ -43,7 +43,8 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   ``PendulumSwingupEnv(**DCSC_MOPS)``.
 * Goal, ``terminate_at_goal``. The thesis says only that "an episode lasts 15 seconds or when the goal is reached"; it
   defines no goal. Ours: the episode ends (``terminated``, ``info["goal_reached"]``) when ``|theta| < goal_angle``
-  (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), our own definition. GRL's swing-up task has no goal at all: it
+  (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), our own definition (``goal_velocity=None``: pointing up at any
+  rate). GRL's swing-up task has no goal at all: it
   never marks a state absorbing and ends every episode at its timeout (2.99 s of 0.03 s steps, 100 steps);
   ``terminate_at_goal=False`` runs every episode for ``episode_seconds``, as GRL does.
 
@@ -192,7 +193,8 @@ class PendulumSwingupEnv(gym.Env):
     terminate_at_goal, goal_angle, goal_velocity:
         With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
         ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s): our definition, the thesis gives
-        none. ``False`` runs every episode to its time limit, as GRL's swing-up task does.
+        none. ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to
+        move the pendulum from the initial position to pointing up"), passing through upright included. ``False`` runs every episode to its time limit, as GRL's swing-up task does.
     reward_units:
         Units of theta and theta' in Eq. 4.1: ``"radians"`` (default, rad and rad/s) or ``"degrees"`` (degrees and
         degrees/s; the thesis prints no unit for the reward).
@@ -219,7 +221,7 @@ class PendulumSwingupEnv(gym.Env):
         max_torque: float | None = None,
         n_actions: int = 7,
         goal_angle: float = 0.1,
-        goal_velocity: float = 1.0,
+        goal_velocity: float | None = 1.0,
         episode_seconds: float = 15.0,
         dt: float = 0.01,
         substeps: int = 5,
@@ -249,7 +251,6 @@ class PendulumSwingupEnv(gym.Env):
             ("gravity", gravity),
             ("dt", dt),
             ("goal_angle", goal_angle),
-            ("goal_velocity", goal_velocity),
             ("max_velocity", max_velocity),
             ("episode_seconds", episode_seconds),
             ("velocity_tile_width", velocity_tile_width),
@@ -328,7 +329,8 @@ class PendulumSwingupEnv(gym.Env):
         self.integrator = integrator
         self._integrate = pendulum_rk4_step if integrator == "rk4" else pendulum_euler_step
         self.goal_angle = values["goal_angle"]
-        self.goal_velocity = values["goal_velocity"]
+        # None: the goal is "pointing up" (|theta| < goal_angle) at any rate
+        self.goal_velocity = math.inf if goal_velocity is None else _positive_finite("goal_velocity", goal_velocity)
         self.dt = values["dt"]
         self.substeps = int(substeps)
         self.max_episode_steps = max(1, round(values["episode_seconds"] / self.dt))

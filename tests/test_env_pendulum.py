@@ -219,6 +219,18 @@ def test_near_misses_do_not_terminate(env, theta, velocity):
     assert not terminated and not truncated and not info["goal_reached"]
 
 
+def test_without_a_rate_condition_passing_through_upright_reaches_the_goal():
+    fast = dict(theta=0.05, velocity=-8.0)  # passing upright at 8 rad/s: no goal for the default's 1 rad/s
+    for goal_velocity, expected in ((1.0, False), (None, True)):
+        env = PendulumSwingupEnv(goal_velocity=goal_velocity)
+        env.reset(seed=0)
+        env.set_state(fast["theta"], fast["velocity"])
+        observation, _, terminated, _, info = env.step(ZERO_TORQUE)
+        assert abs(observation[0]) < 0.1 and abs(observation[1]) > 7.0
+        assert terminated == info["goal_reached"] == expected
+    assert PendulumSwingupEnv(goal_velocity=None).goal_velocity == math.inf
+
+
 def test_goal_thresholds_are_parameters():
     env = PendulumSwingupEnv(goal_angle=0.5, goal_velocity=5.0)
     env.reset(seed=0)
@@ -413,6 +425,8 @@ def test_the_dcsc_preset_passes_the_env_checkers():
         ({**DCSC_MOPS, "max_voltage": 5.0}, "stall torque"),  # 0.0282 N m > m g l = 0.0227 N m
         ({"terminate_at_goal": "yes"}, "terminate_at_goal"),
         ({"reward_units": "rad"}, "reward_units"),
+        ({"goal_velocity": 0.0}, "goal_velocity"),
+        ({"goal_velocity": float("inf")}, "goal_velocity"),
         ({"integrator": "rk45"}, "integrator"),
         ({"inertia": 0.0}, "inertia"),
         ({"substeps": 0}, "substeps"),
