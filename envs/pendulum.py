@@ -25,12 +25,11 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   while its RBDL model of the same pendulum (``addons/rbdl/cfg/pendulum.lua``) gives J as the body's inertia about a
   centre of mass at l. For the DCSC values, J = 1.91e-4 > m l^2 = 9.7e-5, so there the pivot reading is physical.
 * Velocity tile width, ``velocity_tile_width`` (``tile_widths = [0.33, velocity_tile_width]``). The thesis prints
-  "a tile width of 0.33 rad and 0.33 rad/s" (``velocity_tile_width=0.33``); we read a dropped digit and default to
-  3.3 rad/s, for the evidence that follows (not for how it learns). Every tile-coded pendulum in GRL
-  (``cfg/pendulum/sarsa_tc.yaml`` and its siblings) uses the resolution [0.31415 rad, 3.1415 rad/s]: a velocity width
-  ten times the angle width, about 3.3 rad/s if the thesis dropped a digit. A swing-up spans about +-18 rad/s
+  "a tile width of 0.33 rad and 0.33 rad/s", the default. ``velocity_tile_width=3.3`` is the earlier default, which
+  read a dropped digit: every tile-coded pendulum in GRL (``cfg/pendulum/sarsa_tc.yaml`` and its siblings) tiles the
+  rate ten times wider than the angle, [0.31415 rad, 3.1415 rad/s]. A swing-up spans about +-18 rad/s
   (centre-of-mass inertia) or +-31 rad/s (pivot): 0.33 rad/s cuts that range into 100-200 tiles, against 19 for the
-  angle. Candidates screened for issue 10: 0.33, 1.0, 3.3.
+  angle.
 * Actuation, ``actuation``. ``"torque"`` (default): ``n_actions`` torques evenly spaced in ``[-max_torque, max_torque]``
   N m; the thesis gives "7 actions" but no range, and says only that the torque "is not strong enough to directly rotate
   the pendulum to its up position", so the limit must lie below m g l = 0.928 N m; 0.6 N m is our choice.
@@ -44,9 +43,9 @@ Readings (the thesis does not settle these; each is an option, with the printed 
 * Goal, ``terminate_at_goal``. The thesis says only that "an episode lasts 15 seconds or when the goal is reached"; it
   defines no goal. Ours: the episode ends (``terminated``, ``info["goal_reached"]``) when ``|theta| < goal_angle``
   (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), our own definition (``goal_velocity=None``: pointing up at any
-  rate). GRL's swing-up task has no goal at all: it
-  never marks a state absorbing and ends every episode at its timeout (2.99 s of 0.03 s steps, 100 steps);
-  ``terminate_at_goal=False`` runs every episode for ``episode_seconds``, as GRL does.
+  rate). GRL's swing-up task has no goal at all: it never marks a state absorbing and ends every episode at its
+  timeout (2.99 s of 0.03 s steps, 100 steps); ``terminate_at_goal=False`` runs every episode for
+  ``episode_seconds``, as GRL does.
 
 * Reward units, ``reward_units``. Eq. 4.1 prints no units; ``"radians"`` (default) or ``"degrees"`` (theta in
   degrees, theta' in degrees/s: 3283 times the angle and rate costs).
@@ -187,14 +186,14 @@ class PendulumSwingupEnv(gym.Env):
         Table 4.1's J = 3.773e-3 kg m^2, read about ``"center_of_mass"`` (default: the pivot inertia is J + m l^2) or
         about the ``"pivot"`` (J itself, though Table 4.1's J is smaller than m l^2).
     velocity_tile_width:
-        Tile width of the angular rate in rad/s that the env recommends (``tile_widths``): 3.3 (default: GRL tiles the
-        rate 10 times wider than the angle, 3.1415 against 0.31415, and 0.33 cuts a swing-up's rates into 100-200
-        tiles); 0.33 as printed in thesis 4.2.1.
+        Tile width of the angular rate in rad/s that the env recommends (``tile_widths``): 0.33 (default, as printed
+        in thesis 4.2.1); 3.3 is the earlier default (GRL tiles the rate 10 times wider than the angle).
     terminate_at_goal, goal_angle, goal_velocity:
         With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
         ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s): our definition, the thesis gives
         none. ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to
-        move the pendulum from the initial position to pointing up"), passing through upright included. ``False`` runs every episode to its time limit, as GRL's swing-up task does.
+        move the pendulum from the initial position to pointing up"), passing through upright included.
+        ``terminate_at_goal=False`` runs every episode to its time limit, as GRL's swing-up task does.
     reward_units:
         Units of theta and theta' in Eq. 4.1: ``"radians"`` (default, rad and rad/s) or ``"degrees"`` (degrees and
         degrees/s; the thesis prints no unit for the reward).
@@ -234,7 +233,7 @@ class PendulumSwingupEnv(gym.Env):
         render_mode: str | None = None,
         *,
         inertia_about: str = "center_of_mass",
-        velocity_tile_width: float = 3.3,
+        velocity_tile_width: float = 0.33,
         actuation: str = "torque",
         max_voltage: float | None = None,
         motor_constant: float | None = None,

@@ -296,9 +296,20 @@ def test_render_draws_the_rod_towards_the_angle():
 
 
 def test_thesis_attributes(env):
-    np.testing.assert_array_equal(env.tile_widths, [0.33, 3.3])  # the printed 0.33 rad and our reading of the rate
+    np.testing.assert_array_equal(env.tile_widths, [0.33, 0.33])  # thesis 4.2.1: "0.33 rad and 0.33 rad/s"
     assert env.wrap_periods == (2 * math.pi, None) and env.dt == 0.01
     assert env.gravity_torque == pytest.approx(GRAVITY_TORQUE)
+
+
+def test_the_default_tile_widths_are_the_printed_ones():
+    """Thesis 4.2.1 prints "a tile width of 0.33 rad and 0.33 rad/s": the readings rule makes a printed value the
+    default; the env's widths are what a model built from the registered id tiles with."""
+    from sb3_er import SarsaLambda
+
+    env = gymnasium.make("sb3_er/PendulumSwingup-v0")
+    assert env.unwrapped.velocity_tile_width == 0.33
+    model = SarsaLambda("TileQ", env, policy_kwargs={"memory_size": 2**12})
+    np.testing.assert_array_equal(model.policy.tile_coder.tile_widths, [0.33, 0.33])
 
 
 @pytest.mark.parametrize("width", [0.33, 1.0, 3.3])

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -34,6 +35,21 @@ def test_a_figure_that_was_not_measured_ranks_last():
         relative_error(1.0, 0.0)
 
 
+def test_the_bootstrap_interval_of_identical_seeds_is_the_score_itself():
+    from sb3_er.experiments.screen import bootstrap_score_interval
+    from sb3_er.experiments.specs import EXPERIMENTS
+    from sb3_er.experiments.summary import Curves
+
+    x = np.arange(1.0, 11.0)
+    curve = np.linspace(-50000.0, -16730.0, 10)  # rises linearly: 90 % of the way at episode 10 (error 10/22 - 1)
+    same = Curves(x, np.tile(curve, (4, 1)), np.zeros((4, 10)), (0, 1, 2, 3), (), 1.0)
+    low, high = bootstrap_score_interval(EXPERIMENTS["pendulum"], same, PENDULUM["sarsa_lambda"], resamples=50)
+    assert low == high == pytest.approx(abs(10 - 22) / 22)
+    varied = Curves(x, np.stack([curve, curve - 8000.0]), np.zeros((2, 10)), (0, 1), (), 1.0)
+    low, high = bootstrap_score_interval(EXPERIMENTS["pendulum"], varied, PENDULUM["sarsa_lambda"], resamples=200)
+    assert low == pytest.approx(12 / 22) and high == pytest.approx(12 / 22 + 8000 / 16730)  # both seeds' own scores
+
+
 def test_a_screen_ranks_its_candidates_and_writes_its_summary(tmp_path):
     candidates = [Candidate("weak", {"max_torque": 0.3}, "0.3 N m"), Candidate("printed", {}, "defaults")]
     run_screen("pendulum", candidates, tmp_path, n_seeds=2, budget=2)
@@ -43,6 +59,7 @@ def test_a_screen_ranks_its_candidates_and_writes_its_summary(tmp_path):
     for row in table.itertuples():  # each score is recomputed from the row's own figures
         expected = abs(row.rise_time - 22) / 22 + abs(row.end_performance + 16730) / 16730
         assert row.score == pytest.approx(expected)
+        assert row.score_low <= row.score_high and row.score_high > 0
     text = (tmp_path / "summary.md").read_text()
     assert "| 1 | " + table["candidate"][0] + " |" in text and "rise time 22" in text
     written = pd.read_csv(tmp_path / "summary.csv")
@@ -50,3 +67,22 @@ def test_a_screen_ranks_its_candidates_and_writes_its_summary(tmp_path):
     assert written["score"].tolist() == pytest.approx(table["score"].tolist())
     with pytest.raises(ValueError, match="distinct names"):
         run_screen("pendulum", candidates + candidates[:1], tmp_path)
+
+
+def test_the_rule_keeps_a_printed_value_only_when_a_candidate_with_it_comes_within_50_percent():
+    from sb3_er.experiments.screen import decide
+
+    fall, reward = "fall: printed", "reward: printed"
+    candidates = [
+        Candidate("printed_everything", {}, "", frozenset({fall, reward})),  # misses: the printed reward fails
+        Candidate("printed_fall", {}, "", frozenset({fall})),  # within 50 %, second best
+        Candidate("open_fall", {}, "", frozenset()),  # the best score, but drops a printed value that stays
+        Candidate("other_width", {}, "", frozenset({fall}), check=True),  # a check chooses nothing
+    ]
+    table = pd.DataFrame({"candidate": ["other_width", "open_fall", "printed_fall", "printed_everything"],
+                          "score": [0.1, 0.3, 0.4, 2.0], "within_50": [True, True, True, False]})
+    decision = decide(table, candidates)
+    assert decision.kept == {fall: "printed_fall", reward: None}
+    assert decision.winner == "printed_fall"
+    nothing_passes = table.assign(within_50=False)
+    assert decide(nothing_passes, candidates).winner == "open_fall"  # then the nearest candidate, whatever it keeps

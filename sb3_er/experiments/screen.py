@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from sb3_er.experiments import records
@@ -29,12 +30,17 @@ CONTROL_ARM = "sarsa_lambda"
 FIGURES = ("rise_time", "end_performance", "falls")
 WITHIN = 0.5
 """The rule's bound on each figure's relative error for a printed value to stay the default."""
+BOOTSTRAP_RESAMPLES = 1000
+"""Resamples of the seeds behind each candidate's score interval (:func:`bootstrap_score_interval`)."""
 
 
 @dataclass(frozen=True)
 class Candidate:
     """One reading to screen: a name (its folder), the env keyword arguments and a line saying what it tests.
 
+    ``printed``: the values the thesis prints that this candidate keeps (labels such as ``"fall: the hip touches the
+    ground"``), which the rule's first part weighs. ``check``: the row checks a printed value that the screen does not
+    vary (e.g. another tile width); it is reported beside the candidates and chooses nothing.
     ``folder``: an existing `sb3-er reproduce` folder of this reading (e.g. a committed reproduction of the defaults)
     to read instead of ``<screen>/<name>``; :func:`run_screen` leaves such a candidate alone.
     """
@@ -42,6 +48,8 @@ class Candidate:
     name: str
     env_kwargs: Mapping
     description: str
+    printed: frozenset = frozenset()
+    check: bool = False
     folder: Path | None = None
 
     def run_folder(self, screen_dir: Path) -> Path:
@@ -71,6 +79,30 @@ def score(figures: Mapping[str, float | None], thesis_row: Mapping[str, tuple]) 
         "score": sum(errors.values()),
         "within_50": all(error <= WITHIN for error in errors.values()),
     }
+
+
+def bootstrap_score_interval(experiment: Experiment, curves, thesis_row: Mapping[str, tuple],
+                             resamples: int = BOOTSTRAP_RESAMPLES, confidence: float = 0.95,
+                             seed: int = 0) -> tuple[float, float]:
+    """Percentile interval of the score over seeds drawn with replacement (the figures recomputed from each resample's
+    mean curve): how far the ranking can be trusted. Resamples with an unmeasurable figure count as infinite."""
+    from sb3_er.experiments.metrics import summarize_curves
+
+    rng = np.random.default_rng(seed)
+    n_seeds = curves.performance.shape[0]
+    scores = np.empty(resamples)
+    for k in range(resamples):
+        rows = rng.integers(0, n_seeds, size=n_seeds)
+        summary = summarize_curves(curves.x / experiment.rise_time_scale, curves.performance[rows],
+                                   curves.cumulative_falls[rows] if experiment.has_falls else None,
+                                   success_threshold=experiment.success_threshold)
+        scores[k] = score({"rise_time": summary.rise_time, "end_performance": summary.end_performance,
+                           "falls": summary.falls}, thesis_row)["score"]
+    tail = 100.0 * (1.0 - confidence) / 2.0
+    # order statistics, not interpolation: infinite scores (a resample without a gait) must not turn into NaN
+    low = np.percentile(scores, tail, method="lower")
+    high = np.percentile(scores, 100.0 - tail, method="higher")
+    return float(low), float(high)
 
 
 def _experiment(name: str) -> Experiment:
@@ -118,8 +150,11 @@ def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int =
         if summary is not None:
             figures = {"rise_time": summary.rise_time, "end_performance": summary.end_performance,
                        "falls": summary.falls}
+        low, high = (bootstrap_score_interval(experiment, curves, thesis_row) if summary is not None
+                     else (math.inf, math.inf))
         rows.append({"candidate": candidate.name, "reading": candidate.description, "seeds": len(curves.seeds),
-                     "diverged": len(curves.diverged_seeds), **figures, **score(figures, thesis_row)})
+                     "diverged": len(curves.diverged_seeds), **figures, **score(figures, thesis_row),
+                     "score_low": low, "score_high": high})
     table = pd.DataFrame(rows)
     if not table.empty:
         table = table.sort_values("score", kind="stable").reset_index(drop=True)
@@ -127,14 +162,54 @@ def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int =
     return table
 
 
+@dataclass(frozen=True)
+class Decision:
+    """What the rule decides from a screen: which printed values stay (each label: a candidate with it within 50 %,
+    or None) and the default, the nearest candidate that keeps every printed value that stays."""
+
+    kept: dict
+    winner: str | None
+
+
+def decide(table: pd.DataFrame, candidates) -> Decision:
+    """Apply the readings rule to :func:`screen_table`'s rows of `candidates` (checks excluded)."""
+    by_name = {candidate.name: candidate for candidate in _checked_candidates(candidates)}
+    rows = [row for row in table.itertuples() if not by_name[row.candidate].check]
+    labels = sorted(set().union(*(by_name[row.candidate].printed for row in rows))) if rows else []
+    kept = {}
+    for label in labels:
+        passing = [row for row in rows if label in by_name[row.candidate].printed and row.within_50]
+        kept[label] = min(passing, key=lambda row: row.score).candidate if passing else None
+    required = {label for label, candidate in kept.items() if candidate is not None}
+    eligible = [row for row in rows if required <= by_name[row.candidate].printed]
+    winner = min(eligible, key=lambda row: row.score).candidate if eligible else None
+    return Decision(kept, winner)
+
+
+def _decision_lines(decision: Decision, table: pd.DataFrame) -> list[str]:
+    lines = ["## The rule's decision", ""]
+    for label, candidate in decision.kept.items():
+        if candidate is None:
+            lines.append(f"- Printed value \"{label}\": no screened candidate with it brings Sarsa(λ) within 50 % of "
+                         "every figure, so it does not bind the choice below.")
+        else:
+            lines.append(f"- Printed value \"{label}\": stays (`{candidate}` keeps it within 50 % of every figure).")
+    if decision.winner is not None:
+        row = table.set_index("candidate").loc[decision.winner]
+        lines.append(f"- Default: `{decision.winner}` ({row['reading']}), score {_percent(row['score'])} "
+                     f"({_percent(row['score_low'])} to {_percent(row['score_high'])}): the nearest candidate that "
+                     "keeps every printed value that stays.")
+    return lines + [""]
+
+
 def _number(value) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "NA"
     if isinstance(value, float) and math.isinf(value):
         return "inf"
-    if abs(value) >= 1000:
+    if abs(value) >= 100:
         return f"{value:.0f}"
-    return f"{value:.3g}"
+    return f"{value:.3g}" if abs(value) < 10 else f"{value:.1f}"
 
 
 def _percent(value: float) -> str:
@@ -151,23 +226,35 @@ def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title:
     has_falls = "falls" in thesis_row
     header = ["rank", "candidate", "reading", "seeds", f"rise time [{experiment.rise_time_unit}]", "end performance"]
     header += ["falls"] if has_falls else []
-    header += ["rise error", "end error"] + (["falls error"] if has_falls else []) + ["score", "all within 50 %"]
+    header += ["rise error", "end error"] + (["falls error"] if has_falls else [])
+    header += ["score", "score, 95 % bootstrap interval", "all within 50 %"]
     lines = [f"# {title}", "", notes.strip(), "",
              "Thesis Sarsa(λ) row: " + ", ".join(f"{name.replace('_', ' ')} {value[0]}"
-                                                 for name, value in thesis_row.items()) + ".", "",
-             "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for row in table.itertuples():
-        cells = [str(row.rank), row.candidate, row.reading, f"{row.seeds}" + (f" (+{row.diverged} diverged)"
-                                                                              if row.diverged else ""),
-                 _number(row.rise_time), _number(row.end_performance)]
-        cells += [_number(row.falls)] if has_falls else []
-        cells += [_percent(row.rise_time_error), _percent(row.end_performance_error)]
-        cells += [_percent(row.falls_error)] if has_falls else []
-        cells += [_percent(row.score), "yes" if row.within_50 else "no"]
-        lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "Score: the sum of the relative errors |ours - thesis| / |thesis| of the figures above against the "
+                                                 for name, value in thesis_row.items()) + ".", ""]
+    checks = {candidate.name for candidate in _checked_candidates(candidates) if candidate.check}
+    for heading, part in (("Candidates", table[~table["candidate"].isin(checks)]),
+                          ("Checks of a printed value the candidates keep (they choose nothing)",
+                           table[table["candidate"].isin(checks)])):
+        if part.empty:
+            continue
+        lines += [f"## {heading}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        for rank, row in enumerate(part.itertuples(), start=1):
+            cells = [str(rank), row.candidate, row.reading,
+                     f"{row.seeds}" + (f" (+{row.diverged} diverged)" if row.diverged else ""),
+                     _number(row.rise_time), _number(row.end_performance)]
+            cells += [_number(row.falls)] if has_falls else []
+            cells += [_percent(row.rise_time_error), _percent(row.end_performance_error)]
+            cells += [_percent(row.falls_error)] if has_falls else []
+            cells += [_percent(row.score), f"{_percent(row.score_low)} to {_percent(row.score_high)}",
+                      "yes" if row.within_50 else "no"]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += _decision_lines(decide(table, candidates), table)
+    lines += ["Score: the sum of the relative errors |ours - thesis| / |thesis| of the figures above against the "
               "thesis's Sarsa(λ) row (NA: not measurable in the run, ranked last). Rise time and end performance by "
-              "the fixed metrics of thesis 6.1 on the mean curve of the seeds.", ""]
+              "the fixed metrics of thesis 6.1 on the mean curve of the seeds. The interval resamples the seeds "
+              f"({BOOTSTRAP_RESAMPLES} draws with replacement, the figures recomputed from each draw's mean curve): "
+              "candidates whose intervals overlap are not told apart by these seeds.", ""]
     run_records = [records.read_record(path) for candidate in _checked_candidates(candidates)
                    for path in sorted(candidate.run_folder(out_dir).glob(f"runs/{CONTROL_ARM}/seed_*.csv"))
                    if int(path.stem.split("_")[1]) < n_seeds]

@@ -16,6 +16,7 @@ from sb3_er.experiments.screen import Candidate, run_screen, write_screen_summar
 
 HERE = Path(__file__).resolve().parent
 PRINTED = {"velocity_tile_width": 0.33}
+GOAL_ENDS = "an episode ends after 15 s or when the goal is reached"
 CANDIDATES = [
     Candidate("printed", PRINTED, "printed widths; 0.6 N m, goal 0.1 rad & 1 rad/s ends, rad, RK4 x5, J about CoM"),
     Candidate("torque_0.3", {**PRINTED, "max_torque": 0.3}, "torque limit 0.3 N m"),
@@ -32,7 +33,21 @@ CANDIDATES = [
     Candidate("euler_1", {**PRINTED, "integrator": "euler", "substeps": 1}, "one semi-implicit Euler step per 0.01 s"),
     Candidate("rk4_1", {**PRINTED, "substeps": 1}, "one RK4 step per 0.01 s"),
     Candidate("pivot", {**PRINTED, "inertia_about": "pivot"}, "Table 4.1's J about the pivot"),
+    Candidate("no_goal_torque_0.8", {**PRINTED, "terminate_at_goal": False, "max_torque": 0.8},
+              "no goal: every episode runs 15 s; torque limit 0.8 N m"),
 ]
+CANDIDATES = [Candidate(c.name, c.env_kwargs, c.description,
+                        frozenset({GOAL_ENDS} if c.env_kwargs.get("terminate_at_goal", True) else set()))
+              for c in CANDIDATES]
+# Checks of the printed width the candidates keep (they choose nothing): other velocity widths.
+WIDTH_CHECKS = [
+    Candidate("width_1.0", {"velocity_tile_width": 1.0}, "velocity width 1.0 rad/s (not printed), else as printed",
+              check=True),
+    Candidate("width_3.3", {"velocity_tile_width": 3.3}, "velocity width 3.3 rad/s (the earlier default)", check=True),
+    Candidate("width_3.3_no_goal", {"velocity_tile_width": 3.3, "terminate_at_goal": False},
+              "velocity width 3.3 rad/s, no goal", check=True),
+]
+CANDIDATES += WIDTH_CHECKS
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

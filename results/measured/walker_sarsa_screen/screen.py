@@ -23,6 +23,21 @@ LITERAL = {"reward": "literal"}
 SCHUITEMA = {"reward": "schuitema"}
 HIP, ANGLES = {"fall": "hip"}, {"fall": "angles"}
 THESIS, GRL = {"observation": "thesis"}, {"observation": "grl"}
+PRINTED_REWARD = "reward: -1 per control step, +50 per meter of footstep, -50 at a fall"
+PRINTED_FALL = "fall: the hip mass touches the ground"
+PRINTED_OBSERVATION = "observation: the state of Eq. 4.2"
+
+
+def _printed(kwargs) -> frozenset:
+    """The printed values a reading keeps (the footstep reward's cap is what the text leaves open)."""
+    labels = set()
+    if kwargs.get("reward") == "literal" and kwargs.get("step_reward", 50.0) == 50.0:
+        labels.add(PRINTED_REWARD)
+    if kwargs.get("fall") == "hip":
+        labels.add(PRINTED_FALL)
+    if kwargs.get("observation") == "thesis":
+        labels.add(PRINTED_OBSERVATION)
+    return frozenset(labels)
 
 
 def _candidates():
@@ -37,19 +52,30 @@ def _candidates():
                     name = f"{start}_{reward_name}_{fall_name}_{observation_name}"
                     reading = f"start {start}, {reward_name} reward, {fall_name} fall, {observation_name} observation"
                     if (start, reward_name, fall_name, observation_name) == ("impact", "literal", "hip", "thesis"):
-                        reading = "printed: " + reading
-                    candidates.append(Candidate(name, {"start": start, **reward, **fall, **observation}, reading))
+                        reading = "the printed reading: " + reading
+                    kwargs = {"start": start, **reward, **fall, **observation}
+                    candidates.append(Candidate(name, kwargs, reading, _printed(kwargs)))
     printed = {"start": "impact", **LITERAL, **HIP, **THESIS}
     candidates += [
         Candidate("impact_literal_cap30_hip_thesis", {**printed, "step_reward_cap": 30.0},
-                  "printed, footstep reward capped at 30"),
+                  "start impact, literal reward capped at 30, hip fall, thesis observation"),
         Candidate("impact_literal100_cap30_hip_thesis", {**printed, "step_reward": 100.0, "step_reward_cap": 30.0},
-                  "printed, +100 per unit footstep (per unit of 4 sin phi_st / 2) capped at 30"),
+                  "start impact, -1 per step and -50 at a fall as printed, +100 per unit of step length (legs of 2 m) capped at "
+                  "30, hip fall, thesis observation"),
         Candidate("impact_schuitema_uncapped_angles_grl",
                   {"start": "impact", **SCHUITEMA, **ANGLES, **GRL, "step_reward_cap": 1e9},
                   "start impact, schuitema reward without its cap (1e9), angles fall, grl observation"),
+        Candidate("impact_schuitema_uncapped_hip_thesis",
+                  {"start": "impact", **SCHUITEMA, **HIP, **THESIS, "step_reward_cap": 1e9},
+                  "start impact, schuitema reward without its cap (1e9), hip fall, thesis observation"),
+        Candidate("impact_v0.2_schuitema_hip_thesis",
+                  {"start": "impact", "initial_state_variation": 0.2, **SCHUITEMA, **HIP, **THESIS},
+                  "start impact with the stance angle varied by 20 % (not 10 %), schuitema reward, hip fall, thesis "
+                  "observation"),
     ]
-    return candidates
+    return [candidate if candidate.printed else Candidate(candidate.name, candidate.env_kwargs, candidate.description,
+                                                          _printed(candidate.env_kwargs))
+            for candidate in candidates]
 
 
 CANDIDATES = _candidates()
