@@ -11,9 +11,10 @@ from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
 # The analyses, and the framework experiment (thesis Table 3.1, sb3_er.experiments.framework), which runs three envs.
-ANALYSIS_NAMES = (*ANALYSES, "framework")
+ANALYSIS_NAMES = (*ANALYSES, "framework", "sigma-regime")
 FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
 FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
+SIGMA_REGIME_READINGS = ("gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-optimistic")
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -36,7 +37,8 @@ def _reproduce_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "experiment", choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
         help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
-        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar)",
+        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar), "
+        "sigma-regime (which way ER-sigma moves its targets, per env and reading)",
     )
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds per algorithm (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
@@ -50,7 +52,8 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
         "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
-        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200)",
+        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200); sigma-regime: episodes or "
+        "seconds of the chosen --readings, which must share a unit (defaults: 100 episodes, walker 2500 s)",
     )
     parser.add_argument(
         "--jobs", type=int, default=None,
@@ -91,10 +94,12 @@ def _reproduce_parser() -> argparse.ArgumentParser:
                           help="framework: the problems to run (default all three)")
     analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
                           help="framework: the methods to run (default all seven)")
+    analyses.add_argument("--readings", nargs="+", default=None, choices=SIGMA_REGIME_READINGS,
+                          help="sigma-regime: the env readings to run (default all five)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
-        help="resume next to finished runs made by other code (version, git commit) or another configuration, or "
-        "without a version record (seed_<n>.json); without it such a resume is refused",
+        help="resume next to finished runs made by other code (version, git commit) or another configuration; "
+        "without it such a resume is refused",
     )
     return parser
 
@@ -105,6 +110,7 @@ ANALYSIS_OPTIONS = {
     "sigma": {"sigmas": "sigmas", "algo_kwargs": "algo_kwargs"},
     "pessimistic": {"initial_value": "initial_value"},
     "framework": {"problems": "problems", "methods": "methods"},
+    "sigma-regime": {"readings": "readings"},
 }
 
 
@@ -113,7 +119,7 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
     experiment or analysis that has no use for it."""
     own = ANALYSIS_OPTIONS.get(args.experiment, {"algo_kwargs": "algo_kwargs"})
     given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs",
-                                      "problems", "methods")
+                                      "problems", "methods", "readings")
              if (value := getattr(args, dest)) not in (None, [])}
     if args.experiment in ANALYSIS_NAMES and args.algos is not None:
         given["algos"] = args.algos
@@ -129,11 +135,21 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
 def reproduce_command(argv: Sequence[str]) -> None:
     """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J] [--backend ray ...]`.
 
-    Bad option combinations, a missing import (ray) and version conflicts with finished runs exit with the message
-    (status 2).
+    Bad option combinations, a missing import (ray), version conflicts with finished runs, a folder another command
+    is writing and a damaged settings or record file exit with the message (status 2). SIGTERM (a scheduler's time
+    limit, ``timeout``) ends the command as Ctrl-C does: its worker processes and the Ray instance it started end
+    with it, and the runs written so far stay for a resume.
     """
+    import signal
+    import threading
+
+    from sb3_er.experiments.files import DamagedFileError, FolderLockedError
     from sb3_er.experiments.records import MixedVersionsError
     from sb3_er.experiments.reproduce import reproduce
+    from sb3_er.experiments.runner import RUNNER_ARGUMENTS
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
 
     parser = _reproduce_parser()
     args = parser.parse_args(argv)
@@ -144,6 +160,11 @@ def reproduce_command(argv: Sequence[str]) -> None:
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
     options = _analysis_options(parser, args)
+    reserved = [name for name, _ in args.algo_kwargs if name in RUNNER_ARGUMENTS]
+    if reserved:
+        parser.error("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}" for name in reserved))
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, terminate) if in_main_thread else None
     try:
         if args.experiment in ANALYSIS_NAMES:
             from sb3_er.experiments.analyses import command
@@ -177,8 +198,11 @@ def reproduce_command(argv: Sequence[str]) -> None:
                 env_kwargs=dict(args.env_kwargs),
                 algo_kwargs=dict(args.algo_kwargs),
             )
-    except (ImportError, MixedVersionsError) as error:  # a missing ray, or finished runs of other code
+    except (ImportError, MixedVersionsError, FolderLockedError, DamagedFileError) as error:
         parser.exit(2, f"sb3-er reproduce: error: {error}\n")
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     print(result.table_markdown.read_text())
     print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
     print(f"table:      {result.table_markdown}  and  {result.table_csv}")
@@ -196,7 +220,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(
             "usage: sb3-er {reproduce,train,enjoy,optimize} ...\n\n"
             "  reproduce EXPERIMENT   run a thesis experiment (gridworld, pendulum, walker, leo) or analysis\n"
-            "                         (replay-order, sigma, pessimistic, framework); see reproduce -h\n"
+            "                         (replay-order, sigma, pessimistic, framework, sigma-regime); see reproduce -h\n"
             "  train --algo A --env E rl-zoo training with the thesis hyperparameters from zoo_configs/\n"
             "  enjoy --algo A --env E rl-zoo enjoy of a trained agent (-f FOLDER, --no-render)\n"
             "  optimize --algo A --env E  rl-zoo optuna search (--n-trials N, --n-timesteps T)\n\n"
