@@ -380,10 +380,11 @@ class PendulumSwingupEnv(gym.Env):
     def reward_bounds(self) -> dict:
         """Where Eq. 4.1's rewards lie (the value watch of sb3-er reads it): -5 theta^2 - 0.1 theta'^2 - a^2 is at most
         0 and at least its value at |theta| = pi, |theta'| = max_velocity, |a| = the largest action; a terminating
-        step (the goal) has |theta| < goal_angle and |theta'| < goal_velocity."""
+        step (the goal) has |theta| < goal_angle and |theta'| < goal_velocity (at most max_velocity)."""
         largest = max(abs(a) for a in self.action_levels)
         step_low = self.reward(math.pi, self.max_velocity, largest)
-        terminal = (self.reward(self.goal_angle, self.goal_velocity, largest), 0.0) if self.terminate_at_goal else None
+        goal_velocity = min(self.goal_velocity, self.max_velocity)  # the rate is clipped; None sets no goal rate
+        terminal = (self.reward(self.goal_angle, goal_velocity, largest), 0.0) if self.terminate_at_goal else None
         return {"step": (step_low, 0.0), "terminal": terminal}
 
     def set_state(self, theta: float, velocity: float) -> None:

@@ -49,6 +49,13 @@ def test_walker_returns():
     assert bounds.returns(0.99) == pytest.approx((-20_000.0, 3000.0))
 
 
+def test_a_goal_at_any_rate_is_bounded_by_the_rate_clip():
+    """goal_velocity=None: a terminating step has |theta| < 0.1 and |theta'| <= 40, so it pays at least
+    -0.05 - 160 - 0.36."""
+    bounds = RewardBounds.from_attribute(PendulumSwingupEnv(goal_velocity=None).reward_bounds)
+    assert bounds.terminal == pytest.approx((-0.05 - 160.0 - 0.36, 0.0))
+
+
 def test_pendulum_returns():
     """Eq. 4.1 at |theta| = pi, |theta'| = 40, |u| = 0.6 is -5 pi^2 - 160 - 0.36; the goal (|theta| < 0.1,
     |theta'| < 1) pays at least -0.05 - 0.1 - 0.36; gamma 0.98."""
@@ -94,7 +101,8 @@ def _check_rollout(env, bounds, seed, steps):
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_declared_bounds_hold_in_random_rollouts(seed):
-    for env in (WindyCliffEnv(), PendulumSwingupEnv(), PendulumSwingupEnv(velocity_tile_width=0.33),
+    for env in (WindyCliffEnv(), PendulumSwingupEnv(), PendulumSwingupEnv(velocity_tile_width=3.3),
+                PendulumSwingupEnv(goal_velocity=None, reward_units="degrees", integrator="euler"),
                 SimplestWalkerEnv(), SimplestWalkerEnv(reward="literal", step_reward_cap=20.0)):
         _check_rollout(env, env.reward_bounds, seed, 300)
 
