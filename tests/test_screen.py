@@ -80,9 +80,10 @@ def test_the_rule_keeps_a_printed_value_only_when_a_candidate_with_it_comes_with
         Candidate("other_width", {}, "", frozenset({fall}), check=True),  # a check chooses nothing
     ]
     table = pd.DataFrame({"candidate": ["other_width", "open_fall", "printed_fall", "printed_everything"],
-                          "score": [0.1, 0.3, 0.4, 2.0], "within_50": [True, True, True, False]})
+                          "score": [0.1, 0.3, 0.4, 2.0], "within_50": [True, True, True, False], "seeds": 10})
     decision = decide(table, candidates)
     assert decision.kept == {fall: "printed_fall", reward: None}
     assert decision.winner == "printed_fall"
     nothing_passes = table.assign(within_50=False)
     assert decide(nothing_passes, candidates).winner == "open_fall"  # then the nearest candidate, whatever it keeps
+    assert decide(table.assign(seeds=9), candidates).winner is None  # too few seeds decide nothing

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_er.experiments import records
+from sb3_er.experiments.runner import run_csv_path
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
 from sb3_er.experiments.summary import load_curves, summarize
 
@@ -30,6 +31,8 @@ CONTROL_ARM = "sarsa_lambda"
 FIGURES = ("rise_time", "end_performance", "falls")
 WITHIN = 0.5
 """The rule's bound on each figure's relative error for a printed value to stay the default."""
+MIN_SEEDS = 10
+"""Seeds a candidate needs before the rule weighs it."""
 BOOTSTRAP_RESAMPLES = 1000
 """Resamples of the seeds behind each candidate's score interval (:func:`bootstrap_score_interval`)."""
 
@@ -172,9 +175,10 @@ class Decision:
 
 
 def decide(table: pd.DataFrame, candidates) -> Decision:
-    """Apply the readings rule to :func:`screen_table`'s rows of `candidates` (checks excluded)."""
+    """Apply the readings rule to :func:`screen_table`'s rows of `candidates` (checks, and candidates with fewer than
+    :data:`MIN_SEEDS` seeds, excluded)."""
     by_name = {candidate.name: candidate for candidate in _checked_candidates(candidates)}
-    rows = [row for row in table.itertuples() if not by_name[row.candidate].check]
+    rows = [row for row in table.itertuples() if not by_name[row.candidate].check and row.seeds >= MIN_SEEDS]
     labels = sorted(set().union(*(by_name[row.candidate].printed for row in rows))) if rows else []
     kept = {}
     for label in labels:
@@ -187,14 +191,16 @@ def decide(table: pd.DataFrame, candidates) -> Decision:
 
 
 def _decision_lines(decision: Decision, table: pd.DataFrame) -> list[str]:
-    lines = ["## The rule's decision", ""]
+    lines = ["## The rule's decision", "", f"Candidates with at least {MIN_SEEDS} seeds, checks aside.", ""]
     for label, candidate in decision.kept.items():
         if candidate is None:
             lines.append(f"- Printed value \"{label}\": no screened candidate with it brings Sarsa(λ) within 50 % of "
                          "every figure, so it does not bind the choice below.")
         else:
             lines.append(f"- Printed value \"{label}\": stays (`{candidate}` keeps it within 50 % of every figure).")
-    if decision.winner is not None:
+    if decision.winner is None:
+        lines.append("- No candidate has enough seeds: the screen decides nothing yet.")
+    else:
         row = table.set_index("candidate").loc[decision.winner]
         lines.append(f"- Default: `{decision.winner}` ({row['reading']}), score {_percent(row['score'])} "
                      f"({_percent(row['score_low'])} to {_percent(row['score_high'])}): the nearest candidate that "
@@ -239,7 +245,7 @@ def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title:
             continue
         lines += [f"## {heading}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         for rank, row in enumerate(part.itertuples(), start=1):
-            cells = [str(rank), row.candidate, row.reading,
+            cells = [str(rank), row.candidate, row.reading.replace("|", "\\|"),
                      f"{row.seeds}" + (f" (+{row.diverged} diverged)" if row.diverged else ""),
                      _number(row.rise_time), _number(row.end_performance)]
             cells += [_number(row.falls)] if has_falls else []
@@ -255,10 +261,14 @@ def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title:
               "the fixed metrics of thesis 6.1 on the mean curve of the seeds. The interval resamples the seeds "
               f"({BOOTSTRAP_RESAMPLES} draws with replacement, the figures recomputed from each draw's mean curve): "
               "candidates whose intervals overlap are not told apart by these seeds.", ""]
-    run_records = [records.read_record(path) for candidate in _checked_candidates(candidates)
-                   for path in sorted(candidate.run_folder(out_dir).glob(f"runs/{CONTROL_ARM}/seed_*.csv"))
-                   if int(path.stem.split("_")[1]) < n_seeds]
-    lines.append(records.code_versions_line(run_records))
+    per_candidate = {candidate.name: [records.read_record(path) for seed in range(n_seeds)
+                                      if (path := run_csv_path(candidate.run_folder(out_dir), CONTROL_ARM, seed)).is_file()]
+                     for candidate in _checked_candidates(candidates)}
+    mixed = sorted(name for name, found in per_candidate.items()
+                   if len({(record or {}).get("code_sha256") for record in found}) > 1)
+    lines.append("Each candidate's runs were made by one code version." if not mixed else
+                 "Candidates whose runs were made by more than one code version: " + ", ".join(mixed) + ".")
+    lines.append(records.code_versions_line([record for found in per_candidate.values() for record in found]))
     (out_dir / "summary.md").write_text("\n".join(lines) + "\n")
     table.to_csv(out_dir / "summary.csv", index=False)
     return table

@@ -34,6 +34,8 @@ if __name__ == "__main__":
                    only=arguments.only)
     table = write_screen_summary(
         "leo", CANDIDATES, HERE, "LEO: Sarsa(λ) screen (thesis Table 6.3)",
-        notes=__doc__.split("\n\n", 1)[0] + " 12000 s of learning time per run; every 200 s, one greedy 25 s run.",
+        notes=__doc__.split("\n\n", 1)[0] + " 12000 s of learning time per run; every 200 s, one greedy 25 s run. "
+        "The printed feet's screen is unfinished (about 5-15 CPU minutes per run on this shared machine): a candidate "
+        "with fewer than 10 seeds decides nothing, so the default stays Erik's ankles until it has them.",
         n_seeds=arguments.seeds)
     print(table.to_string(index=False))
