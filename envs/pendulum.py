@@ -42,8 +42,9 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   ``PendulumSwingupEnv(**DCSC_MOPS)``.
 * Goal, ``terminate_at_goal``. The thesis says only that "an episode lasts 15 seconds or when the goal is reached"; it
   defines no goal. Ours: the episode ends (``terminated``, ``info["goal_reached"]``) when ``|theta| < goal_angle``
-  (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), our own definition (``goal_velocity=None``: pointing up at any
-  rate). GRL's swing-up task has no goal at all: it never marks a state absorbing and ends every episode at its
+  (0.2 rad) and ``|theta'| < goal_velocity`` (2 rad/s), the goal nearest the thesis's Sarsa(lambda) row in a screen
+  of goals (0.05 rad & 0.5 rad/s, 0.1 rad & 1 rad/s, the earlier default, pointing up at any rate with
+  ``goal_velocity=None``, and none). GRL's swing-up task has no goal at all: it never marks a state absorbing and ends every episode at its
   timeout (2.99 s of 0.03 s steps, 100 steps); ``terminate_at_goal=False`` runs every episode for
   ``episode_seconds``, as GRL does.
 
@@ -190,8 +191,8 @@ class PendulumSwingupEnv(gym.Env):
         in thesis 4.2.1); 3.3 is the earlier default (GRL tiles the rate 10 times wider than the angle).
     terminate_at_goal, goal_angle, goal_velocity:
         With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
-        ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s): our definition, the thesis gives
-        none. ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to
+        ``|theta| < goal_angle`` (0.2 rad) and ``|theta'| < goal_velocity`` (2 rad/s): the screened goal nearest the
+        thesis's Sarsa(lambda) row (the earlier default: 0.1 rad and 1 rad/s); the thesis defines none. ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to
         move the pendulum from the initial position to pointing up"), passing through upright included.
         ``terminate_at_goal=False`` runs every episode to its time limit, as GRL's swing-up task does.
     reward_units:
@@ -219,8 +220,8 @@ class PendulumSwingupEnv(gym.Env):
         self,
         max_torque: float | None = None,
         n_actions: int = 7,
-        goal_angle: float = 0.1,
-        goal_velocity: float | None = 1.0,
+        goal_angle: float = 0.2,
+        goal_velocity: float | None = 2.0,
         episode_seconds: float = 15.0,
         dt: float = 0.01,
         substeps: int = 5,
