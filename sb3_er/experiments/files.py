@@ -249,8 +249,9 @@ def holds_folder_locks(function):
 
 def lock_folder(*folders: str | Path) -> None:
     """Take the :class:`FolderLock` of each of `folders` (a folder this process holds already is skipped), held until
-    the function decorated with :func:`holds_folder_locks` that calls this returns; FolderLockedError, with the locks
-    taken so far released by that function, when another command holds one."""
+    the function decorated with :func:`holds_folder_locks` that calls this returns, and remove the temporary files
+    that killed writers left in it (:func:`remove_partial_files`); FolderLockedError, with the locks taken so far
+    released by that function, when another command holds one."""
     stack = getattr(_held, "stack", None)
     if stack is None:
         raise RuntimeError("lock_folder is for functions decorated with holds_folder_locks")
@@ -261,6 +262,7 @@ def lock_folder(*folders: str | Path) -> None:
         stack.enter_context(FolderLock(folder))
         held.add(folder)
         stack.callback(held.discard, folder)
+        remove_partial_files(folder)  # what a killed writer of this folder left
     _held.folders = held
 
 def save_figure(figure, path: str | Path, **savefig_kwargs) -> Path:

@@ -22,19 +22,28 @@ import time
 from pathlib import Path
 
 PR_SET_PDEATHSIG = 1
+PR_SET_NAME = 15
 WATCH_INTERVAL_S = 0.5
 
 
-def die_with_parent(parent_pid: int) -> None:
-    """Make this process end when the process `parent_pid` (its parent) ends: SIGKILL from the kernel on Linux, and a
-    daemon thread that kills this process within WATCH_INTERVAL_S of being orphaned on any platform."""
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
+def _prctl(option: int, argument) -> bool:
+    """``prctl(option, argument)`` on Linux; False elsewhere or when it fails."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
 
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-        except (OSError, AttributeError):  # no prctl in this libc: the watchdog thread alone
-            pass
+        return ctypes.CDLL(None, use_errno=True).prctl(option, argument, 0, 0, 0) == 0
+    except (OSError, AttributeError):  # no prctl in this libc
+        return False
+
+
+def die_with_parent(parent_pid: int, name: str | None = None) -> None:
+    """Make this process end when the process `parent_pid` (its parent) ends: SIGKILL from the kernel on Linux (also
+    when this process is stopped or blocked), and a daemon thread that kills this process within WATCH_INTERVAL_S of
+    being orphaned on any platform. `name` (at most 15 bytes) then becomes the process's name on Linux, as ``ps``,
+    ``top`` and the OOM killer's log show it."""
+    _prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
     if os.getppid() != parent_pid:  # the parent died before the line above
         os._exit(1)
 
@@ -44,6 +53,10 @@ def die_with_parent(parent_pid: int) -> None:
         os.kill(os.getpid(), signal.SIGKILL)
 
     threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
+    if name is not None:
+        import ctypes
+
+        _prctl(PR_SET_NAME, ctypes.c_char_p(name.encode()[:15]))
 
 
 def _proc_stat(pid: int) -> tuple[int, int] | None:

@@ -17,7 +17,13 @@ made where the run ran (a worker process or a Ray worker on another machine) and
   hierarchy within sb3_er read back from the model (e.g. ``policy_kwargs`` with the env's tiling filled in) and the
   environment's constructor arguments with their defaults;
 - ``dependencies`` (versions of the numerical libraries) and ``python``; ``host``, ``finished_at`` (UTC, ISO 8601) and
-  ``wall_time_s`` (seconds from the run's start to its end).
+  ``wall_time_s`` (seconds from the run's start to its end);
+- ``format`` (RECORD_FORMAT), ``files`` and ``checksum``, added by the driver when it writes the record after the run's
+  files (:func:`sealed`): each file's name with its SHA-256 and, for the CSV, its row count, and a SHA-256 of all the
+  record's other fields. :func:`check_sealed` tells whether a record still matches its files. A field added to the
+  record later (by the run or the driver) is covered by the checksum without further change. Records of format 1
+  predate the checksums; the runner checks their CSVs (:func:`check_legacy_csv`) and seals them once
+  (``upgraded_from_format``).
 
 :func:`compare_records` decides what a resume may mix. A missing record, a different ``sb3_er_version``,
 ``code_sha256`` or any ``config`` field refuses. Runs of different commits with identical code (a commit that touched

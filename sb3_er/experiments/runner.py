@@ -2,14 +2,18 @@
 
 One function, :func:`execute_run`, does a run's work on either backend and returns its result as data (the protocol's
 records and the run's version record); the driver, the process that called :func:`run_jobs`, writes each result as it
-arrives with :func:`write_run`: ``<out>/runs/<algo>/seed_<seed>.json`` (the version record, see
-:mod:`sb3_er.experiments.records`), then ``seed_<seed>.csv``, each atomically. A run whose CSV exists is finished, so an
-interrupted reproduction resumes where it stopped, and Ray workers need no shared file system.
+arrives with :func:`write_run`: the run's artifacts, ``<out>/runs/<algo>/seed_<seed>.csv``, then ``seed_<seed>.json``
+(the version record, see :mod:`sb3_er.experiments.records`, with the checksums of the files before it), each atomically
+(:mod:`sb3_er.experiments.files`). A run whose record matches its files is finished (:func:`check_run`), so an
+interrupted reproduction resumes where it stopped, a damaged run is moved aside and done again
+(:func:`split_finished`), and Ray workers need no shared file system.
 
-Backends: ``"local"`` runs the jobs in this process (one worker) or in spawned worker processes with one BLAS/OpenMP
-thread each, so that N workers use N cores; ``"ray"`` runs each job as a Ray task with one CPU, on a local Ray instance
-that the driver starts (and stops) or on an existing cluster (``address="auto"`` or ``"HOST:PORT"``). Ray's usage
-statistics are switched off for the driver, the instance it starts and the workers.
+Backends: ``"local"`` runs the jobs in this process (one worker) or in spawned worker processes of the driver's own
+(one job each at a time, one BLAS/OpenMP thread each, so that N workers use N cores; a worker that dies costs only its
+own run, which is started again once); ``"ray"`` runs each job as a Ray task with one CPU, on a local Ray instance
+that the driver starts (and stops) or on an existing cluster (``address="auto"`` or ``"HOST:PORT"``). Every process the
+driver starts ends with it, however the driver ends (:mod:`sb3_er.experiments.lifetime`). Ray's usage statistics are
+switched off for the driver, the instance it starts and the workers.
 
 The thesis's analyses (:data:`~sb3_er.experiments.specs.ANALYSES`) use the same machinery: the sigma study's runs are
 walker runs told apart by their ``label``, and the runs of an :class:`~sb3_er.experiments.specs.Analysis` are done by
@@ -359,8 +363,9 @@ class RecordUpgradeWarning(UserWarning):
 
 def run_files(csv_path: Path) -> list[Path]:
     """The files of the run whose CSV is `csv_path`: the CSV, its record and its artifacts (``seed_<n>_*``)."""
-    return [csv_path, records.record_path(csv_path),
-            *sorted(path for path in csv_path.parent.glob(f"{csv_path.stem}_*") if path.is_file())]
+    artifacts = (path for path in csv_path.parent.glob(f"{csv_path.stem}_*")
+                 if path.is_file() and ".damaged-" not in path.name and files.PARTIAL_MARK not in path.name)
+    return [csv_path, records.record_path(csv_path), *sorted(artifacts)]
 
 
 def check_run(job: RunJob) -> tuple[bool, str | None]:
@@ -585,7 +590,7 @@ def _worker_main(connection, parent_pid: int) -> None:
     driver dies. Ctrl-C is the driver's to handle (it ends the workers)."""
     import signal
 
-    lifetime.die_with_parent(parent_pid)
+    lifetime.die_with_parent(parent_pid, name=WORKER_NAME)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     reports = _PipeReports(connection)
     while True:
@@ -605,6 +610,10 @@ def _worker_main(connection, parent_pid: int) -> None:
             return
         except Exception:  # noqa: BLE001  (a result that does not pickle)
             connection.send(("error", traceback.format_exc()))
+
+
+WORKER_NAME = "sb3-er-worker"
+"""The name of a local worker process (``ps -C sb3-er-worker``), set once it dies with its driver."""
 
 
 class _Worker:
