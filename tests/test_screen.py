@@ -1,5 +1,6 @@
 """The readings rule's score (sb3_er.experiments.screen) against hand computations, and a screen end to end."""
 
+import json
 import math
 
 import numpy as np
@@ -67,6 +68,19 @@ def test_a_screen_ranks_its_candidates_and_writes_its_summary(tmp_path):
     assert written["score"].tolist() == pytest.approx(table["score"].tolist())
     with pytest.raises(ValueError, match="distinct names"):
         run_screen("pendulum", candidates + candidates[:1], tmp_path)
+
+    # a record that predates checksums (format 1) is checked and sealed once, as a resume would
+    from sb3_er.experiments import records
+    from sb3_er.experiments.runner import run_csv_path
+    from sb3_er.experiments.screen import seal_finished_runs
+
+    path = run_csv_path(tmp_path / "weak", "sarsa_lambda", 1)
+    legacy = {key: value for key, value in records.read_record(path).items()
+              if key not in (records.CHECKSUM_FIELD, "files")}
+    records.record_path(path).write_text(json.dumps({**legacy, "format": 1}))
+    assert seal_finished_runs("pendulum", candidates, tmp_path, n_seeds=2) == 1
+    assert records.check_sealed(records.read_record(path), path) is None
+    assert seal_finished_runs("pendulum", candidates, tmp_path, n_seeds=2) == 0
 
 
 def test_the_rule_keeps_a_printed_value_only_when_a_candidate_with_it_comes_within_50_percent():

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_er.experiments import records
+from sb3_er.experiments import files, records
 from sb3_er.experiments.runner import run_csv_path
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
 from sb3_er.experiments.summary import load_curves, summarize
@@ -136,6 +136,36 @@ def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 1
                            budget=budget, n_workers=n_workers, show_progress=False, env_kwargs=dict(candidate.env_kwargs))
         print(f"{candidate.name}: {result.runs_done} runs done, {result.runs_skipped} resumed, "
               f"{result.wall_time_s:.0f} s", flush=True)
+
+
+@files.holds_folder_locks
+def seal_finished_runs(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10) -> int:
+    """Give the finished runs of every candidate folder (seeds below `n_seeds`) records with checksums, as a resume
+    does (:func:`sb3_er.experiments.runner.check_run`: records that predate checksums are checked and sealed once;
+    damaged runs are moved aside). Returns how many records were sealed now."""
+    import json
+    import warnings
+
+    from sb3_er.experiments.runner import plan_jobs
+
+    experiment = _experiment(experiment_name)
+    sealed = 0
+    for candidate in _checked_candidates(candidates):
+        folder = candidate.run_folder(out_dir)
+        settings_path = folder / "settings.json"
+        if not settings_path.is_file():
+            continue
+        settings = json.loads(settings_path.read_text())
+        files.lock_folder(folder)
+        before = {seed: (records.read_record(path) or {}).get(records.CHECKSUM_FIELD) for seed in range(n_seeds)
+                  if (path := run_csv_path(folder, CONTROL_ARM, seed)).is_file()}
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            plan_jobs(experiment, [CONTROL_ARM], range(n_seeds), float(settings["budget"]), folder,
+                      settings.get("env_kwargs", {}), settings.get("algo_kwargs", {}))
+        sealed += sum(checksum is None and (records.read_record(run_csv_path(folder, CONTROL_ARM, seed)) or {})
+                      .get(records.CHECKSUM_FIELD) is not None for seed, checksum in before.items())
+    return sealed
 
 
 def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10) -> pd.DataFrame:

@@ -13,7 +13,7 @@ open rate filter (``filter_rates=False``) and the start variation (``start_noise
 import argparse
 from pathlib import Path
 
-from sb3_er.experiments.screen import Candidate, run_screen, write_screen_summary
+from sb3_er.experiments.screen import Candidate, run_screen, seal_finished_runs, write_screen_summary
 
 HERE = Path(__file__).resolve().parent
 CANDIDATES = [
@@ -32,6 +32,7 @@ if __name__ == "__main__":
     if not arguments.summary_only:
         run_screen("leo", [c for c in CANDIDATES if c.folder is None], HERE, n_seeds=arguments.seeds,
                    only=arguments.only)
+    seal_finished_runs("leo", CANDIDATES, HERE, n_seeds=arguments.seeds)
     table = write_screen_summary(
         "leo", CANDIDATES, HERE, "LEO: Sarsa(λ) screen (thesis Table 6.3)",
         notes=__doc__.split("\n\n", 1)[0] + " 12000 s of learning time per run; every 200 s, one greedy 25 s run. "

@@ -16,7 +16,7 @@ passes ``goal_angle=0.1, goal_velocity=1.0`` to repeat these readings.
 import argparse
 from pathlib import Path
 
-from sb3_er.experiments.screen import Candidate, run_screen, write_screen_summary
+from sb3_er.experiments.screen import Candidate, run_screen, seal_finished_runs, write_screen_summary
 
 HERE = Path(__file__).resolve().parent
 PRINTED = {"velocity_tile_width": 0.33}
@@ -61,6 +61,7 @@ if __name__ == "__main__":
     arguments = parser.parse_args()
     if not arguments.summary_only:
         run_screen("pendulum", CANDIDATES, HERE, n_seeds=arguments.seeds, only=arguments.only)
+    seal_finished_runs("pendulum", CANDIDATES, HERE, n_seeds=arguments.seeds)
     table = write_screen_summary(
         "pendulum", CANDIDATES, HERE, "Pendulum: Sarsa(λ) screen at the printed tile widths (thesis Table 6.1)",
         notes=__doc__.split("\n\n", 1)[0] + " 100 learning episodes per run (the experiment's run length).",

@@ -16,7 +16,7 @@ rule against the thesis's Table 6.2 Sarsa(lambda) row.
 import argparse
 from pathlib import Path
 
-from sb3_er.experiments.screen import Candidate, run_screen, write_screen_summary
+from sb3_er.experiments.screen import Candidate, run_screen, seal_finished_runs, write_screen_summary
 
 HERE = Path(__file__).resolve().parent
 LITERAL = {"reward": "literal"}
@@ -88,6 +88,7 @@ if __name__ == "__main__":
     arguments = parser.parse_args()
     if not arguments.summary_only:
         run_screen("walker", CANDIDATES, HERE, n_seeds=arguments.seeds, only=arguments.only)
+    seal_finished_runs("walker", CANDIDATES, HERE, n_seeds=arguments.seeds)
     table = write_screen_summary(
         "walker", CANDIDATES, HERE, "Simplest walker: Sarsa(λ) screen (thesis Table 6.2)",
         notes=__doc__.split("\n\n", 1)[0] + " 5000 s of learning time per run; every 100 s, 10 greedy 100 s runs.",
