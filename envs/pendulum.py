@@ -25,12 +25,11 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   while its RBDL model of the same pendulum (``addons/rbdl/cfg/pendulum.lua``) gives J as the body's inertia about a
   centre of mass at l. For the DCSC values, J = 1.91e-4 > m l^2 = 9.7e-5, so there the pivot reading is physical.
 * Velocity tile width, ``velocity_tile_width`` (``tile_widths = [0.33, velocity_tile_width]``). The thesis prints
-  "a tile width of 0.33 rad and 0.33 rad/s" (``velocity_tile_width=0.33``); we read a dropped digit and default to
-  3.3 rad/s, for the evidence that follows (not for how it learns). Every tile-coded pendulum in GRL
-  (``cfg/pendulum/sarsa_tc.yaml`` and its siblings) uses the resolution [0.31415 rad, 3.1415 rad/s]: a velocity width
-  ten times the angle width, about 3.3 rad/s if the thesis dropped a digit. A swing-up spans about +-18 rad/s
+  "a tile width of 0.33 rad and 0.33 rad/s", the default. ``velocity_tile_width=3.3`` is the earlier default, which
+  read a dropped digit: every tile-coded pendulum in GRL (``cfg/pendulum/sarsa_tc.yaml`` and its siblings) tiles the
+  rate ten times wider than the angle, [0.31415 rad, 3.1415 rad/s]. A swing-up spans about +-18 rad/s
   (centre-of-mass inertia) or +-31 rad/s (pivot): 0.33 rad/s cuts that range into 100-200 tiles, against 19 for the
-  angle. Candidates screened for issue 10: 0.33, 1.0, 3.3.
+  angle.
 * Actuation, ``actuation``. ``"torque"`` (default): ``n_actions`` torques evenly spaced in ``[-max_torque, max_torque]``
   N m; the thesis gives "7 actions" but no range, and says only that the torque "is not strong enough to directly rotate
   the pendulum to its up position", so the limit must lie below m g l = 0.928 N m; 0.6 N m is our choice.
@@ -43,9 +42,17 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   ``PendulumSwingupEnv(**DCSC_MOPS)``.
 * Goal, ``terminate_at_goal``. The thesis says only that "an episode lasts 15 seconds or when the goal is reached"; it
   defines no goal. Ours: the episode ends (``terminated``, ``info["goal_reached"]``) when ``|theta| < goal_angle``
-  (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s), our own definition. GRL's swing-up task has no goal at all: it
-  never marks a state absorbing and ends every episode at its timeout (2.99 s of 0.03 s steps, 100 steps);
-  ``terminate_at_goal=False`` runs every episode for ``episode_seconds``, as GRL does.
+  (0.2 rad) and ``|theta'| < goal_velocity`` (2 rad/s), the goal nearest the thesis's Sarsa(lambda) row in a screen
+  of goals (0.05 rad & 0.5 rad/s, 0.1 rad & 1 rad/s, the earlier default, pointing up at any rate with
+  ``goal_velocity=None``, and none). GRL's swing-up task has no goal at all: it never marks a state absorbing and ends every episode at its
+  timeout (2.99 s of 0.03 s steps, 100 steps); ``terminate_at_goal=False`` runs every episode for
+  ``episode_seconds``, as GRL does.
+
+* Reward units, ``reward_units``. Eq. 4.1 prints no units; ``"radians"`` (default) or ``"degrees"`` (theta in
+  degrees, theta' in degrees/s: 3283 times the angle and rate costs).
+* Integration, ``integrator`` and ``substeps``. The thesis simulated in ODE (MatODE) and names no scheme; ``"rk4"``
+  (default) takes ``substeps`` classical Runge-Kutta steps per control step, ``"euler"`` semi-implicit Euler steps
+  (rate first, then the angle with the new rate), the scheme of ODE's ``dWorldStep``.
 
 The angular rate is clipped to ``[-max_velocity, max_velocity]`` (40 rad/s) after each control step, which keeps the
 observation bounded; the clip never binds in a swing-up (from rest hanging down, upright is passed at about 18 rad/s
@@ -69,6 +76,9 @@ _IMAGE_PIXELS = 128
 
 INERTIA_AXES = ("center_of_mass", "pivot")
 ACTUATIONS = ("torque", "voltage")
+REWARD_UNITS = ("radians", "degrees")
+INTEGRATORS = ("rk4", "euler")
+_DEGREES_PER_RADIAN = 180.0 / math.pi
 
 # Table 4.1 of the thesis.
 TABLE_4_1 = {"mass": 1.113, "inertia": 3.773e-3, "length": 8.5e-2, "gravity": 9.81}
@@ -126,6 +136,20 @@ def pendulum_rk4_step(theta, velocity, torque, gravity_torque, damping, inertia,
     return theta, velocity
 
 
+@numba.njit(cache=True)
+def pendulum_euler_step(theta, velocity, torque, gravity_torque, damping, inertia, dt, substeps):
+    """Advance (theta, theta') by ``dt`` seconds with ``substeps`` semi-implicit (symplectic) Euler steps.
+
+    Each step of length h first updates the rate, theta' += h * theta'', then the angle with the new rate, theta += h *
+    theta': the first-order scheme of ODE's ``dWorldStep``, in which MatODE simulated the thesis's pendulum (4.2.1).
+    """
+    h = dt / substeps
+    for _ in range(substeps):
+        velocity += h * _angular_acceleration(theta, velocity, torque, gravity_torque, damping, inertia)
+        theta += h * velocity
+    return theta, velocity
+
+
 def wrap_angle(theta: float) -> float:
     """``theta`` wrapped into ``[-pi, pi)``."""
     return (theta + math.pi) % (2.0 * math.pi) - math.pi
@@ -163,17 +187,23 @@ class PendulumSwingupEnv(gym.Env):
         Table 4.1's J = 3.773e-3 kg m^2, read about ``"center_of_mass"`` (default: the pivot inertia is J + m l^2) or
         about the ``"pivot"`` (J itself, though Table 4.1's J is smaller than m l^2).
     velocity_tile_width:
-        Tile width of the angular rate in rad/s that the env recommends (``tile_widths``): 3.3 (default: GRL tiles the
-        rate 10 times wider than the angle, 3.1415 against 0.31415, and 0.33 cuts a swing-up's rates into 100-200
-        tiles); 0.33 as printed in thesis 4.2.1.
+        Tile width of the angular rate in rad/s that the env recommends (``tile_widths``): 0.33 (default, as printed
+        in thesis 4.2.1); 3.3 is the earlier default (GRL tiles the rate 10 times wider than the angle).
     terminate_at_goal, goal_angle, goal_velocity:
         With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
-        ``|theta| < goal_angle`` (0.1 rad) and ``|theta'| < goal_velocity`` (1 rad/s): our definition, the thesis gives
-        none. ``False`` runs every episode to its time limit, as GRL's swing-up task does.
+        ``|theta| < goal_angle`` (0.2 rad) and ``|theta'| < goal_velocity`` (2 rad/s): the screened goal nearest the
+        thesis's Sarsa(lambda) row (the earlier default: 0.1 rad and 1 rad/s); the thesis defines none. ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to
+        move the pendulum from the initial position to pointing up"), passing through upright included.
+        ``terminate_at_goal=False`` runs every episode to its time limit, as GRL's swing-up task does.
+    reward_units:
+        Units of theta and theta' in Eq. 4.1: ``"radians"`` (default, rad and rad/s) or ``"degrees"`` (degrees and
+        degrees/s; the thesis prints no unit for the reward).
     episode_seconds:
         Simulated seconds after which the episode is truncated (15, thesis 4.2.1).
-    dt, substeps:
-        Control period in seconds (0.01, thesis 4.2.1) and RK4 steps per control period (5).
+    dt, substeps, integrator:
+        Control period in seconds (0.01, thesis 4.2.1), integration steps per control period (5) and the scheme:
+        ``"rk4"`` (default, classical Runge-Kutta) or ``"euler"`` (semi-implicit Euler, the first-order scheme of ODE's
+        ``dWorldStep`` in which the thesis's MatODE model ran).
     mass, length, gravity, damping:
         m in kg, l (pivot to centre of mass) in m and g in m/s^2 from Table 4.1; viscous damping b in N m s/rad (0).
     max_velocity:
@@ -190,8 +220,8 @@ class PendulumSwingupEnv(gym.Env):
         self,
         max_torque: float | None = None,
         n_actions: int = 7,
-        goal_angle: float = 0.1,
-        goal_velocity: float = 1.0,
+        goal_angle: float = 0.2,
+        goal_velocity: float | None = 2.0,
         episode_seconds: float = 15.0,
         dt: float = 0.01,
         substeps: int = 5,
@@ -204,12 +234,14 @@ class PendulumSwingupEnv(gym.Env):
         render_mode: str | None = None,
         *,
         inertia_about: str = "center_of_mass",
-        velocity_tile_width: float = 3.3,
+        velocity_tile_width: float = 0.33,
         actuation: str = "torque",
         max_voltage: float | None = None,
         motor_constant: float | None = None,
         motor_resistance: float | None = None,
         terminate_at_goal: bool = True,
+        reward_units: str = "radians",
+        integrator: str = "rk4",
     ) -> None:
         values = {}
         for name, value in (
@@ -219,7 +251,6 @@ class PendulumSwingupEnv(gym.Env):
             ("gravity", gravity),
             ("dt", dt),
             ("goal_angle", goal_angle),
-            ("goal_velocity", goal_velocity),
             ("max_velocity", max_velocity),
             ("episode_seconds", episode_seconds),
             ("velocity_tile_width", velocity_tile_width),
@@ -231,6 +262,10 @@ class PendulumSwingupEnv(gym.Env):
             raise ValueError(f"inertia_about must be one of {INERTIA_AXES}, got {inertia_about!r}")
         if actuation not in ACTUATIONS:
             raise ValueError(f"actuation must be one of {ACTUATIONS}, got {actuation!r}")
+        if reward_units not in REWARD_UNITS:
+            raise ValueError(f"reward_units must be one of {REWARD_UNITS}, got {reward_units!r}")
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
         if not isinstance(terminate_at_goal, (bool, np.bool_)):
             raise ValueError(f"terminate_at_goal must be True or False, got {terminate_at_goal!r}")
         if isinstance(n_actions, bool) or int(n_actions) != n_actions or n_actions < 2:
@@ -289,8 +324,13 @@ class PendulumSwingupEnv(gym.Env):
         self.motor_constant = None if actuation == "torque" else float(constant)
         self.motor_resistance = None if actuation == "torque" else float(resistance)
         self.terminate_at_goal = bool(terminate_at_goal)
+        self.reward_units = reward_units
+        self._reward_scale = _DEGREES_PER_RADIAN if reward_units == "degrees" else 1.0
+        self.integrator = integrator
+        self._integrate = pendulum_rk4_step if integrator == "rk4" else pendulum_euler_step
         self.goal_angle = values["goal_angle"]
-        self.goal_velocity = values["goal_velocity"]
+        # None: the goal is "pointing up" (|theta| < goal_angle) at any rate
+        self.goal_velocity = math.inf if goal_velocity is None else _positive_finite("goal_velocity", goal_velocity)
         self.dt = values["dt"]
         self.substeps = int(substeps)
         self.max_episode_steps = max(1, round(values["episode_seconds"] / self.dt))
@@ -332,17 +372,20 @@ class PendulumSwingupEnv(gym.Env):
         return self.torque_per_unit * action_value - (self.total_damping - self.damping) * velocity
 
     def reward(self, theta: float, velocity: float, action_value: float) -> float:
-        """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V)."""
+        """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V), theta and
+        theta' in rad and rad/s, or in degrees and degrees/s with ``reward_units="degrees"``."""
+        theta, velocity = self._reward_scale * theta, self._reward_scale * velocity
         return -5.0 * theta * theta - 0.1 * velocity * velocity - action_value * action_value
 
     @property
     def reward_bounds(self) -> dict:
         """Where Eq. 4.1's rewards lie (the value watch of sb3-er reads it): -5 theta^2 - 0.1 theta'^2 - a^2 is at most
         0 and at least its value at |theta| = pi, |theta'| = max_velocity, |a| = the largest action; a terminating
-        step (the goal) has |theta| < goal_angle and |theta'| < goal_velocity."""
+        step (the goal) has |theta| < goal_angle and |theta'| < goal_velocity (at most max_velocity)."""
         largest = max(abs(a) for a in self.action_levels)
         step_low = self.reward(math.pi, self.max_velocity, largest)
-        terminal = (self.reward(self.goal_angle, self.goal_velocity, largest), 0.0) if self.terminate_at_goal else None
+        goal_velocity = min(self.goal_velocity, self.max_velocity)  # the rate is clipped; None sets no goal rate
+        terminal = (self.reward(self.goal_angle, goal_velocity, largest), 0.0) if self.terminate_at_goal else None
         return {"step": (step_low, 0.0), "terminal": terminal}
 
     def set_state(self, theta: float, velocity: float) -> None:
@@ -364,7 +407,7 @@ class PendulumSwingupEnv(gym.Env):
 
     def step(self, action):
         action_value = self.action_levels[discrete_action_index(action, len(self.action_levels))]
-        theta, velocity = pendulum_rk4_step(
+        theta, velocity = self._integrate(
             self.theta,
             self.velocity,
             self.torque_per_unit * action_value,

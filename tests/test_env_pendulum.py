@@ -169,19 +169,67 @@ def test_reward_is_equation_4_1(env):
     assert reward == pytest.approx(-5 * observation[0] ** 2 - 0.1 * observation[1] ** 2 - 0.36)
 
 
+def test_reward_in_degrees_is_equation_4_1_in_degrees():
+    env = PendulumSwingupEnv(reward_units="degrees")
+    # theta = 0.2 rad = 11.459 deg, theta' = -1.5 rad/s = -85.944 deg/s: -5 * 131.31 - 0.1 * 7386.4 - 0.36
+    assert env.reward(0.2, -1.5, 0.6) == pytest.approx(-5 * 11.4591559**2 - 0.1 * 85.9436693**2 - 0.36, rel=1e-8)
+    env.reset(seed=0)
+    _, reward, *_ = env.step(ZERO_TORQUE)  # hanging down at rest: -5 * 180^2
+    assert reward == pytest.approx(-162000.0)
+
+
+def test_a_semi_implicit_euler_step_by_hand():
+    """One Euler step of 0.01 s from theta = 1 rad at rest with 0.6 N m: rate first, then the angle with the new rate."""
+    env = PendulumSwingupEnv(integrator="euler", substeps=1, inertia_about="pivot")
+    env.reset(seed=0)
+    env.set_state(1.0, 0.0)
+    acceleration = (GRAVITY_TORQUE * math.sin(1.0) + 0.6) / INERTIA  # 366.03 rad/s^2
+    observation, *_ = env.step(MAX_POSITIVE)
+    assert observation[1] == pytest.approx(0.01 * acceleration, rel=1e-12)
+    assert observation[0] == pytest.approx(1.0 + 0.01 * 0.01 * acceleration, rel=1e-12)
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "euler"])
+def test_both_integrators_follow_the_small_swing_oscillation(integrator):
+    """theta(t) = theta0 cos(omega t) about the upright's mirror (hanging down), omega^2 = m g l / J_pivot; Euler with
+    20 substeps stays within 1 % of the amplitude over a second, RK4 a thousand times closer."""
+    env = PendulumSwingupEnv(integrator=integrator, substeps=20)
+    env.reset(seed=0)
+    env.set_state(-math.pi + 1e-3, 0.0)
+    omega = math.sqrt(GRAVITY_TORQUE / PIVOT_INERTIA["center_of_mass"])
+    for _ in range(100):
+        observation, *_ = env.step(ZERO_TORQUE)
+    expected = 1e-3 * math.cos(omega * 1.0)
+    tolerance = 1e-5 if integrator == "euler" else 1e-9  # Euler is off by about 2e-6 here, RK4 by the sin's 3e-10
+    assert wrap_angle(observation[0] + math.pi) == pytest.approx(expected, abs=tolerance)
+
+
 def test_reaching_the_goal_terminates(env):
-    env.set_state(0.05, 0.0)
+    assert (env.goal_angle, env.goal_velocity) == (0.2, 2.0)  # the screened goal
+    env.set_state(0.15, -1.5)
     observation, reward, terminated, truncated, info = env.step(ZERO_TORQUE)
-    assert abs(observation[0]) < 0.1 and abs(observation[1]) < 1.0
+    assert abs(observation[0]) < 0.2 and abs(observation[1]) < 2.0
     assert terminated and not truncated and info == {"goal_reached": True, "fell": False}  # a goal is no fall
     assert reward == pytest.approx(-5 * observation[0] ** 2 - 0.1 * observation[1] ** 2)
 
 
-@pytest.mark.parametrize("theta, velocity", [(0.05, 3.0), (0.3, 0.0)])
+@pytest.mark.parametrize("theta, velocity", [(0.05, 3.0), (0.3, 0.0), (-0.1, -2.5)])
 def test_near_misses_do_not_terminate(env, theta, velocity):
     env.set_state(theta, velocity)
     _, _, terminated, truncated, info = env.step(ZERO_TORQUE)
     assert not terminated and not truncated and not info["goal_reached"]
+
+
+def test_without_a_rate_condition_passing_through_upright_reaches_the_goal():
+    fast = dict(theta=0.05, velocity=-8.0)  # passing upright at 8 rad/s: no goal for the default's 2 rad/s
+    for goal_velocity, expected in ((2.0, False), (None, True)):
+        env = PendulumSwingupEnv(goal_velocity=goal_velocity)
+        env.reset(seed=0)
+        env.set_state(fast["theta"], fast["velocity"])
+        observation, _, terminated, _, info = env.step(ZERO_TORQUE)
+        assert abs(observation[0]) < 0.2 and abs(observation[1]) > 7.0
+        assert terminated == info["goal_reached"] == expected
+    assert PendulumSwingupEnv(goal_velocity=None).goal_velocity == math.inf
 
 
 def test_goal_thresholds_are_parameters():
@@ -189,6 +237,10 @@ def test_goal_thresholds_are_parameters():
     env.reset(seed=0)
     env.set_state(0.3, 3.0)
     assert env.step(ZERO_TORQUE)[2]
+    earlier = PendulumSwingupEnv(goal_angle=0.1, goal_velocity=1.0)  # the earlier default goal
+    earlier.reset(seed=0)
+    earlier.set_state(0.15, -1.5)
+    assert not earlier.step(ZERO_TORQUE)[2]
 
 
 def test_episode_is_truncated_after_15_seconds(env):
@@ -249,9 +301,20 @@ def test_render_draws_the_rod_towards_the_angle():
 
 
 def test_thesis_attributes(env):
-    np.testing.assert_array_equal(env.tile_widths, [0.33, 3.3])  # the printed 0.33 rad and our reading of the rate
+    np.testing.assert_array_equal(env.tile_widths, [0.33, 0.33])  # thesis 4.2.1: "0.33 rad and 0.33 rad/s"
     assert env.wrap_periods == (2 * math.pi, None) and env.dt == 0.01
     assert env.gravity_torque == pytest.approx(GRAVITY_TORQUE)
+
+
+def test_the_default_tile_widths_are_the_printed_ones():
+    """Thesis 4.2.1 prints "a tile width of 0.33 rad and 0.33 rad/s": the readings rule makes a printed value the
+    default; the env's widths are what a model built from the registered id tiles with."""
+    from sb3_er import SarsaLambda
+
+    env = gymnasium.make("sb3_er/PendulumSwingup-v0")
+    assert env.unwrapped.velocity_tile_width == 0.33
+    model = SarsaLambda("TileQ", env, policy_kwargs={"memory_size": 2**12})
+    np.testing.assert_array_equal(model.policy.tile_coder.tile_widths, [0.33, 0.33])
 
 
 @pytest.mark.parametrize("width", [0.33, 1.0, 3.3])
@@ -377,6 +440,10 @@ def test_the_dcsc_preset_passes_the_env_checkers():
         ({"actuation": "voltage", "motor_resistance": float("inf")}, "motor_resistance"),
         ({**DCSC_MOPS, "max_voltage": 5.0}, "stall torque"),  # 0.0282 N m > m g l = 0.0227 N m
         ({"terminate_at_goal": "yes"}, "terminate_at_goal"),
+        ({"reward_units": "rad"}, "reward_units"),
+        ({"goal_velocity": 0.0}, "goal_velocity"),
+        ({"goal_velocity": float("inf")}, "goal_velocity"),
+        ({"integrator": "rk45"}, "integrator"),
         ({"inertia": 0.0}, "inertia"),
         ({"substeps": 0}, "substeps"),
         ({"mass": -1.0}, "mass"),

@@ -82,15 +82,20 @@ def walker(**kwargs):
     return SimplestWalkerEnv(**{**PHYSICAL, **kwargs})
 
 
-def test_defaults_are_the_mechanisms_of_the_code_the_thesis_ran_with_the_thesis_numbers():
+def test_defaults_are_the_readings_rules():
+    """The thesis's fall, observation and numbers; Schuitema's footstep reward; GRL's start redrawn until it steps."""
     env = SimplestWalkerEnv()
-    assert (env.reward, env.fall, env.observation, env.start) == ("schuitema", "angles", "grl", "grl")
+    assert (env.reward, env.fall, env.observation, env.start) == ("schuitema", "hip", "thesis", "grl_footstep")
     assert env.action_space.n == 15 and env.fall_reward == -50.0  # the thesis's numbers
     np.testing.assert_array_equal(env.tile_widths, [0.10, 0.10, 0.11, 0.21])  # Table 4.2
     assert env.initial_state_variation == 0.2
     observation, _ = env.reset(seed=0)
-    s = env.state  # GRL's start: each of Garcia's values times U[0.8, 1.2]
+    s = env.state  # GRL's draw: each of Garcia's values times U[0.8, 1.2]
     assert np.all(np.abs(s / GARCIA_FIXED_POINT - 1.0) <= 0.2 + 1e-12)
+    np.testing.assert_array_equal(observation, s)  # Eq. 4.2's state itself
+    grl = SimplestWalkerEnv(fall="angles", observation="grl", start="grl")  # the earlier defaults, kept as options
+    observation, _ = grl.reset(seed=0)
+    s = grl.state
     np.testing.assert_allclose(observation, [s[0], s[1] - 2 * s[0], s[2], s[3] - 2 * s[2]])
 
 
@@ -300,6 +305,40 @@ def test_every_random_start_takes_a_step_without_actuation(seed, variation):
     step_until_footstep(env)
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_every_default_start_makes_a_passive_footstep(seed):
+    """Thesis 4.2.2: "the walker always has enough energy to start walking": from the default start of each of seeds
+    0-19, a zero-action episode under the default fall test makes at least one footstep."""
+    env = SimplestWalkerEnv()
+    env.reset(seed=seed)
+    step_until_footstep(env)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), reading=st.sampled_from([{}, {"fall": "hip", "observation": "thesis"}]))
+def test_grl_starts_redrawn_until_they_step_all_step(seed, reading):
+    env = SimplestWalkerEnv(start="grl_footstep", **reading)
+    env.reset(seed=seed)
+    assert np.all(np.abs(env.state / GARCIA_FIXED_POINT - 1.0) <= 0.2 + 1e-12)  # still GRL's U[0.8, 1.2] draw
+    step_until_footstep(env)
+
+
+def test_a_start_without_enough_energy_makes_no_passive_footstep():
+    env = SimplestWalkerEnv(start="grl_footstep")
+    # the stance leg's energy 0.05^2 / 2 + cos(0.1534) = 0.98951 < cos(mu): it swings back and falls
+    assert not env.makes_passive_footstep([0.1534, 0.3068, -0.05, -0.0073])
+    assert env.makes_passive_footstep(GARCIA_FIXED_POINT)
+    grl = SimplestWalkerEnv(start="grl")  # seed 0's GRL draw falls before its first footstep without actuation
+    grl.reset(seed=0)
+    assert not env.makes_passive_footstep(grl.state)
+    for _ in range(40):
+        _, _, terminated, _, info = grl.step(ZERO)
+        assert not info["footstep"]
+        if terminated:
+            break
+    assert terminated
+
+
 @pytest.mark.parametrize("stance_scale", [0.8, 1.0, 1.2])
 @pytest.mark.parametrize("surplus", [0.4, 1.0, 1.6])
 def test_the_start_distribution_edges_take_a_step(stance_scale, surplus):
@@ -369,7 +408,8 @@ def test_render_draws_legs_on_the_slope():
         ({"slope": -0.1}, "slope"),
         ({"render_mode": "human"}, "render_mode"),
         ({"reward": "thesis"}, "reward must be one of 'schuitema', 'literal'"),
-        ({"fall": "torso"}, "fall must be one of 'angles', 'hip'"),
+        ({"fall": "torso"}, "fall must be one of 'hip', 'angles'"),
+        ({"start": "garcia"}, "start must be one of 'grl_footstep', 'grl', 'impact'"),
         ({"observation": "state"}, "observation must be one of 'thesis', 'grl'"),
         ({"observation": None}, "observation must be one of"),
         ({"step_reward_cap": math.nan}, "step_reward_cap"),

@@ -70,7 +70,7 @@ def test_replay_order_command_writes_table_and_figure_and_replays_one_database_p
     assert "| Replayed updates | reversed | forward | uniform |" in markdown
     assert "reversed trajectories are slightly better than uniformly drawn samples" in markdown
     assert "the same database from the same initial weights" in markdown
-    assert "velocity_tile_width=3.3" in markdown and "inertia_about=" in markdown  # the reading at run time
+    assert "velocity_tile_width=0.33" in markdown and "inertia_about=" in markdown  # the reading at run time
     table = pd.read_csv(tmp_path / "summary.csv")
     assert list(table["checkpoint"]) == [0, 1000, 2000]
     assert set(table["reversed_n"]) == {2}

@@ -49,12 +49,19 @@ def test_walker_returns():
     assert bounds.returns(0.99) == pytest.approx((-20_000.0, 3000.0))
 
 
+def test_a_goal_at_any_rate_is_bounded_by_the_rate_clip():
+    """goal_velocity=None: a terminating step has |theta| < 0.2 and |theta'| <= 40, so it pays at least
+    -0.2 - 160 - 0.36."""
+    bounds = RewardBounds.from_attribute(PendulumSwingupEnv(goal_velocity=None).reward_bounds)
+    assert bounds.terminal == pytest.approx((-0.2 - 160.0 - 0.36, 0.0))
+
+
 def test_pendulum_returns():
-    """Eq. 4.1 at |theta| = pi, |theta'| = 40, |u| = 0.6 is -5 pi^2 - 160 - 0.36; the goal (|theta| < 0.1,
-    |theta'| < 1) pays at least -0.05 - 0.1 - 0.36; gamma 0.98."""
+    """Eq. 4.1 at |theta| = pi, |theta'| = 40, |u| = 0.6 is -5 pi^2 - 160 - 0.36; the goal (|theta| < 0.2,
+    |theta'| < 2) pays at least -0.2 - 0.4 - 0.36; gamma 0.98."""
     bounds = RewardBounds.from_attribute(PendulumSwingupEnv(max_torque=0.6).reward_bounds)
     step_low = -5 * math.pi**2 - 0.1 * 40**2 - 0.36
-    assert bounds.step == pytest.approx((step_low, 0.0)) and bounds.terminal == pytest.approx((-0.51, 0.0))
+    assert bounds.step == pytest.approx((step_low, 0.0)) and bounds.terminal == pytest.approx((-0.96, 0.0))
     assert bounds.returns(0.98) == pytest.approx((step_low / 0.02, 0.0))
 
 
@@ -94,7 +101,8 @@ def _check_rollout(env, bounds, seed, steps):
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_declared_bounds_hold_in_random_rollouts(seed):
-    for env in (WindyCliffEnv(), PendulumSwingupEnv(), PendulumSwingupEnv(velocity_tile_width=0.33),
+    for env in (WindyCliffEnv(), PendulumSwingupEnv(), PendulumSwingupEnv(velocity_tile_width=3.3),
+                PendulumSwingupEnv(goal_velocity=None, reward_units="degrees", integrator="euler"),
                 SimplestWalkerEnv(), SimplestWalkerEnv(reward="literal", step_reward_cap=20.0)):
         _check_rollout(env, env.reward_bounds, seed, 300)
 
@@ -225,8 +233,9 @@ def test_the_first_update_outside_is_the_one_flagged():
 
 
 def _pendulum_er_sigma(**kwargs):
-    """ER-sigma on the pendulum with velocity tiles 3.3 rad/s, where its values turn positive from rewards <= 0."""
-    env = gym.make("sb3_er/PendulumSwingup-v0", velocity_tile_width=3.3)
+    """ER-sigma on the pendulum's earlier default reading (velocity tiles 3.3 rad/s, the goal |theta| < 0.1 rad and
+    |theta'| < 1 rad/s), where its values turn positive from rewards <= 0."""
+    env = gym.make("sb3_er/PendulumSwingup-v0", velocity_tile_width=3.3, goal_angle=0.1, goal_velocity=1.0)
     return ERSigma("TileQ", env, learning_rate=0.2, gamma=0.98, exploration_rate=0.1,
                    replays_per_stored_trajectory=10, seed=0, **kwargs)
 
