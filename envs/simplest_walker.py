@@ -1,4 +1,5 @@
-"""Simplest walker of thesis 4.2.2 (Garcia et al. 1998) with hip actuation, in our reading (DESIGN.md section 7).
+"""Simplest walker of thesis 4.2.2 (Garcia et al. 1998) with hip actuation, in our reading (the
+documentation's simplest-walker page gives the readings).
 
 Model. Two massless unit legs join at a point mass at the hip; the feet have infinitesimal mass; gravity is 1; the
 slope falls by ``slope`` = mu = 0.004 rad in the walking direction. Time is in the model's units (``sqrt(l/g)``), which
@@ -70,7 +71,7 @@ Why Schuitema's reward is our reading of "a reward of 50 for every meter footste
 settings from Schuitema (2012), and GRL, which keeps that code lineage, pays ``50 * 4 sin(phi_st)`` capped at 30.
 Under the literal reading no policy has a reason to walk: a dive (one long step, then a fall) returns about -5 to -15,
 while walking passively for 100 s returns about -118 (-500 for the steps, +382 for 7.64 units of footsteps), and
-measured learners never walked (``walker_readings.md`` in the project's shared notes). Under Schuitema's reward a
+measured learners never walked (the documentation's simplest-walker page shows the runs). Under Schuitema's reward a
 passive footstep every ~19 control steps earns 24-30 against 18 steps of -1, so walking pays and learners walk.
 
 Fall (``fall=``):

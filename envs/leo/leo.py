@@ -1,7 +1,8 @@
 """LEO, the Delft biped of thesis section 4.2.3, as a dm_control domain (modelled on the suite's ``walker``).
 
-The MJCF model ``leo.xml`` rebuilds Erik Schuitema's ODE model (facts and figures: ``leo_reference.md``); this module adds
-the walking task of the thesis (Eq. 4.6-4.7, Table 4.3) with Erik's task logic:
+The MJCF model ``leo.xml`` rebuilds Erik Schuitema's ODE model as the GRL framework keeps it
+(``addons/leosim/cfg/leoconfig.xml``); this module adds the walking task of the thesis (Eq. 4.6-4.7, Table 4.3) with
+Erik's task logic:
 
 * 30 Hz control, voltages held over an exact number of physics substeps;
 * the 10-D stance/swing observation of Eq. 4.6 with Butterworth-filtered joint rates;

@@ -1,4 +1,4 @@
-"""The four thesis experiments: environment, protocol, run length, axes and the thesis's table (DESIGN.md 5-6)."""
+"""The four thesis experiments: environment, protocol, run length, axes and the thesis's table (thesis sections 4.2, 5.1 and 6.1)."""
 
 from __future__ import annotations
 
