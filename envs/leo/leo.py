@@ -81,7 +81,8 @@ MAX_STANCE_LEG_ANGLE = 0.36 * math.pi
 #: Butterworth cut-off of the joint-rate filters [Hz] (Erik's first-order filter at the 30 Hz sample rate).
 RATE_FILTER_CUTOFF = 10.0
 
-#: Erik's start pose (reference section 2, Eq. 4.7 with the torso in the task's sign): left leg stance and vertical.
+#: Erik's start pose (GRL's leoconfig.xml initial state, Eq. 4.7 with the torso in the task's sign): left leg stance
+#: and vertical.
 START_POSE = {
     "torso": -0.10,
     "hip_left": 0.10,
@@ -291,7 +292,7 @@ class Physics(mujoco.Physics):
 
 
 class LeoWalk(base.Task):
-    """Erik Schuitema's walking task on LEO (thesis 4.2.3; reference sections 4.2-4.8).
+    """Erik Schuitema's walking task on LEO (thesis 4.2.3; GRL's LeoBhWalkSym.cpp).
 
     Action: the voltages [V] of the stance hip, the swing hip and the swing knee, clipped to +-MAX_VOLTAGE.
     Observation ``state`` (Eq. 4.6): torso angle and rate, then angle and rate of the stance hip, swing hip, stance knee
@@ -378,8 +379,8 @@ class LeoWalk(base.Task):
         # which here would count a control step at the reset.
 
     def auto_voltages(self) -> dict[str, float]:
-        """Erik's controllers for the joints the agent does not drive (reference 4.5), from the current state [V],
-        before clipping."""
+        """Erik's controllers for the joints the agent does not drive (GRL's ``autoActuate*``), from the current state
+        [V], before clipping."""
         voltages = self._auto_voltage_list()
         stance, swing = self.stance, 1 - self.stance
         auto = (0, _KNEE[stance] - 1, _ANKLE[stance] - 1, _ANKLE[swing] - 1)
@@ -478,7 +479,8 @@ class LeoWalk(base.Task):
         return energy
 
     def _update_stance(self, left_contact: bool, right_contact: bool) -> None:
-        """Stance leg from the foot contacts; a change of stance leg is a footstep (reference 4.3)."""
+        """Stance leg from the foot contacts; a change of stance leg is a footstep (GRL's
+        ``updateDerivedStateVars``)."""
         previous = self.stance
         if left_contact and right_contact:
             self.stance = LEFT if self._ankle_x(LEFT) > self._ankle_x(RIGHT) else RIGHT

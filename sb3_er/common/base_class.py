@@ -141,15 +141,22 @@ class TileQAlgorithm(BaseAlgorithm):
     sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1), else
     finite observation bounds split into tiles by the generic rule (``default_tile_widths``).
 
-    :param policy: "TileQ" or a TileQPolicy subclass.
+    :param policy: "TileQ" (default) or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
     :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
-        schedule of the remaining progress.
-    :param gamma: discount factor.
-    :param exploration_rate: epsilon of epsilon-greedy acting.
-    :param trace_lambda: lambda of online Sarsa(lambda) learning; None acts without learning online.
-    :param trace_cutoff: traces below this value are dropped.
-    :param policy_kwargs: tile coding (see TileQPolicy), plus ``tiles_per_dimension`` for bounded observations.
+        schedule of the remaining progress (default 0.2, the thesis's alpha for every experiment but LEO's).
+    :param gamma: discount factor per control step (default 0.99, thesis sections 4.2 and 5.1).
+    :param exploration_rate: epsilon of epsilon-greedy acting (default 0.05, the thesis's).
+    :param trace_lambda: lambda of online Sarsa(lambda) learning; None (default) acts without learning online.
+    :param trace_cutoff: traces below this value are dropped (default 0.01).
+    :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, default 16; ``tile_widths``; ``wrap_periods``;
+        ``memory_size``, default 2**22; ``action_values``; ``action_tile_widths``; ``initial_value``, default 0), plus
+        ``tiles_per_dimension`` for bounded observations; default None: the env's attributes and sb3-er's rules.
+    :param stats_window_size: episodes averaged in ``rollout/ep_rew_mean`` and ``rollout/ep_len_mean`` (SB3's, 100).
+    :param tensorboard_log: folder of TensorBoard logs, or None for none (SB3's).
+    :param verbose: 0 silent, 1 the tiling in use and SB3's training messages, 2 debug (SB3's).
+    :param seed: seed of every random stream (exploration, trajectory picks, ``predict``, the env), or None.
+    :param device: "cpu": the weights live in NumPy arrays; no GPU is used (SB3's argument, kept for its API).
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"TileQ": TileQPolicy, "TileQPolicy": TileQPolicy}

@@ -21,6 +21,7 @@ from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
 from sb3_er.common import kernels
 from sb3_er.common.base_class import DivergenceError, TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.tile_coding import TileCoder
 
 try:
@@ -139,6 +140,7 @@ def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
         raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
 
 
+@inherit_parameters
 class BufferedTileQAlgorithm(TileQAlgorithm):
     """A TileQAlgorithm that keeps every transition in a TrajectoryReplayBuffer (the database D of thesis 3.5.3).
 
@@ -147,7 +149,6 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
     :param replay_buffer_kwargs: keyword arguments of the TrajectoryReplayBuffer, e.g. ``dict(prune="coverage")`` for
         the pruned database of thesis 3.5.3.
-    Other parameters as in TileQAlgorithm.
     """
 
     def __init__(self, policy, env, buffer_size: int = 1_000_000,
@@ -213,6 +214,7 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
         """Hook: drop anything derived from the previous buffer."""
 
 
+@inherit_parameters
 class FittedTileQAlgorithm(BufferedTileQAlgorithm):
     """A projection method (thesis Alg. 6) run on the whole database every ``fit_every`` episodes (Alg. 3 line 7 with
     an event-based L). Between fits the agent acts epsilon-greedily on the current Q without learning.

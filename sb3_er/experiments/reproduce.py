@@ -20,7 +20,16 @@ ALL_ALGORITHMS = tuple(ALGORITHM_LABELS)
 
 @dataclass
 class Reproduction:
-    """What a reproduction produced: the output files and the wall times."""
+    """What a reproduction produced: the output files and the wall times.
+
+    :param out_dir: the output folder.
+    :param table_markdown: ``summary.md``, the table beside the thesis's numbers.
+    :param table_csv: ``summary.csv``, the same table as CSV.
+    :param figures: the figures and animations written (default none).
+    :param runs_done: runs made by this call (default 0).
+    :param runs_skipped: runs already finished in ``out_dir`` and resumed (default 0).
+    :param wall_time_s: wall time of the call in seconds (default 0).
+    """
 
     out_dir: Path
     table_markdown: Path

@@ -53,6 +53,16 @@ class RunJob:
     `figure_run` asks the run for the data of its per-run figures (the walker's gait and animation).
     `label` names the run in place of `algo` (its key ``<label>/seed_<seed>``), so that several runs of one algorithm
     with different `algo_kwargs` (the sigma study's definitions) are told apart by the driver and in their records.
+
+    :param experiment: the experiment (or analysis) the run belongs to.
+    :param algo: the algorithm's rl-zoo name.
+    :param seed: the run's seed.
+    :param budget: run length in the experiment's unit (episodes or seconds of learning time).
+    :param csv_path: where the driver writes the run's CSV.
+    :param env_kwargs: ``gymnasium.make`` keyword arguments as sorted ``(name, value)`` pairs (default none).
+    :param algo_kwargs: constructor overrides as sorted ``(name, value)`` pairs (default none).
+    :param figure_run: whether the run returns the data of its per-run figures (default False).
+    :param label: the run's name in place of `algo` (default "": `algo`).
     """
 
     experiment: Experiment
@@ -97,7 +107,14 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
 class RunResult:
     """What one run returns: the protocol's records (one row per measurement, plus ``diverged``), its version record
     (see :mod:`sb3_er.experiments.records`), its wall time in seconds, and the files of its per-run figures as bytes
-    (``artifacts``: a suffix such as ``"gait.csv"`` to content; written beside the CSV as ``seed_<n>_<suffix>``)."""
+    (``artifacts``: a suffix such as ``"gait.csv"`` to content; written beside the CSV as ``seed_<n>_<suffix>``).
+
+    :param key: the run's key, ``<label>/seed_<seed>``.
+    :param frame: the protocol's records, one row per measurement.
+    :param record: the run's version record.
+    :param wall_time_s: the run's wall time in seconds.
+    :param artifacts: file suffix to content of its per-run figures (default none).
+    """
 
     key: str
     frame: pd.DataFrame
@@ -121,7 +138,12 @@ experiment's env id and the job's env kwargs; ``report(fraction)`` feeds the pro
 class TaskOutput:
     """What a task returns to :func:`execute_run`: its records (one row per measurement, with a ``diverged``
     column), the model whose settings its version record holds (e.g. the model that collected the data), and the data
-    of its per-run figures (as ``RunResult.artifacts``)."""
+    of its per-run figures (as ``RunResult.artifacts``).
+
+    :param frame: the task's records, one row per measurement, with a ``diverged`` column.
+    :param model: the model whose settings the version record holds.
+    :param artifacts: file suffix to content of its per-run figures (default none).
+    """
 
     frame: pd.DataFrame
     model: Any

@@ -19,7 +19,15 @@ REFERENCE_ALGORITHM = "sarsa_lambda"
 
 @dataclass(frozen=True)
 class Curves:
-    """Per-seed curves of one algorithm's complete runs, cut to the shortest (rows: seeds), and its diverged runs."""
+    """Per-seed curves of one algorithm's complete runs, cut to the shortest (rows: seeds), and its diverged runs.
+
+    :param x: the common abscissa, shape (n,), in the experiment's x units.
+    :param performance: the performance curves, shape (seeds, n).
+    :param cumulative_falls: the cumulative falls, shape (seeds, n).
+    :param seeds: the seeds of the complete runs, one per row.
+    :param diverged_seeds: the seeds of the runs whose Q-function diverged (left out of the curves).
+    :param wall_time_s: the runs' summed wall time in seconds.
+    """
 
     x: np.ndarray
     performance: np.ndarray
