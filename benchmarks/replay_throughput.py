@@ -1,4 +1,4 @@
-"""Replay, Sarsa(lambda) and learn() throughput; prints the figures recorded in the README.
+"""Replay, Sarsa(lambda) and learn() throughput, and the value watch's cost; prints the figures recorded in the docs.
 
     python benchmarks/replay_throughput.py [--quick]
 
@@ -6,7 +6,9 @@
 16 tilings. Each ER variant replays a buffer of random-action trajectories recorded in the real env (sb3_er_envs; LEO
 needs the dmc extra) with one kernel call per phase; the reference is a plain-NumPy implementation of the same update
 called once per update. Rates are per second of this process's CPU time (single-threaded), so other load on
-the machine does not count against them.
+the machine does not count against them. "watch cost" is the kernel's time per update with the value watch (every
+target and Q(s, a) folded into the watch array, ER-sigma's target shift too) over its time without it, in one run:
+the median of alternating timed calls with and without.
 """
 
 import argparse
@@ -60,22 +62,39 @@ def recorded_buffer(env: gym.Env, coder: TileCoder, n_transitions: int) -> Traje
     return buffer
 
 
-def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays) -> float:
-    theta = np.zeros(coder.n_weights)
-    q_scratch, w_scratch = np.zeros(coder.n_actions), np.zeros(coder.n_actions)
+def _alternate(rate, size, watch, rounds) -> tuple[float, float]:
+    """(median rate without the watch, median ratio of the time per unit with it to without it) over ``rounds``
+    alternating calls ``rate(size, watch_array)``, after one small call of each to compile."""
+    rate(1, kernels.NO_WATCH)
+    rate(1, watch)
+    without, ratios = [], []
+    for _ in range(rounds):
+        off = rate(size, kernels.NO_WATCH)
+        on = rate(size, watch)
+        without.append(off)
+        ratios.append(off / on)
+    return float(np.median(without)), float(np.median(ratios))
 
-    def phase(n):
-        return kernels.replay_phase(
+
+def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays, rounds=5) -> tuple[float, float]:
+    """(updates per CPU second without the value watch, time per update with it over time without it): the median
+    of ``rounds`` alternating pairs of phases from the same weights and generators."""
+    q_scratch, w_scratch = np.zeros(coder.n_actions), np.zeros(coder.n_actions)
+    watch = kernels.new_watch(-1e6, 1e6)
+
+    def phase(n, watch_array):
+        theta = np.zeros(coder.n_weights)
+        start = time.process_time()
+        updates = kernels.replay_phase(
             theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
             coder.columns_are_actions, n,
             kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, False, ALPHA / coder.n_tilings, GAMMA, EPSILON,
             kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch, *kernels.ZERO_INITIAL,
-        )
+            watch_array,
+        )[0]
+        return updates / (time.process_time() - start)
 
-    phase(1)
-    start = time.process_time()
-    updates = phase(n_replays)[0]
-    return updates / (time.process_time() - start)
+    return _alternate(phase, n_replays, watch, rounds)
 
 
 def numpy_updates_per_second(coder, buffer, sigma_on, zeta, n_updates) -> float:
@@ -120,7 +139,7 @@ def numpy_updates_per_second(coder, buffer, sigma_on, zeta, n_updates) -> float:
 
 
 @nb.njit
-def _sarsa_lambda_episode(theta, trace, states, coder_args, n_steps, rng):
+def _sarsa_lambda_episode(theta, trace, states, coder_args, n_steps, rng, watch):
     inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions = coder_args
     n_tilings = offsets.shape[0]
     slots = np.zeros(n_tilings, np.int64)
@@ -132,22 +151,27 @@ def _sarsa_lambda_episode(theta, trace, states, coder_args, n_steps, rng):
         action, _, _ = kernels.sarsa_lambda_step(
             theta, trace[0], trace[1], trace[2], trace[3], slots, action, -1.0, False, states[k + 1], next_slots, q,
             inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions, ALPHA / n_tilings, GAMMA,
-            GAMMA * 0.92, 0.01, EPSILON, rng,
+            GAMMA * 0.92, 0.01, EPSILON, rng, watch,
         )
         slots, next_slots = next_slots, slots
 
 
-def sarsa_lambda_steps_per_second(coder, n_steps) -> float:
+def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, float]:
+    """(steps per CPU second without the value watch, time per step with it over time without it), medians of
+    alternating runs."""
     rng = np.random.default_rng(0)
     states = np.cumsum(rng.normal(0.0, 1.0 / 3.0, (n_steps + 1, coder.n_dims)) * coder.tile_widths, axis=0)
-    theta = np.zeros(coder.n_weights)
     capacity = coder.n_tilings * 120
-    trace = (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int32),
-             np.zeros(1, np.int64))
-    _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, 10, kernels.new_rng_state(0))
-    start = time.process_time()
-    _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, n_steps, kernels.new_rng_state(0))
-    return n_steps / (time.process_time() - start)
+
+    def run(steps, watch):
+        theta = np.zeros(coder.n_weights)
+        trace = (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int32),
+                 np.zeros(1, np.int64))
+        start = time.process_time()
+        _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, steps, kernels.new_rng_state(0), watch)
+        return steps / (time.process_time() - start)
+
+    return _alternate(run, n_steps, kernels.new_watch(-1e6, 1e6), rounds)
 
 
 def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
@@ -167,18 +191,21 @@ def main() -> None:
 
     import sb3_er_envs  # noqa: F401  (registers the env ids)
 
-    print(f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s}")
+    print(f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s} "
+          f"{'watch cost':>10s}")
     for name, setup in SETUPS.items():
         env = gym.make(setup["env_id"])
         coder = env_coder(env, setup["memory_size"])
         buffer = recorded_buffer(env, coder, int(setup["transitions"] * max(scale, 0.2)))
         for variant, (sigma, zeta) in VARIANTS.items():
-            fast = kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays=max(20, int(5000 * scale)))
+            fast, cost = kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays=max(20, int(1000 * scale)))
             slow = numpy_updates_per_second(coder, buffer, sigma != kernels.SIGMA_NONE, zeta, int(3000 * scale) + 100)
-            print(f"{name:32s} {variant:18s} {fast:14,.0f} {slow:12,.0f} {fast / slow:8.0f}x", flush=True)
+            print(f"{name:32s} {variant:18s} {fast:14,.0f} {slow:12,.0f} {fast / slow:8.0f}x {cost - 1:+10.1%}",
+                  flush=True)
 
     walker = TileCoder([0.1, 0.1, 0.11, 0.21], [15], n_tilings=16)
-    print(f"\nSarsa(lambda) kernel, walker setup: {sarsa_lambda_steps_per_second(walker, int(1_000_000 * scale)):,.0f} steps/s")
+    rate, cost = sarsa_lambda_steps_per_second(walker, int(1_000_000 * scale))
+    print(f"\nSarsa(lambda) kernel, walker setup: {rate:,.0f} steps/s; watch cost {cost - 1:+.1%}")
     for env_id, policy_kwargs in (
         ("MountainCar-v0", dict(n_tilings=8, tiles_per_dimension=8)),
         ("CartPole-v1", dict(n_tilings=8, tile_widths=[0.5, 0.5, 0.05, 0.5])),

@@ -335,6 +335,16 @@ class PendulumSwingupEnv(gym.Env):
         """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V)."""
         return -5.0 * theta * theta - 0.1 * velocity * velocity - action_value * action_value
 
+    @property
+    def reward_bounds(self) -> dict:
+        """Where Eq. 4.1's rewards lie (the value watch of sb3-er reads it): -5 theta^2 - 0.1 theta'^2 - a^2 is at most
+        0 and at least its value at |theta| = pi, |theta'| = max_velocity, |a| = the largest action; a terminating
+        step (the goal) has |theta| < goal_angle and |theta'| < goal_velocity."""
+        largest = max(abs(a) for a in self.action_levels)
+        step_low = self.reward(math.pi, self.max_velocity, largest)
+        terminal = (self.reward(self.goal_angle, self.goal_velocity, largest), 0.0) if self.terminate_at_goal else None
+        return {"step": (step_low, 0.0), "terminal": terminal}
+
     def set_state(self, theta: float, velocity: float) -> None:
         """Place the pendulum at angle ``theta`` (wrapped) with angular rate ``velocity`` (within the bound)."""
         if not (math.isfinite(theta) and abs(velocity) <= self.max_velocity):

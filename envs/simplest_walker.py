@@ -538,6 +538,23 @@ class SimplestWalkerEnv(gym.Env):
         stance, hip, stance_rate, hip_rate = self.state.tolist()
         return self._observe(stance, hip, stance_rate, hip_rate, False), self._info(False, 0.0, False)
 
+    @property
+    def reward_bounds(self) -> dict:
+        """Where the rewards lie (the value watch of sb3-er reads it). A step without a footstep pays
+        ``time_reward``; Schuitema's footstep reward ``min(step_reward * 4 sin(phi_st), cap)`` lies within
+        [min(-4 |step_reward|, cap), min(4 |step_reward|, cap)] (|phi_st| <= pi/2); the literal one adds
+        ``min(step_reward * L, cap)`` to it, L > 0 the summed step lengths (unbounded above without a cap); a fall
+        (the only termination) pays ``fall_reward``."""
+        scale, cap, time = self.step_reward, self.step_reward_cap, self.time_reward
+        if self._schuitema:
+            footstep = (min(-4.0 * abs(scale), cap), min(4.0 * abs(scale), cap))
+        elif scale >= 0.0:
+            footstep = (time + min(0.0, cap), time + cap)
+        else:
+            footstep = (-math.inf, time + min(0.0, cap))
+        step = (min(time, footstep[0]), max(time, footstep[1]))
+        return {"step": step, "terminal": (self.fall_reward, self.fall_reward)}
+
     def sample_start_state(self, rng: np.random.Generator) -> np.ndarray:
         """A random start (module docstring). ``"grl"``: Garcia's four values each times U[1 - v, 1 + v], redrawn until
         the stance leg's kinetic energy lifts the hip over phi_st = 0. ``"impact"``: a post-impact state with stance

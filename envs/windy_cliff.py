@@ -179,6 +179,13 @@ class WindyCliffEnv(gym.Env):
         self._steps = 0
         return self._observation(), {"fell": False, "goal_reached": False}
 
+    @property
+    def reward_bounds(self) -> dict:
+        """Where the rewards lie (the value watch of sb3-er reads it): ``step_reward`` on every step that does not end
+        the episode, the fall reward or a goal payout in [0, goal_reward] on a terminating one."""
+        ends = (self.fall_reward, 0.0, self.goal_reward)
+        return {"step": (self.step_reward, self.step_reward), "terminal": (min(ends), max(ends))}
+
     def step(self, action):
         action = discrete_action_index(action, len(KING_MOVES))
         blown = self.is_windy(self._y) and self.np_random.random() < self.wind_probability

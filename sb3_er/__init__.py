@@ -4,10 +4,11 @@ Sarsa(lambda), experience replay (ER), ER-sigma, residual-gradient ER and residu
 Reinforcement Learning for Walking Robots" (2013), as SB3 algorithms on the "TileQ" policy.
 """
 
-from sb3_er.common.base_class import DivergenceError
+from sb3_er.common.base_class import DivergenceError, ValueBoundWarning
 from sb3_er.common.buffers import TrajectoryReplayBuffer
 from sb3_er.common.policies import TileQPolicy
 from sb3_er.common.tile_coding import TileCoder
+from sb3_er.common.value_bounds import RewardBounds, ValueBoundError
 from sb3_er.dyna import Dyna
 from sb3_er.er import ER, ERSigma, ResidualER, ResidualERSigma
 from sb3_er.fqi import FQI
@@ -25,8 +26,11 @@ __all__ = [
     "LSPI",
     "ResidualER",
     "ResidualERSigma",
+    "RewardBounds",
     "SarsaLambda",
     "TileCoder",
     "TileQPolicy",
     "TrajectoryReplayBuffer",
+    "ValueBoundError",
+    "ValueBoundWarning",
 ]

@@ -15,9 +15,10 @@ from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
 # The analyses, and the framework experiment (thesis Table 3.1, sb3_er.experiments.framework), which runs three envs.
-ANALYSIS_NAMES = (*ANALYSES, "framework")
+ANALYSIS_NAMES = (*ANALYSES, "framework", "sigma-regime")
 FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
 FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
+SIGMA_REGIME_READINGS = ("gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-optimistic")
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -52,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="{reproduce,train,enjoy,optimize}")
     reproduce = commands.add_parser("reproduce", help="run a thesis experiment (gridworld, pendulum, walker, leo) or "
-                                    "analysis (replay-order, sigma, pessimistic, framework)",
+                                    "analysis (replay-order, sigma, pessimistic, framework, sigma-regime)",
                                     description=REPRODUCE_DESCRIPTION)
     _add_reproduce_arguments(reproduce)
     for name, description in ZOO_DESCRIPTIONS.items():
@@ -75,7 +76,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "experiment", choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
         help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
-        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar)",
+        "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar), "
+        "sigma-regime (which way ER-sigma moves its targets, per env and reading)",
     )
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds per algorithm (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
@@ -89,7 +91,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
         "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
-        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200)",
+        "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200); sigma-regime: episodes or "
+        "seconds of the chosen --readings, which must share a unit (defaults: 100 episodes, walker 2500 s)",
     )
     parser.add_argument(
         "--jobs", type=int, default=None,
@@ -130,6 +133,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
                           help="framework: the problems to run (default all three)")
     analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
                           help="framework: the methods to run (default all seven)")
+    analyses.add_argument("--readings", nargs="+", default=None, choices=SIGMA_REGIME_READINGS,
+                          help="sigma-regime: the env readings to run (default all five)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
         help="resume next to finished runs made by other code (version, git commit) or another configuration, or "
@@ -143,6 +148,7 @@ ANALYSIS_OPTIONS = {
     "sigma": {"sigmas": "sigmas", "algo_kwargs": "algo_kwargs"},
     "pessimistic": {"initial_value": "initial_value"},
     "framework": {"problems": "problems", "methods": "methods"},
+    "sigma-regime": {"readings": "readings"},
 }
 
 
@@ -151,7 +157,7 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
     experiment or analysis that has no use for it."""
     own = ANALYSIS_OPTIONS.get(args.experiment, {"algo_kwargs": "algo_kwargs"})
     given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs",
-                                      "problems", "methods")
+                                      "problems", "methods", "readings")
              if (value := getattr(args, dest)) not in (None, [])}
     if args.experiment in ANALYSIS_NAMES and args.algos is not None:
         given["algos"] = args.algos

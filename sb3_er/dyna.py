@@ -279,7 +279,7 @@ class Dyna(BufferedTileQAlgorithm):
             self.policy.theta_array, self._slots, action, reward, terminated, next_obs, self._next_slots,
             self._plan_slots, self._plan_actions, self._plan_rewards, self._plan_continuation, self._plan_next_slots,
             start, count, *coder.kernel_arguments, TARGETS[self.target], self.current_learning_rate / coder.n_tilings,
-            self.gamma, self.exploration_rate, self.action_rng, self._q_scratch,
+            self.gamma, self.exploration_rate, self.action_rng, self._q_scratch, self._watch_array,
         )
         self._plan_position = start + count
         self.planning_updates += updates
@@ -288,6 +288,8 @@ class Dyna(BufferedTileQAlgorithm):
         if status == kernels.STATUS_DIVERGED:
             where = "the direct update" if updates == 0 else f"planning update {updates}"
             self._raise_divergence(delta, where)
+        if status == kernels.STATUS_OUT_OF_BOUNDS:
+            self._value_out_of_bounds("the direct or a planning update")
         self._td_error_sum += abs(delta) + sum_abs_delta
         self._td_error_count += 1 + updates
 

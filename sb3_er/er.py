@@ -34,6 +34,8 @@ SIGMAS = {
     "average_worst": kernels.SIGMA_AVERAGE_WORST,
     "average_best": kernels.SIGMA_AVERAGE_BEST,
 }
+#: The value watch's entries of ER-sigma's target shift (kernels.watch_shift)
+SHIFT_ENTRIES = [kernels.WATCH_SHIFT_SUM, kernels.WATCH_SHIFT_COUNT, kernels.WATCH_RAISED, kernels.WATCH_LOWERED]
 REPLAY_TRIGGERS = ("episode", "segment")
 REPLAY_UNITS = ("episode", "segment")
 RESIDUAL_ACTIONS = ("taken", "next")
@@ -224,12 +226,19 @@ class ER(TileQAlgorithm):
 
     def replay(self, n_trajectories: int) -> dict[str, float]:
         """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean
-        |delta|. Prioritized sweeping makes ``prioritized_updates`` updates, by default n_trajectories times the mean
-        length of a stored trajectory."""
+        |delta|, and for ER-sigma the phase's mean target shift T_sigma - T and the shares of targets it raised and
+        lowered (``sigma_shift``, ``sigma_raised``, ``sigma_lowered``; with the value watch on). Prioritized sweeping
+        makes ``prioritized_updates`` updates, by default n_trajectories times the mean length of a stored
+        trajectory."""
         buffer = self.replay_buffer
         if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}
         coder = self.policy.tile_coder
+        watch = self._watch_array
+        updates_before = watch[kernels.WATCH_UPDATES] if watch.shape[0] else 0.0
+        period_shift = watch[SHIFT_ENTRIES].copy() if watch.shape[0] else None
+        if period_shift is not None:
+            watch[SHIFT_ENTRIES] = 0.0  # the phase's own shift figures, added to the period's after it
         update_arguments = (
             TARGETS[self.target],
             SIGMAS[self.sigma],
@@ -248,6 +257,7 @@ class ER(TileQAlgorithm):
                 coder.action_columns, coder.columns_are_actions, int(n_updates), float(self.priority_threshold),
                 PREDECESSORS[self.predecessors], int(self.max_predecessors), *update_arguments, self.action_rng,
                 self._q_scratch, self._w_scratch, *self.policy.initial_arguments, *self._priority_arrays(),
+                self._watch_array,
             )
             self.priority_evaluations += evaluations
         else:
@@ -255,7 +265,7 @@ class ER(TileQAlgorithm):
                 self.policy.theta_array, buffer.visits, *buffer.replay_arguments(), coder.stride,
                 coder.action_columns, coder.columns_are_actions, int(n_trajectories),
                 REPLAY_ORDERS[self.replay_order], *update_arguments, self.replay_rng, self.action_rng,
-                self._q_scratch, self._w_scratch, *self.policy.initial_arguments,
+                self._q_scratch, self._w_scratch, *self.policy.initial_arguments, self._watch_array,
             )
         self.replay_updates += updates
         self.replay_phases += 1
@@ -263,7 +273,18 @@ class ER(TileQAlgorithm):
             self._raise_divergence(last_delta, f"replayed update {updates} of a replay phase")
         self._td_error_sum += sum_abs_delta
         self._td_error_count += updates
-        return {"updates": updates, "td_error": sum_abs_delta / max(updates, 1)}
+        result = {"updates": updates, "td_error": sum_abs_delta / max(updates, 1)}
+        watch = self._watch_array
+        if period_shift is not None:
+            shift_sum, shifted, raised, lowered = watch[SHIFT_ENTRIES]
+            if shifted > 0:
+                result.update(sigma_shift=float(shift_sum / shifted), sigma_raised=float(raised / shifted),
+                              sigma_lowered=float(lowered / shifted))
+            watch[SHIFT_ENTRIES] += period_shift
+        if status == kernels.STATUS_OUT_OF_BOUNDS:
+            first = int(watch[kernels.WATCH_FIRST_UPDATE] - updates_before) + 1
+            self._value_out_of_bounds(f"replayed update {first} of replay phase {self.replay_phases}")
+        return result
 
     def _priority_arrays(self) -> tuple[np.ndarray, ...]:
         """The workspace of ``kernels.prioritized_phase``, allocated here (the kernel allocates nothing) and grown with
@@ -334,6 +355,8 @@ class ER(TileQAlgorithm):
             buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
         self._priority_workspace = None
+        if self._observing_rewards:
+            self._watch.observe_many(*buffer.stored_rewards())
 
 
 @inherit_parameters

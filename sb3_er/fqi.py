@@ -104,9 +104,10 @@ class FQI(FittedTileQAlgorithm):
             kernels.greedy_next_values(theta, data.next_slots, data.terminal, coder.stride, coder.action_columns,
                                        coder.columns_are_actions, self._q_scratch, next_values, next_actions)
             targets = data.rewards + self.gamma * next_values
+            kernels.features_dot(x, columns, fitted)
             if sweep == 0:
-                kernels.features_dot(x, columns, fitted)
                 bellman_error = float(np.mean(np.abs(targets - fitted)))
+            self._watch_batch(targets, fitted, f"sweep {sweep + 1} of fit {self.fits + 1}")
             # Alg. 6 line 3: the ridge least-squares projection of the targets onto the tile features
             kernels.features_transpose_dot(targets, columns, rhs)
             rhs += self.ridge * prior

@@ -115,6 +115,8 @@ class LSPI(FittedTileQAlgorithm):
             # policy improvement: greedy at every next state of the database
             kernels.greedy_next_values(theta, data.next_slots, data.terminal, coder.stride, coder.action_columns,
                                        coder.columns_are_actions, self._q_scratch, next_values, new_policy)
+            self._watch_batch(data.rewards + self.gamma * next_values, phi @ w,
+                              f"policy iteration {iterations} of fit {self.fits + 1}")
             changed = int(np.count_nonzero(new_policy != policy))
             policy, new_policy = new_policy, policy
             if changed == 0:

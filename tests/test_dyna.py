@@ -51,7 +51,7 @@ def test_direct_and_planning_updates_by_hand(target):
         theta, coder.slots(np.array([real[0]])), real[1], real[2], False, np.array([real[3]]), next_slots,
         slots([p[0] for p in planned]), np.array([p[1] for p in planned]), np.array([p[2] for p in planned]),
         np.array([p[4] for p in planned]), slots([p[3] for p in planned]), 0, 3, *coder.kernel_arguments, target,
-        ALPHA / coder.n_tilings, GAMMA, 0.0, kernels.new_rng_state(0), np.zeros(coder.n_actions),
+        ALPHA / coder.n_tilings, GAMMA, 0.0, kernels.new_rng_state(0), np.zeros(coder.n_actions), kernels.NO_WATCH,
     )
     assert (updates, status) == (2, kernels.STATUS_OK)
     np.testing.assert_array_equal(next_slots, coder.slots(np.array([real[3]])))

@@ -105,7 +105,9 @@ def test_summary_table_puts_the_thesis_numbers_beside_ours():
     assert er_sigma_falls.thesis_difference == "-41 %"  # computed from 44 and 74, as printed
     text = markdown_table(walker, table)
     assert "| ER-σ | Rise time [s] | 100 | -50 % | 500 | -67 % |" in text
-    assert text.count("\n") == 1 + 4 * 2  # header, rule, four metrics for each of two algorithms
+    # header, rule, four metrics and the value watch's row for each of two algorithms
+    assert text.count("\n") == 1 + 5 * 2
+    assert "|  | Runs whose values left the possible returns | not measured | — | — | — |" in text
 
 
 def test_no_gait_shows_na_and_a_rise_time_beyond_the_run():
@@ -184,3 +186,54 @@ def test_settling_time_of_a_curve_that_never_settles_or_has_no_plateau():
     assert np.isnan(settling_time([0.0, 1.0, 2.0], [0.0, 0.0, 0.0]))
     with pytest.raises(ValueError, match="tolerance"):
         settling_time([0.0, 1.0], [1.0, 2.0], tolerance=1.5)
+
+
+def _write_run(folder, algo, seed, returns, out_of_range):
+    import pandas as pd
+
+    from sb3_er.experiments.runner import run_csv_path
+
+    path = run_csv_path(folder, algo, seed)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    frame = pd.DataFrame({"episode": np.arange(1, len(returns) + 1), "return": returns, "cumulative_falls": 0,
+                          "wall_time_s": 1.0, "diverged": False})
+    if out_of_range is not None:
+        frame["values_out_of_range"] = out_of_range
+    frame.to_csv(path, index=False)
+
+
+def test_runs_whose_values_left_the_bounds_are_counted_and_left_out_of_the_averages(tmp_path):
+    """Two Sarsa(lambda) runs, and three ER-sigma runs of which one left the possible returns at its third episode:
+    counted, left out of the averages, and averaged in by the "(all runs)" rows."""
+    from sb3_er.experiments.summary import load_curves
+
+    pendulum = EXPERIMENTS["pendulum"]
+    for seed in (0, 1):
+        _write_run(tmp_path, "sarsa_lambda", seed, [-100.0, -50.0, -10.0, -10.0], [0, 0, 0, 0])
+    _write_run(tmp_path, "er_sigma", 0, [-100.0, -20.0, -20.0, -20.0], [0, 0, 0, 0])
+    _write_run(tmp_path, "er_sigma", 1, [-100.0, -20.0, -20.0, -20.0], [0, 0, 0, 0])
+    _write_run(tmp_path, "er_sigma", 2, [-100.0, -80.0, -90.0, -80.0], [0, 0, 5, 9])
+    curves = {algo: load_curves(pendulum, tmp_path, algo, range(3)) for algo in ("sarsa_lambda", "er_sigma")}
+    assert curves["er_sigma"].out_of_bounds_seeds == (2,) and curves["er_sigma"].seeds == (0, 1)
+    table = summary_table(pendulum, curves, budget=4).set_index(["algorithm", "metric"])
+    assert table.loc[("ER-σ", "Runs whose values left the possible returns"), "average_text"] == "1 of 3"
+    assert table.loc[("Sarsa(λ)", "Runs whose values left the possible returns"), "average_text"] == "0 of 2"
+    assert table.loc[("ER-σ", "End performance"), "average"] == -20.0
+    assert table.loc[("ER-σ", "End performance (all runs)"), "average"] == pytest.approx(-40.0)  # (-20-20-80)/3
+    assert ("Sarsa(λ)", "End performance (all runs)") not in table.index
+
+
+def test_runs_before_the_watch_say_not_measured(tmp_path):
+    from sb3_er.experiments.summary import load_curves
+
+    pendulum = EXPERIMENTS["pendulum"]
+    _write_run(tmp_path, "er", 0, [-100.0, -20.0], None)
+    _write_run(tmp_path, "er", 1, [-100.0, -20.0], [0, 0])
+    curves = {"er": load_curves(pendulum, tmp_path, "er", range(2))}
+    table = summary_table(pendulum, curves, budget=2).set_index(["algorithm", "metric"])
+    assert table.loc[("vanilla-ER", "Runs whose values left the possible returns"), "average_text"] == (
+        "0 of 2 (1 not measured)")
+    _write_run(tmp_path, "er", 1, [-100.0, -20.0], None)
+    curves = {"er": load_curves(pendulum, tmp_path, "er", range(2))}
+    table = summary_table(pendulum, curves, budget=2).set_index(["algorithm", "metric"])
+    assert table.loc[("vanilla-ER", "Runs whose values left the possible returns"), "average_text"] == "not measured"

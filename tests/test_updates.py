@@ -43,7 +43,7 @@ def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGM
         theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
         coder.columns_are_actions, 1,
         kernels.ORDER_REVERSED, target, sigma, zeta, residual_next_action, ALPHA / coder.n_tilings, GAMMA, epsilon,
-        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch, *initial,
+        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch, *initial, kernels.NO_WATCH,
     )
 
 
@@ -179,7 +179,7 @@ def sarsa_lambda_step(coder, theta, trace, s, a, r, s_next, terminated, lam):
     return kernels.sarsa_lambda_step(
         theta, *trace, coder.slots(np.array([s])), a, r, terminated, np.array([s_next]), next_slots,
         np.zeros(coder.n_actions), *coder.kernel_arguments, ALPHA / coder.n_tilings, GAMMA, GAMMA * lam, 1e-6, 0.0,
-        kernels.new_rng_state(0),
+        kernels.new_rng_state(0), kernels.NO_WATCH,
     )
 
 

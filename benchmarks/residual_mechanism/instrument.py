@@ -136,7 +136,7 @@ def verify_against_kernel(model, n_updates: int = 300, seed: int = 7) -> float:
                               np.ascontiguousarray(slots_s1), terminal, coder.stride, coder.action_columns,
                               coder.columns_are_actions, kernels.TARGET_SARSA, kernels.SIGMA_NONE, zeta,
                               model.residual_action == "next", step, model.gamma, model.exploration_rate, rng_k, q, w,
-                              0.0, 0.0, np.uint64(0))
+                              0.0, 0.0, np.uint64(0), kernels.NO_WATCH)
         worst = max(worst, float(np.abs(theta_np - theta_k).max()))
         assert (rng_np == rng_k).all()
     return worst

@@ -6,6 +6,7 @@ import inspect
 import math
 import sys
 import time
+import warnings
 from typing import Any, ClassVar, Optional, TypeVar, Union
 
 import numpy as np
@@ -20,7 +21,15 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
-from sb3_er.common.policies import TileQPolicy, action_nvec
+from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
+from sb3_er.common.value_bounds import (
+    TOLERANCE,
+    VALUE_BOUND_ACTIONS,
+    RewardBounds,
+    ValueBoundError,
+    ValueWatch,
+    reward_changing_wrapper,
+)
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
 #: The generic rule: at most this many tiles per bounded dimension (the rule of sb3-er before budgets), at least 2.
@@ -133,6 +142,10 @@ class DivergenceError(ArithmeticError):
     """The Q-function's weights became non-finite."""
 
 
+class ValueBoundWarning(RuntimeWarning):
+    """A learner's value (a target or Q(s, a)) left the possible returns (``value_bound_action="warn"``)."""
+
+
 class TileQAlgorithm(BaseAlgorithm):
     """Base of the tile-coded algorithms: epsilon-greedy acting on TileQ and, optionally, online Sarsa(lambda).
 
@@ -149,6 +162,16 @@ class TileQAlgorithm(BaseAlgorithm):
     :param exploration_rate: epsilon of epsilon-greedy acting (default 0.05, the thesis's).
     :param trace_lambda: lambda of online Sarsa(lambda) learning; None (default) acts without learning online.
     :param trace_cutoff: traces below this value are dropped (default 0.01).
+    :param value_watch: watch every target and every Q(s_t, a_t) of the updates (the kernels fold them into an array,
+        without allocating or drawing a random number, so results are the same with and without it) against the
+        possible returns (:mod:`sb3_er.common.value_bounds`), logging ``train/q_min``, ``train/q_max``,
+        ``train/target_min``, ``train/target_max``, ``train/q_out_of_range`` (values outside, cumulative) and for
+        ER-sigma ``train/sigma_shift``, ``train/sigma_raised``, ``train/sigma_lowered``. The bounds come from the env's
+        ``reward_bounds`` attribute, else (and under a wrapper that may change rewards) from the rewards observed so
+        far, widened by the initial values.
+    :param value_bound_action: what a value beyond the bounds by more than 5 % of their width does: "warn" (once per
+        run, a ValueBoundWarning naming the algorithm, the step, the value and the bound), "raise" (ValueBoundError)
+        or "ignore" (only counted and logged). The first such value is kept in ``value_excursion``.
     :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, default 16; ``tile_widths``; ``wrap_periods``;
         ``memory_size``, default 2**22; ``action_values``; ``action_tile_widths``; ``initial_value``, default 0), plus
         ``tiles_per_dimension`` for bounded observations; default None: the env's attributes and sb3-er's rules.
@@ -171,6 +194,8 @@ class TileQAlgorithm(BaseAlgorithm):
         exploration_rate: float = 0.05,
         trace_lambda: Optional[float] = None,
         trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
         policy_kwargs: Optional[dict[str, Any]] = None,
         stats_window_size: int = 100,
         tensorboard_log: Optional[str] = None,
@@ -195,6 +220,10 @@ class TileQAlgorithm(BaseAlgorithm):
         self.exploration_rate = exploration_rate
         self.trace_lambda = trace_lambda
         self.trace_cutoff = trace_cutoff
+        self.value_watch = value_watch
+        self.value_bound_action = value_bound_action
+        self.value_excursion: Optional[dict[str, Any]] = None
+        self._watch: Optional[ValueWatch] = None
         self._seed_generators(seed)
         self.falls = 0
         self._td_error_sum = 0.0
@@ -219,6 +248,11 @@ class TileQAlgorithm(BaseAlgorithm):
             raise ValueError(f"the trace decay lambda must be in [0, 1], got {self.trace_lambda}")
         if not 0.0 < self.trace_cutoff < 1.0:
             raise ValueError(f"trace_cutoff must be in (0, 1), got {self.trace_cutoff}")
+        if not isinstance(self.value_watch, (bool, np.bool_)):
+            raise ValueError(f"value_watch must be True or False, got {self.value_watch!r}")
+        if self.value_bound_action not in VALUE_BOUND_ACTIONS:
+            raise ValueError(f"value_bound_action must be one of {list(VALUE_BOUND_ACTIONS)}, got "
+                             f"{self.value_bound_action!r}")
 
     @staticmethod
     def _check_env_wrappers(env: VecEnv) -> None:
@@ -335,6 +369,84 @@ class TileQAlgorithm(BaseAlgorithm):
         self._next_action = -1
         if self.trace_lambda is not None:
             self._setup_trace()
+        self._setup_value_watch()
+
+    # --- the value watch (sb3_er.common.value_bounds) ------------------------------------------------------------
+
+    def _setup_value_watch(self) -> None:
+        """The bounds of the possible returns for the current env, and the kernels' watch array (empty when the
+        watch is off). The first excursion and the count of values outside carry over from an earlier watch."""
+        earlier = self._watch
+        self._watch = None
+        self._observing_rewards = False
+        self._watch_array = np.zeros(0)
+        if not self.value_watch or self.env is None:
+            return
+        initial = _initial_range(self.policy.initial_value)
+        declared = self._env_attribute("reward_bounds")
+        changer = self._reward_changing_wrapper()
+        if declared is not None and changer is None:
+            watch = ValueWatch("env", RewardBounds.from_attribute(declared), self.gamma, initial)
+        else:
+            reason = ("the env declares no reward_bounds" if declared is None
+                      else f"{changer} may change the rewards the env declares")
+            watch = ValueWatch("observed", None, self.gamma, initial, reason)
+            self._observing_rewards = True
+        if self._observing_rewards:
+            stored = self._stored_rewards()
+            if stored is not None:
+                watch.observe_many(*stored)
+        if earlier is not None:
+            for entry in (kernels.WATCH_UPDATES, kernels.WATCH_OUT_OF_RANGE, kernels.WATCH_FIRST_UPDATE,
+                          kernels.WATCH_FIRST_VALUE):
+                watch.array[entry] = earlier.array[entry]
+        self._watch = watch
+        self._watch_array = watch.array
+
+    def _stored_rewards(self) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The rewards the learner holds (and whether each terminated), for observed bounds; None without storage."""
+        buffer = getattr(self, "replay_buffer", None)
+        return None if buffer is None else buffer.stored_rewards()
+
+    def _reward_changing_wrapper(self) -> Optional[str]:
+        """The wrapper that may change the env's rewards (VecNormalize with norm_reward, a reward wrapper), or None."""
+        normalize = unwrap_vec_wrapper(self.env, VecNormalize)
+        if normalize is not None and normalize.norm_reward:
+            return "VecNormalize(norm_reward=True)"
+        if isinstance(self.env, DummyVecEnv):
+            return reward_changing_wrapper(self.env.envs[0])
+        return None
+
+    @property
+    def value_bounds(self) -> Optional[tuple[float, float]]:
+        """(low, high) of the values the learner may take (the possible returns and the initial values), or None
+        without a watch."""
+        return None if self._watch is None else self._watch.bounds
+
+    @property
+    def values_out_of_range(self) -> int:
+        """How many targets and Q-values the watch saw outside the bounds (cumulative)."""
+        return 0 if self._watch is None else int(self._watch.array[kernels.WATCH_OUT_OF_RANGE])
+
+    def _value_out_of_bounds(self, where: str) -> None:
+        """A kernel reported the first value outside the bounds: remember it, then warn or raise as asked."""
+        watch = self._watch
+        value = float(watch.array[kernels.WATCH_FIRST_VALUE])
+        low, high = watch.bounds
+        self.value_excursion = {"step": int(self.num_timesteps), "value": value, "low": low, "high": high,
+                                "where": where}
+        if self.value_bound_action == "ignore":
+            return
+        side = f"above {high:.6g}" if value > high else f"below {low:.6g}"
+        message = (
+            f"{type(self).__name__}: at step {self.num_timesteps} ({where}) a value of {value:.6g} left the possible "
+            f"returns {watch.describe()}: it lies {side} by more than {TOLERANCE:.0%} of their width. Values outside "
+            "them are impossible; the run's results reflect a learner that has left the regime it is meant for. "
+            "Set value_bound_action='ignore' to only count such values, 'raise' to stop."
+        )
+        if self.value_bound_action == "raise":
+            raise ValueBoundError(message)
+        warnings.warn(message, ValueBoundWarning, stacklevel=2)
 
     def _setup_trace(self) -> None:
         """Sparse replacing trace sized for the longest a trace can live above the cut-off."""
@@ -363,6 +475,9 @@ class TileQAlgorithm(BaseAlgorithm):
             "_trace_length",
             "_next_action",
             "_single_env",
+            "_watch",
+            "_watch_array",
+            "_observing_rewards",
         ]
 
     def set_random_seed(self, seed: Optional[int] = None) -> None:
@@ -420,6 +535,9 @@ class TileQAlgorithm(BaseAlgorithm):
         )
         if reset_num_timesteps:
             self.falls = 0
+            self.value_excursion = None
+            self._watch = None  # a new run: a new watch
+        self._setup_value_watch()
         self._single_env = self.env.envs[0] if type(self.env) is DummyVecEnv else None
         callback.on_training_start(locals(), globals())
         callback.on_rollout_start()
@@ -443,6 +561,8 @@ class TileQAlgorithm(BaseAlgorithm):
         ``learn()`` resets the new env and the episode in progress ends, unfinished."""
         super().set_env(env, force_reset)
         self._check_env_wrappers(self.env)
+        if getattr(self, "policy", None) is not None:
+            self._setup_value_watch()  # the new env's rewards
 
     def _select_action(self, obs: np.ndarray) -> int:
         action = kernels.select_action(
@@ -473,6 +593,8 @@ class TileQAlgorithm(BaseAlgorithm):
             raise ValueError(f"The environment returned a non-finite reward {reward} at step {self.num_timesteps}")
         truncated = done and info.get("TimeLimit.truncated", False)
         terminated = done and not truncated
+        if self._observing_rewards:
+            self._watch.observe(reward, terminated)
         next_obs = np.asarray(info["terminal_observation"] if done else new_obs[0], dtype=np.float64)
         self._next_action = self._online_update(action, reward, next_obs, terminated) if self.trace_lambda is not None else -1
         self._after_transition(obs, action, reward, next_obs, terminated, done, info)
@@ -512,8 +634,11 @@ class TileQAlgorithm(BaseAlgorithm):
             self._slots, action, reward, terminated, next_obs, self._next_slots, self._q_scratch,
             *coder.kernel_arguments, self.current_learning_rate / coder.n_tilings, self.gamma,
             self.gamma * self.trace_lambda, self.trace_cutoff, self.exploration_rate, self.action_rng,
+            self._watch_array,
         )
-        if status == kernels.STATUS_BAD_OBSERVATION:
+        if status == kernels.STATUS_OUT_OF_BOUNDS:
+            self._value_out_of_bounds("the Sarsa(lambda) update")
+        elif status == kernels.STATUS_BAD_OBSERVATION:
             raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
         if status == kernels.STATUS_TRACE_FULL:
             raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
@@ -543,6 +668,10 @@ class TileQAlgorithm(BaseAlgorithm):
         self.logger.record("train/weights_abs_mean", weights_abs_mean)
         self.logger.record("train/memory_fill", memory_fill)
         self.logger.record("train/learning_rate", self.current_learning_rate)
+        if self._watch is not None:
+            for name, value in self._watch.period_figures().items():
+                if not (isinstance(value, float) and math.isnan(value)):
+                    self.logger.record(f"train/{name}", value)
 
     def dump_logs(self) -> None:
         """Write the rollout, train and time scalars (skipped when the logger has no output)."""

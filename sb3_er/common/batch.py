@@ -209,6 +209,8 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
             buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
         self._on_buffer_replaced()
+        if self._observing_rewards:
+            self._watch.observe_many(*buffer.stored_rewards())
 
     def _on_buffer_replaced(self) -> None:
         """Hook: drop anything derived from the previous buffer."""
@@ -277,6 +279,11 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         self.logger.record("train/fit_seconds", self.fit_seconds)
         for name, value in self._fit_stats.items():
             self.logger.record(f"train/{name}", value)
+
+    def _watch_batch(self, targets: np.ndarray, values: np.ndarray, where: str) -> None:
+        """The value watch over a sweep: every target and every fitted Q(s_d, a_d) of the database."""
+        if self._watch_array.shape[0] and kernels.watch_batch(self._watch_array, targets, values):
+            self._value_out_of_bounds(where)
 
     def _initial_values(self, indices: np.ndarray) -> np.ndarray:
         """theta_0 (the policy's initial weights, 0 by default) at the weight ``indices`` (f,)."""

@@ -212,6 +212,17 @@ class TrajectoryReplayBuffer:
             self.open_next_slots,
         )
 
+    def stored_rewards(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rewards of every stored transition, the open trajectory's included, and whether each ended its
+        episode with a termination (the last transition of a terminated trajectory): what the learner replays."""
+        rows = (self._oldest_row() + np.arange(self.n_transitions)) % self.capacity
+        terminal = np.zeros(rows.shape[0], dtype=bool)
+        trajectories = (self.oldest_trajectory + np.arange(self.n_trajectories)) % self.capacity
+        ends = (self.trajectory_start[trajectories] + self.trajectory_length[trajectories] - 1) % self.capacity
+        ends = ends[self.trajectory_terminated[trajectories]]
+        terminal[(ends - self._oldest_row()) % self.capacity] = True
+        return self.rewards[rows], terminal
+
     def trajectories(self) -> list[dict[str, Any]]:
         """The closed trajectories, oldest first, as dicts of arrays (observations, actions, rewards, next_obs, ...)."""
         result = []

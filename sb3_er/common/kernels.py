@@ -26,6 +26,21 @@ TARGET_SARSA, TARGET_Q_LEARNING, TARGET_EXPECTED_SARSA = 0, 1, 2
 SIGMA_NONE, SIGMA_WORST, SIGMA_AVERAGE, SIGMA_BEST, SIGMA_AVERAGE_WORST, SIGMA_AVERAGE_BEST = -1, 0, 1, 2, 3, 4
 
 STATUS_OK, STATUS_DIVERGED, STATUS_TRACE_FULL, STATUS_BAD_OBSERVATION = 0, 1, 2, 3
+#: A kernel call that otherwise succeeded, during which the value watch saw its first value outside the bounds.
+STATUS_OUT_OF_BOUNDS = 4
+
+# The value watch: a float64 array of WATCH_SIZE entries that the learning kernels update in place with every target
+# T and every Q(s_t, a_t) before its update (see :func:`watch_update`); an empty array switches it off. Python sets
+# the bounds [WATCH_LOW, WATCH_HIGH] (the possible returns widened by a tolerance, sb3_er.common.value_bounds) and
+# resets the per-period entries after logging them; counts and the first excursion accumulate for the model's life.
+(WATCH_TARGET_MIN, WATCH_TARGET_MAX, WATCH_Q_MIN, WATCH_Q_MAX,  # per logging period
+ WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT, WATCH_RAISED, WATCH_LOWERED,  # per logging period: ER-sigma's T_sigma - T
+ WATCH_LOW, WATCH_HIGH,  # the bounds, set by Python
+ WATCH_UPDATES, WATCH_OUT_OF_RANGE,  # cumulative: updates watched, values (T or Q) outside the bounds
+ WATCH_FIRST_UPDATE, WATCH_FIRST_VALUE) = range(14)  # the first value outside: its update number (-1: none), value
+WATCH_SIZE = 14
+WATCH_PERIOD = (WATCH_TARGET_MIN, WATCH_TARGET_MAX, WATCH_Q_MIN, WATCH_Q_MAX, WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT,
+                WATCH_RAISED, WATCH_LOWERED)
 
 #: (initial_low, initial_span, initial_seed) of all-zero initial weights, the thesis's theta <- 0.
 ZERO_INITIAL = (0.0, 0.0, np.uint64(0))
@@ -233,9 +248,15 @@ def argmax_random_ties(values, rng):
 @nb.njit(inline="always", cache=True)
 def epsilon_greedy(values, epsilon, rng):
     """argmax_a values[a] w.p. 1 - epsilon, a uniform random action w.p. epsilon (Alg. 2 line 8, Alg. 8 line 6)."""
+    return epsilon_greedy_explored(values, epsilon, rng)[0]
+
+
+@nb.njit(inline="always", cache=True)
+def epsilon_greedy_explored(values, epsilon, rng):
+    """:func:`epsilon_greedy`'s action and whether it was the exploratory draw, from the same random numbers."""
     if epsilon > 0.0 and random_float(rng) < epsilon:
-        return random_integer(rng, values.shape[0])
-    return argmax_random_ties(values, rng)
+        return random_integer(rng, values.shape[0]), True
+    return argmax_random_ties(values, rng), False
 
 
 @nb.njit(cache=True)
@@ -302,19 +323,87 @@ def mark_visited_tracked(visits, fresh, slots, stride, action_columns, action, n
     return n_new, covered
 
 
+#: The watch switched off: kernels given an empty array watch nothing.
+NO_WATCH = np.zeros(0, dtype=np.float64)
+
+
+def new_watch(low: float = -np.inf, high: float = np.inf) -> np.ndarray:
+    """A value watch with bounds [low, high], nothing seen yet."""
+    watch = np.zeros(WATCH_SIZE, dtype=np.float64)
+    reset_watch_period(watch)
+    watch[WATCH_LOW], watch[WATCH_HIGH] = low, high
+    watch[WATCH_FIRST_UPDATE] = -1.0
+    watch[WATCH_FIRST_VALUE] = np.nan
+    return watch
+
+
+def reset_watch_period(watch: np.ndarray) -> None:
+    """Start a new logging period: minima +inf, maxima -inf, shift sums and counts 0."""
+    watch[[WATCH_TARGET_MIN, WATCH_Q_MIN]] = np.inf
+    watch[[WATCH_TARGET_MAX, WATCH_Q_MAX]] = -np.inf
+    watch[[WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT, WATCH_RAISED, WATCH_LOWERED]] = 0.0
+
+
+@nb.njit(inline="always", cache=True)
+def watch_update(watch, target, q_sa):
+    """Fold one update's target T and Q(s_t, a_t) into the value watch; True when this is the first value the watch
+    ever saw outside [watch[WATCH_LOW], watch[WATCH_HIGH]]. No allocation, no random number; nothing when ``watch``
+    is empty (the watch switched off)."""
+    if watch.shape[0] == 0:
+        return False
+    watch[WATCH_TARGET_MIN] = min(watch[WATCH_TARGET_MIN], target)
+    watch[WATCH_TARGET_MAX] = max(watch[WATCH_TARGET_MAX], target)
+    watch[WATCH_Q_MIN] = min(watch[WATCH_Q_MIN], q_sa)
+    watch[WATCH_Q_MAX] = max(watch[WATCH_Q_MAX], q_sa)
+    watch[WATCH_UPDATES] += 1.0
+    low, high = watch[WATCH_LOW], watch[WATCH_HIGH]
+    target_out = target < low or target > high
+    q_out = q_sa < low or q_sa > high
+    if not (target_out or q_out):
+        return False
+    watch[WATCH_OUT_OF_RANGE] += np.float64(target_out) + np.float64(q_out)
+    if watch[WATCH_FIRST_UPDATE] >= 0.0:
+        return False
+    watch[WATCH_FIRST_UPDATE] = watch[WATCH_UPDATES] - 1.0
+    watch[WATCH_FIRST_VALUE] = target if target_out else q_sa
+    return True
+
+
+@nb.njit(inline="always", cache=True)
+def watch_shift(watch, shift):
+    """Fold ER-sigma's target shift T_sigma - T (the same transition's target without sigma) into the watch."""
+    if watch.shape[0] == 0:
+        return
+    watch[WATCH_SHIFT_SUM] += shift
+    watch[WATCH_SHIFT_COUNT] += 1.0
+    watch[WATCH_RAISED] += np.float64(shift > 0.0)
+    watch[WATCH_LOWERED] += np.float64(shift < 0.0)
+
+
+@nb.njit(cache=True)
+def watch_batch(watch, targets, values):
+    """Fold a batch of targets T_d and values Q(s_d, a_d) (FQI's and LSPI's sweeps over the database) into the
+    watch; True when it saw its first value outside the bounds."""
+    flagged = False
+    for d in range(targets.shape[0]):
+        flagged |= watch_update(watch, targets[d], values[d])
+    return flagged
+
+
 @nb.njit(cache=True)
 def sarsa_lambda_step(
     theta, trace_index, trace_value, trace_position, trace_length,
     slots, action, reward, terminated, next_obs, next_slots, q_scratch,
     inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions,
-    step_size, gamma, trace_decay, trace_cutoff, epsilon, rng,
+    step_size, gamma, trace_decay, trace_cutoff, epsilon, rng, watch,
 ):
     """One step of Sarsa(lambda) with replacing traces (Alg. 2 lines 8-12, Eq. 2.6).
 
     The trace is sparse: ``trace_index[:n]`` holds the weights with a non-zero trace, ``trace_value[:n]`` their traces,
     ``trace_position[i]`` where weight i sits in that list (-1 if absent); ``trace_length[0]`` is n. Traces that decay
     below ``trace_cutoff`` are dropped. Returns (a_{k+1}, delta, status); a_{k+1} is -1 when s_{k+1} is terminal and
-    status reports an s_{k+1} that cannot be tiled (NaN, infinite, too large) or a full trace list.
+    status reports an s_{k+1} that cannot be tiled (NaN, infinite, too large), a full trace list, or the first value
+    outside the value watch's bounds (the step is made all the same).
     """
     n_tilings = slots.shape[0]
     q_sa = q_value(theta, slots, stride, action_columns, action)
@@ -328,6 +417,7 @@ def sarsa_lambda_step(
         next_action = epsilon_greedy(q_scratch, epsilon, rng)
         target = reward + gamma * q_scratch[next_action]
     delta = target - q_sa
+    status = STATUS_OUT_OF_BOUNDS if watch_update(watch, target, q_sa) else STATUS_OK
 
     # e(s_k, a_k) = phi(s_k, a_k): replacing traces; a weight shared by two tilings (hash collision) gets trace 2.
     n = trace_length[0]
@@ -365,7 +455,7 @@ def sarsa_lambda_step(
             trace_value[p] = decayed
         p += 1
     trace_length[0] = n
-    return next_action, delta, STATUS_OK
+    return next_action, delta, status
 
 
 @nb.njit(cache=True)
@@ -410,8 +500,10 @@ def sigma_of_state(q, w, sigma_kind):
 
 @nb.njit(inline="always", cache=True)
 def next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
-                     sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed):
-    """The bootstrap value at s' and the action a' it belongs to, on sigma-adjusted values for ER-sigma.
+                     sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, want_plain=False):
+    """The bootstrap value at s' and the action a' it belongs to, on sigma-adjusted values for ER-sigma; with
+    ``want_plain``, also the value without sigma (the vanilla-ER value of the same a', see below), else that value
+    is the returned value itself.
 
     ER-sigma replaces the values of never-visited features by sigma(s') (Eq. 5.4, Alg. 10 lines 6-9):
     Q~(s', a) = Q_v(s', a) + u(a) * N * sigma(s') with u(a) N = N - W(s', a) (Eq. 5.3), Q_v as in
@@ -420,7 +512,13 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
     Q~ = Q, the initial values (0 in the thesis) and whatever generalisation put there.
     Sarsa draws a' epsilon-greedily (Alg. 8 line 6); Q-learning takes the max (Eq. 2.5); Expected Sarsa the
     expectation under the epsilon-greedy policy (a' is then the greedy action).
+
+    The plain value is what vanilla ER would bootstrap from with the same random numbers: Q(s', a') of the same
+    exploratory a' when the draw explored, else max_a Q(s', a) (Q-learning and the greedy part of Sarsa; Expected
+    Sarsa's expectation on Q). It draws no random number, so results are the same with and without it; ``w`` is
+    used as scratch for it when the initial weights are not zero.
     """
+    sigma = 0.0
     if sigma_kind == SIGMA_NONE:
         all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
     else:
@@ -431,29 +529,50 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
             sum_w += w[a]
         if sum_w == 0.0:
             all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
+            want_plain = False  # Q~ = Q: the plain value is the value itself
         else:
             sigma = sigma_of_state(q, w, sigma_kind)
             for a in range(q.shape[0]):
                 q[a] += (n_tilings - w[a]) * sigma
+    explored = False
     if target_kind == TARGET_SARSA:
-        next_action = epsilon_greedy(q, epsilon, rng)
-        return q[next_action], next_action
-    greedy = argmax_first(q)
-    if target_kind == TARGET_Q_LEARNING:
-        return q[greedy], greedy
-    return (1.0 - epsilon) * q[greedy] + epsilon * np.mean(q), greedy
+        next_action, explored = epsilon_greedy_explored(q, epsilon, rng)
+        value = q[next_action]
+    else:
+        next_action = argmax_first(q)
+        value = q[next_action]
+        if target_kind == TARGET_EXPECTED_SARSA:
+            value = (1.0 - epsilon) * value + epsilon * np.mean(q)
+    if not (want_plain and sigma_kind != SIGMA_NONE):
+        return value, next_action, value
+    # the plain values Q(s', .): undo the sigma terms, or (initial weights not zero) sum the weights again into w
+    if initial_low == 0.0 and initial_span == 0.0:
+        for a in range(q.shape[0]):
+            q[a] -= (n_tilings - w[a]) * sigma
+        plain = q
+    else:
+        all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, w)
+        plain = w
+    if explored:
+        plain_value = plain[next_action]
+    else:
+        plain_value = plain[argmax_first(plain)]
+        if target_kind == TARGET_EXPECTED_SARSA:
+            plain_value = (1.0 - epsilon) * plain_value + epsilon * np.mean(plain)
+    return value, next_action, plain_value
 
 
 @nb.njit(inline="always", cache=True)
 def replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
                   columns_are_actions, target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma,
-                  epsilon, rng, q, w, initial_low, initial_span, initial_seed):
-    """One replayed update of transition p; returns delta.
+                  epsilon, rng, q, w, initial_low, initial_span, initial_seed, watch):
+    """One replayed update of transition p; returns (delta, whether the watch saw its first value out of bounds).
 
     theta <- theta + alpha delta phi(s_t, a_t)                                  (Alg. 8 line 7, Alg. 10 line 9)
     residual: theta <- theta + alpha delta (phi(s_t, a_t) - zeta gamma phi(s_{t+1}, a_t))   (Eq. 5.7-5.9, Alg. 12/14)
     With ``residual_next_action`` the second term uses a_{t+1} instead of a_t: Baird's residual gradient of the
-    squared TD error.
+    squared TD error. The value watch sees T and Q(s_t, a_t) before the update, and for ER-sigma the shift
+    T_sigma - T of its target over the plain one (:func:`next_state_value`).
     """
     n_tilings = slots.shape[1]
     a = actions[p]
@@ -462,22 +581,28 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
         q_sa += theta[slots[p, k] * stride + action_columns[k, a]]
     target = rewards[p]
     residual_action = a
+    watching = watch.shape[0] > 0
     if not terminal:
-        value, next_action = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
-                                              n_tilings, target_kind, sigma_kind, epsilon, rng, q, w, initial_low,
-                                              initial_span, initial_seed)
+        value, next_action, plain_value = next_state_value(
+            theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
+            sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, watching)
         target += gamma * value
         if residual_next_action:
             residual_action = next_action
+        if sigma_kind != SIGMA_NONE:
+            watch_shift(watch, gamma * (value - plain_value))
+    elif sigma_kind != SIGMA_NONE:
+        watch_shift(watch, 0.0)
     delta = target - q_sa
     if not np.isfinite(delta):
-        return delta
+        return delta, False
+    flagged = watch_update(watch, target, q_sa)
     for k in range(n_tilings):
         theta[slots[p, k] * stride + action_columns[k, a]] += step_size * delta
     if residual_zeta > 0.0 and not terminal:
         for k in range(n_tilings):
             theta[next_slots[k] * stride + action_columns[k, residual_action]] -= step_size * delta * residual_zeta * gamma
-    return delta
+    return delta, flagged
 
 
 @nb.njit(inline="always", cache=True)
@@ -493,7 +618,7 @@ def replay_phase(
     oldest_trajectory, n_closed_trajectories, first_row, n_transitions, open_trajectory, open_length, open_next_slots,
     stride, action_columns, columns_are_actions, n_replays, order, target_kind, sigma_kind, residual_zeta,
     residual_next_action, step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
-    initial_low, initial_span, initial_seed,
+    initial_low, initial_span, initial_seed, watch,
 ):
     """Replay n_replays trajectories drawn uniformly from the stored ones (Alg. 8, 10, 12, 14 lines 1-3).
 
@@ -505,7 +630,9 @@ def replay_phase(
     Reversed order replays each from its last sample to its first (t = k..1, the thesis default); forward replays in
     temporal order; uniform replays as many transitions drawn uniformly from all stored transitions (Appendix A).
     Trajectory picks use ``replay_rng`` and exploration ``action_rng``, so variants replay exactly the same trajectories.
-    Returns (updates, sum of |delta|, last delta, status).
+    Every update's target and Q(s_t, a_t) go to the value ``watch`` (:func:`watch_update`).
+    Returns (updates, sum of |delta|, last delta, status); status is STATUS_OUT_OF_BOUNDS when the watch saw its first
+    value outside the bounds in this phase (the phase goes on), STATUS_DIVERGED on a non-finite delta (it stops).
     """
     capacity = slots.shape[0]
     trajectory_capacity = trajectory_start.shape[0]
@@ -514,8 +641,9 @@ def replay_phase(
     updates = 0
     sum_abs_delta = 0.0
     delta = 0.0
+    status = STATUS_OK
     if n_trajectories == 0:
-        return updates, sum_abs_delta, delta, STATUS_OK
+        return updates, sum_abs_delta, delta, status
     for _ in range(n_replays):
         j = ring_index(oldest_trajectory + random_integer(replay_rng, n_trajectories), trajectory_capacity)
         length = open_length if j == open_trajectory else trajectory_length[j]
@@ -541,15 +669,17 @@ def replay_phase(
             else:
                 next_slots = slots[ring_index(p + 1, capacity)]
                 terminal = False
-            delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
-                                  action_columns, columns_are_actions, target_kind, sigma_kind, residual_zeta,
-                                  residual_next_action, step_size, gamma, epsilon, action_rng, q_scratch, w_scratch,
-                                  initial_low, initial_span, initial_seed)
+            delta, flagged = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
+                                           action_columns, columns_are_actions, target_kind, sigma_kind,
+                                           residual_zeta, residual_next_action, step_size, gamma, epsilon, action_rng,
+                                           q_scratch, w_scratch, initial_low, initial_span, initial_seed, watch)
             updates += 1
             if not np.isfinite(delta):
                 return updates, sum_abs_delta, delta, STATUS_DIVERGED
+            if flagged:
+                status = STATUS_OUT_OF_BOUNDS
             sum_abs_delta += abs(delta)
-    return updates, sum_abs_delta, delta, STATUS_OK
+    return updates, sum_abs_delta, delta, status
 
 
 # --- Prioritized sweeping (Moore and Atkeson 1993; thesis 3.2, 3.5.4 and 7.2) as a replay order of ER ----------------
@@ -691,7 +821,7 @@ def transition_priority(theta, visits, slots, actions, rewards, p, next_slots, t
         q_sa += theta[slots[p, k] * stride + action_columns[k, actions[p]]]
     target = rewards[p]
     if not terminal:
-        value, _ = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
+        value, _, _ = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
                                     slots.shape[1], priority_target, sigma_kind, epsilon, rng, q, w, initial_low,
                                     initial_span, initial_seed)
         target += gamma * value
@@ -765,7 +895,7 @@ def prioritized_phase(
     stride, action_columns, columns_are_actions, n_updates, threshold, predecessors, max_predecessors,
     target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma, epsilon, action_rng,
     q_scratch, w_scratch, initial_low, initial_span, initial_seed,
-    heap_rows, heap_keys, heap_position, heap_size, index_start, index_rows, stamp, stamp_counter,
+    heap_rows, heap_keys, heap_position, heap_size, index_start, index_rows, stamp, stamp_counter, watch,
 ):
     """One replay phase of prioritized sweeping over the stored transitions (Moore and Atkeson 1993, their Fig. 4
     "prioritized sweeping" loop with the transitions of the database as its model; thesis 3.2: "Another possibility
@@ -783,8 +913,9 @@ def prioritized_phase(
        index of :func:`build_predecessor_index`, newest first, taking p's tilings in turn: at most
        ``max_predecessors`` distinct ones per update in all.
     The queue ends the phase early when no transition's |delta| exceeds the threshold. Exploration draws a' from
-    ``action_rng`` as in the other orders. Arrays after ``initial_seed`` are the workspace (see sb3_er.er).
-    Returns (updates, sum of |delta|, last delta, status, priority evaluations).
+    ``action_rng`` as in the other orders. Arrays after ``initial_seed`` are the workspace (see sb3_er.er), then the
+    value ``watch`` (updates only; priority evaluations are not updates).
+    Returns (updates, sum of |delta|, last delta, status, priority evaluations), status as in :func:`replay_phase`.
     """
     capacity = slots.shape[0]
     n_tilings = slots.shape[1]
@@ -794,9 +925,10 @@ def prioritized_phase(
     evaluations = 0
     sum_abs_delta = 0.0
     delta = 0.0
+    status = STATUS_OK
     heap_clear(heap_rows, heap_position, heap_size)
     if n_transitions == 0 or n_updates <= 0:
-        return updates, sum_abs_delta, delta, STATUS_OK, evaluations
+        return updates, sum_abs_delta, delta, status, evaluations
     if predecessors == PREDECESSORS_TILES:
         build_predecessor_index(slots, transition_trajectory, trajectory_start, trajectory_length,
                                 trajectory_terminated, trajectory_next_slots, first_row, n_transitions,
@@ -824,14 +956,16 @@ def prioritized_phase(
         next_slots, terminal, t = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
                                                  trajectory_terminated, trajectory_next_slots, open_trajectory,
                                                  open_start, open_length, open_next_slots)
-        delta = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
-                              columns_are_actions, target_kind, sigma_kind, residual_zeta, residual_next_action,
-                              step_size, gamma, epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
-                              initial_seed)
+        delta, flagged = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
+                                       action_columns, columns_are_actions, target_kind, sigma_kind, residual_zeta,
+                                       residual_next_action, step_size, gamma, epsilon, action_rng, q_scratch,
+                                       w_scratch, initial_low, initial_span, initial_seed, watch)
         updates += 1
         if not np.isfinite(delta):
             heap_clear(heap_rows, heap_position, heap_size)
             return updates, sum_abs_delta, delta, STATUS_DIVERGED, evaluations
+        if flagged:
+            status = STATUS_OUT_OF_BOUNDS
         sum_abs_delta += abs(delta)
 
         # the predecessors of p, each once per update (stamped with this update's number)
@@ -875,7 +1009,7 @@ def prioritized_phase(
                     break
             depth += 1
     heap_clear(heap_rows, heap_position, heap_size)
-    return updates, sum_abs_delta, delta, STATUS_OK, evaluations
+    return updates, sum_abs_delta, delta, status, evaluations
 
 
 @nb.njit(cache=True)
@@ -958,8 +1092,9 @@ def ridge_normal_matvec(x, columns, ridge, out):
 
 @nb.njit(inline="always", cache=True)
 def one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns, columns_are_actions,
-                    target_kind, step_size, gamma, epsilon, rng, q):
-    """One single-sample update (thesis Eq. 3.10, Alg. 5 line 4) on (s, a, r, s'); returns delta.
+                    target_kind, step_size, gamma, epsilon, rng, q, watch):
+    """One single-sample update (thesis Eq. 3.10, Alg. 5 line 4) on (s, a, r, s'); returns (delta, whether the value
+    watch saw its first value outside the bounds).
 
     theta <- theta + alpha delta phi(s, a) / N with delta = r + gamma c v(s') - Q(s, a), where v(s') = max_a Q(s', a)
     for Q-learning (T*) or Q(s', a') with a' epsilon-greedy for Sarsa (T^pi), and c is the probability that s' is not
@@ -976,10 +1111,11 @@ def one_step_update(theta, slots, action, reward, continuation, next_slots, stri
         target += gamma * continuation * value
     delta = target - q_sa
     if not np.isfinite(delta):
-        return delta
+        return delta, False
+    flagged = watch_update(watch, target, q_sa)
     for k in range(slots.shape[0]):
         theta[slots[k] * stride + action_columns[k, action]] += step_size * delta
-    return delta
+    return delta, flagged
 
 
 @nb.njit(cache=True)
@@ -987,36 +1123,42 @@ def dyna_step(
     theta, slots, action, reward, terminated, next_obs, next_slots,
     plan_slots, plan_actions, plan_rewards, plan_continuation, plan_next_slots, plan_start, plan_count,
     inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions,
-    target_kind, step_size, gamma, epsilon, rng, q_scratch,
+    target_kind, step_size, gamma, epsilon, rng, q_scratch, watch,
 ):
     """One real step of Dyna (Sutton 1991; thesis 3.4 and Alg. 3-5): the direct update on (s_k, a_k, r_{k+1}, s_{k+1}),
     then ``plan_count`` planning updates on the model's predicted transitions ``plan_start ...`` (rows with a negative
     ``plan_continuation`` were not covered by the model and are skipped). Fills next_slots with the tiles of s_{k+1}.
 
-    Returns (delta of the direct update, planning updates made, sum of their |delta|, status).
+    Returns (delta of the direct update, planning updates made, sum of their |delta|, status); both kinds of update
+    go to the value ``watch``, and status is STATUS_OUT_OF_BOUNDS when it saw its first value outside the bounds.
     """
     continuation = 0.0
     if not terminated:
         if not state_slots(next_obs, inv_widths, offsets, wrap_tiles, slot_mask, next_slots):
             return np.nan, 0, 0.0, STATUS_BAD_OBSERVATION
         continuation = 1.0
-    delta = one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns,
-                            columns_are_actions, target_kind, step_size, gamma, epsilon, rng, q_scratch)
+    delta, flagged = one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns,
+                                     columns_are_actions, target_kind, step_size, gamma, epsilon, rng, q_scratch,
+                                     watch)
     if not np.isfinite(delta):
         return delta, 0, 0.0, STATUS_DIVERGED
+    status = STATUS_OUT_OF_BOUNDS if flagged else STATUS_OK
     updates = 0
     sum_abs_delta = 0.0
     for p in range(plan_start, plan_start + plan_count):
         if plan_continuation[p] < 0.0:
             continue
-        planned = one_step_update(theta, plan_slots[p], plan_actions[p], plan_rewards[p], plan_continuation[p],
-                                  plan_next_slots[p], stride, action_columns, columns_are_actions, target_kind,
-                                  step_size, gamma, epsilon, rng, q_scratch)
+        planned, flagged = one_step_update(theta, plan_slots[p], plan_actions[p], plan_rewards[p],
+                                           plan_continuation[p], plan_next_slots[p], stride, action_columns,
+                                           columns_are_actions, target_kind, step_size, gamma, epsilon, rng,
+                                           q_scratch, watch)
         updates += 1
         if not np.isfinite(planned):
             return planned, updates, sum_abs_delta, STATUS_DIVERGED
+        if flagged:
+            status = STATUS_OUT_OF_BOUNDS
         sum_abs_delta += abs(planned)
-    return delta, updates, sum_abs_delta, STATUS_OK
+    return delta, updates, sum_abs_delta, status
 
 
 @nb.njit(cache=True)

@@ -22,6 +22,7 @@ COMMANDS = {
     "sigma": "sb3_er.experiments.sigma_study:reproduce_sigma",
     "pessimistic": "sb3_er.experiments.pessimistic:reproduce_pessimistic",
     "framework": "sb3_er.experiments.framework:reproduce_framework",
+    "sigma-regime": "sb3_er.experiments.sigma_regime:reproduce_sigma_regime",
 }
 
 

@@ -2,6 +2,8 @@
 
 Both callbacks read the standard locals of an SB3 learning loop (``rewards``, ``dones``, ``infos``), count falls from
 ``info["fell"]`` and keep their measurements in ``records`` (a list of dicts, one per measurement, ready for a CSV).
+Every record also holds ``values_out_of_range``: how many targets and Q-values the learner's value watch had seen
+outside the possible returns by then (``TileQAlgorithm.values_out_of_range``; -1 for a learner without a watch).
 """
 
 from __future__ import annotations
@@ -16,19 +18,27 @@ from stable_baselines3.common.callbacks import BaseCallback
 ProgressHook = Callable[[float], None]
 
 
+def values_out_of_range(model) -> int:
+    """The learner's count of values seen outside the possible returns so far; -1 without a value watch."""
+    if getattr(model, "value_bounds", None) is None:
+        return -1
+    return int(model.values_out_of_range)
+
+
 class EpisodeReturnProtocol(BaseCallback):
     """Records the undiscounted return of every learning episode and stops learning after ``n_episodes``.
 
     This is the pendulum protocol (thesis 4.2.1, "every episode, the cumulative reward is recorded") and the learning
     curve of the grid world. Each record holds ``episode`` (1-based), ``timesteps``, ``return``, ``length``,
-    ``cumulative_falls``, ``goal_reached`` and ``wall_time_s``.
+    ``cumulative_falls``, ``goal_reached``, ``wall_time_s`` and ``values_out_of_range`` (module docstring).
 
     :param n_episodes: learning episodes after which learning stops (a positive integer).
     :param progress: called with the fraction of the run done, for a progress bar; None (default) for none.
     :param verbose: SB3's callback verbosity (default 0).
     """
 
-    COLUMNS = ("episode", "timesteps", "return", "length", "cumulative_falls", "goal_reached", "wall_time_s")
+    COLUMNS = ("episode", "timesteps", "return", "length", "cumulative_falls", "goal_reached", "wall_time_s",
+               "values_out_of_range")
 
     def __init__(self, n_episodes: int, progress: ProgressHook | None = None, verbose: int = 0) -> None:
         super().__init__(verbose)
@@ -62,6 +72,7 @@ class EpisodeReturnProtocol(BaseCallback):
                     "cumulative_falls": self.falls,
                     "goal_reached": bool(info.get("goal_reached", False)),
                     "wall_time_s": time.perf_counter() - self._start,
+                    "values_out_of_range": values_out_of_range(self.model),
                 }
             )
             self.logger.record("protocol/episode_return", float(self._returns[index]))
@@ -81,8 +92,8 @@ class GreedyDistanceProtocol(BaseCallback):
     environment per run, reset with seeds drawn from ``eval_seed`` so that every algorithm meets the same initial
     states); a run lasts one episode of the evaluation environment and its distance is the last ``info["distance"]``.
     Each record holds ``learning_time_s``, ``timesteps``, ``distance`` (mean over runs), ``distance_std``,
-    ``cumulative_falls`` (falls while learning), ``episodes`` and ``wall_time_s``. Learning stops after
-    ``learning_time`` seconds, with a final evaluation.
+    ``cumulative_falls`` (falls while learning), ``episodes``, ``wall_time_s`` and ``values_out_of_range`` (module
+    docstring). Learning stops after ``learning_time`` seconds, with a final evaluation.
 
     :param eval_envs: the evaluation environments, one per greedy run (at least one).
     :param dt: the learning env's control step in seconds.
@@ -94,7 +105,8 @@ class GreedyDistanceProtocol(BaseCallback):
     """
 
     COLUMNS = (
-        "learning_time_s", "timesteps", "distance", "distance_std", "cumulative_falls", "episodes", "wall_time_s"
+        "learning_time_s", "timesteps", "distance", "distance_std", "cumulative_falls", "episodes", "wall_time_s",
+        "values_out_of_range",
     )
 
     def __init__(
@@ -165,6 +177,7 @@ class GreedyDistanceProtocol(BaseCallback):
             "cumulative_falls": self.falls,
             "episodes": self.episodes,
             "wall_time_s": time.perf_counter() - self._start,
+            "values_out_of_range": values_out_of_range(self.model),
         }
         self.records.append(record)
         self.logger.record("protocol/greedy_distance", record["distance"])

@@ -127,6 +127,7 @@ TASKS = {
     "replay_order": "sb3_er.experiments.replay_order:replay_order_run",
     "pessimistic": "sb3_er.experiments.pessimistic:pessimistic_run",
     "framework": "sb3_er.experiments.framework:framework_run",
+    "sigma_regime": "sb3_er.experiments.sigma_regime:sigma_regime_run",
 }
 """Runs that are no learning run under a protocol (see :class:`~sb3_er.experiments.specs.Analysis`): the task name
 of the job's experiment to ``module:function``. The function takes ``(job, env, report)`` (the env made from the
@@ -207,6 +208,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
 
     import sb3_er_envs  # noqa: F401  (registers the environment ids)
     from sb3_er import DivergenceError
+    from sb3_er.common.base_class import ValueBoundWarning
     from sb3_er.zoo import algorithm_classes
 
     torch.set_num_threads(1)
@@ -246,7 +248,9 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     model = algorithm_classes()[job.algo]("TileQ", env, seed=job.seed, **job_model_kwargs(job))
     callback, total_timesteps = build_protocol(experiment, env, job.budget, job.seed, report, env_kwargs)
     try:
-        model.learn(total_timesteps=total_timesteps, callback=callback)
+        with warnings.catch_warnings():  # counted in the CSV and the record instead (values_out_of_range)
+            warnings.simplefilter("ignore", ValueBoundWarning)
+            model.learn(total_timesteps=total_timesteps, callback=callback)
         diverged = False
     except DivergenceError:
         diverged = True
@@ -257,6 +261,7 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     artifacts = figure_artifacts(job, model) if job.figure_run and not diverged else {}
     wall_time_s = time.perf_counter() - start
     record = records.finished_record(job, model, env, wall_time_s, code)
+    record["value_excursion"] = getattr(model, "value_excursion", None)  # the first value outside the returns
     send(1.0)
     return RunResult(job.key, frame, record, wall_time_s, artifacts)
 

@@ -22,11 +22,17 @@ class Curves:
     """Per-seed curves of one algorithm's complete runs, cut to the shortest (rows: seeds), and its diverged runs.
 
     :param x: the common abscissa, shape (n,), in the experiment's x units.
-    :param performance: the performance curves, shape (seeds, n).
-    :param cumulative_falls: the cumulative falls, shape (seeds, n).
-    :param seeds: the seeds of the complete runs, one per row.
+    :param performance: the performance curves of the averaged runs, shape (len(seeds), n).
+    :param cumulative_falls: their cumulative falls, shape (len(seeds), n).
+    :param seeds: the runs whose values stayed within the possible returns (or were not watched), the ones averaged.
     :param diverged_seeds: the seeds of the runs whose Q-function diverged (left out of the curves).
     :param wall_time_s: the runs' summed wall time in seconds.
+    :param out_of_bounds_seeds: the complete runs whose values left the possible returns (their curves are in
+        ``all_performance`` and ``all_cumulative_falls``); default none.
+    :param unwatched_seeds: the runs made before the value watch (their CSVs have no ``values_out_of_range`` column),
+        averaged as before; None (default): no run was watched.
+    :param all_performance: the performance curves of every complete run, shape (runs, n); default None.
+    :param all_cumulative_falls: their cumulative falls, shape (runs, n); default None.
     """
 
     x: np.ndarray
@@ -35,10 +41,29 @@ class Curves:
     seeds: tuple[int, ...]
     diverged_seeds: tuple[int, ...]
     wall_time_s: float
+    out_of_bounds_seeds: tuple[int, ...] = ()
+    unwatched_seeds: tuple[int, ...] | None = None
+    all_performance: np.ndarray | None = None
+    all_cumulative_falls: np.ndarray | None = None
 
     @property
     def n_runs(self) -> int:
-        return len(self.seeds) + len(self.diverged_seeds)
+        return len(self.seeds) + len(self.diverged_seeds) + len(self.out_of_bounds_seeds)
+
+    def including_out_of_bounds(self) -> "Curves":
+        """These curves with the runs whose values left the possible returns averaged in."""
+        seeds = tuple(sorted(self.seeds + self.out_of_bounds_seeds))
+        return Curves(self.x, self.all_performance, self.all_cumulative_falls, seeds, self.diverged_seeds,
+                      self.wall_time_s, (), self.unwatched_seeds, self.all_performance, self.all_cumulative_falls)
+
+
+def left_the_bounds(frame: pd.DataFrame) -> bool | None:
+    """Whether a run's values left the possible returns (its last ``values_out_of_range`` is positive); None when the
+    run was not watched (a CSV made before the watch, or a learner without one: -1)."""
+    if "values_out_of_range" not in frame.columns or frame.empty:
+        return None
+    last = float(frame["values_out_of_range"].iloc[-1])
+    return None if last < 0 else last > 0
 
 
 def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curves | None:
@@ -47,20 +72,28 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curv
     if not frames:
         return None
     diverged = tuple(seed for seed, frame in sorted(frames.items()) if frame.empty or frame["diverged"].any())
-    complete = [frame for seed, frame in sorted(frames.items()) if seed not in diverged]
-    length = min((len(frame) for frame in complete), default=0)
-    complete = [frame.iloc[:length] for frame in complete]
+    complete_seeds = [seed for seed in sorted(frames) if seed not in diverged]
+    length = min((len(frames[seed]) for seed in complete_seeds), default=0)
+    complete = {seed: frames[seed].iloc[:length] for seed in complete_seeds}
+    out_of_bounds = tuple(seed for seed in complete_seeds if left_the_bounds(frames[seed]))
+    averaged = [seed for seed in complete_seeds if seed not in out_of_bounds]
 
-    def stacked(column: str) -> np.ndarray:
-        return np.stack([frame[column].to_numpy(dtype=float) for frame in complete]) if complete else np.zeros((0, 0))
+    def stacked(column: str, chosen) -> np.ndarray:
+        if not chosen:
+            return np.zeros((0, length))
+        return np.stack([complete[seed][column].to_numpy(dtype=float) for seed in chosen])
 
     return Curves(
-        x=complete[0][experiment.x_column].to_numpy(dtype=float) if complete else np.zeros(0),
-        performance=stacked(experiment.performance_column),
-        cumulative_falls=stacked("cumulative_falls"),
-        seeds=tuple(seed for seed in sorted(frames) if seed not in diverged),
+        x=complete[complete_seeds[0]][experiment.x_column].to_numpy(dtype=float) if complete else np.zeros(0),
+        performance=stacked(experiment.performance_column, averaged),
+        cumulative_falls=stacked("cumulative_falls", averaged),
+        seeds=tuple(averaged),
         diverged_seeds=diverged,
         wall_time_s=float(sum(frame["wall_time_s"].iloc[-1] for frame in frames.values() if not frame.empty)),
+        out_of_bounds_seeds=out_of_bounds,
+        unwatched_seeds=tuple(seed for seed in sorted(frames) if left_the_bounds(frames[seed]) is None),
+        all_performance=stacked(experiment.performance_column, complete_seeds),
+        all_cumulative_falls=stacked("cumulative_falls", complete_seeds),
     )
 
 
@@ -147,10 +180,31 @@ def _thesis_cells(experiment: Experiment, algo: str, metric: str) -> tuple[str, 
     return text, thesis_difference(experiment, algo, metric)
 
 
+#: Rows that count runs: no difference with Sarsa(lambda), no thesis figure.
+COUNT_ROWS = ("diverged", "left_bounds")
+
+
+def _out_of_bounds_row(curve: Curves) -> tuple:
+    """("left_bounds", name, count, None, text): how many runs' values left the possible returns, or "not measured"
+    for the runs made before the value watch."""
+    name = "Runs whose values left the possible returns"
+    count = len(curve.out_of_bounds_seeds)
+    unwatched = curve.n_runs if curve.unwatched_seeds is None else len(curve.unwatched_seeds)
+    if unwatched == curve.n_runs:
+        return "left_bounds", name, float("nan"), None, "not measured"
+    text = f"{count} of {curve.n_runs}"
+    if unwatched:
+        text += f" ({unwatched} not measured)"
+    return "left_bounds", name, float(count), None, text
+
+
 def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: float) -> pd.DataFrame:
     """One row per (algorithm, metric), columns as thesis Tables 6.1-6.3 plus the thesis's own figures.
 
-    Diverged runs are left out of the averages and counted in a "Diverged runs" row of their algorithm.
+    Diverged runs are left out of the averages and counted in a "Diverged runs" row of their algorithm. So are the runs
+    whose values left the possible returns, counted in a "Runs whose values left the possible returns" row ("not
+    measured" where runs predate the value watch); where there are such runs, the rise time, end performance and falls
+    averaged over all complete runs follow, marked "(all runs)".
     """
     summaries = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
     reference = summaries.get(REFERENCE_ALGORITHM)
@@ -174,8 +228,18 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
         if curve.diverged_seeds:
             share = len(curve.diverged_seeds)
             metrics.append(("diverged", "Diverged runs", share, None, f"{share} of {curve.n_runs}"))
+        metrics.append(_out_of_bounds_row(curve))
+        if curve.out_of_bounds_seeds:
+            everything = summarize(experiment, curve.including_out_of_bounds()) or no_run
+            metrics.append(("rise_time_all", f"Rise time [{experiment.rise_time_unit}] (all runs)",
+                            everything.rise_time, None, None))
+            metrics.append(("end_performance_all", "End performance (all runs)", everything.end_performance,
+                            everything.end_performance_ci, None))
+            if experiment.has_falls and everything.falls is not None:
+                metrics.append(("falls_all", "Falls (all runs)", everything.falls, everything.falls_ci, None))
         for key, name, value, half_width, text in metrics:
-            reference_value = getattr(reference, key, float("nan")) if reference is not None else float("nan")
+            reference_key = key.removesuffix("_all")  # "(all runs)" rows against the reference's own averages
+            reference_value = getattr(reference, reference_key, float("nan")) if reference is not None else float("nan")
             thesis_value, thesis_difference = _thesis_cells(experiment, algo, key)
             rows.append(
                 {
@@ -184,7 +248,7 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
                     "average": value,
                     "ci95": half_width,
                     "average_text": text or _format_with_ci(value, half_width),
-                    "difference_with_sarsa_lambda": "" if key == "diverged" else _format_difference(
+                    "difference_with_sarsa_lambda": "" if key in COUNT_ROWS else _format_difference(
                         value, reference_value, algo
                     ),
                     "thesis_average": thesis_value,

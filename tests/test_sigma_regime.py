@@ -1,0 +1,42 @@
+"""`sb3-er reproduce sigma-regime`: which way ER-σ moves its targets, per reading."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sb3_er.cli import main
+from sb3_er.experiments.runner import run_csv_path
+from sb3_er.experiments.sigma_regime import READINGS, reproduce_sigma_regime, summarize_regime
+
+
+def test_a_tiny_run_writes_phases_and_the_summary(tmp_path):
+    result = reproduce_sigma_regime(n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1,
+                                    out_dir=tmp_path, show_progress=False)
+    frame = pd.read_csv(run_csv_path(tmp_path / "gridworld", "er_sigma", 0))
+    assert len(frame) == 4  # one replay phase per episode (the grid world replays at each episode's end)
+    assert frame["updates"].gt(0).all() and frame["phase"].tolist() == [1, 2, 3, 4]
+    assert ((frame["sigma_raised"] + frame["sigma_lowered"]).between(0.0, 1.0)).all()
+    text = result.table_markdown.read_text()
+    assert "| windy cliff grid world | 4 episodes | 4 |" in text and "pendulum, velocity tiles 3.3" in text
+    again = reproduce_sigma_regime(n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1,
+                                   out_dir=tmp_path, show_progress=False)
+    assert (again.runs_done, again.runs_skipped) == (0, 2)
+
+
+def test_the_summary_weights_phases_by_their_updates():
+    frames = {0: pd.DataFrame({"updates": [10, 30], "sigma_shift": [1.0, -1.0], "sigma_raised": [1.0, 0.0],
+                               "sigma_lowered": [0.0, 1.0], "values_out_of_range": [0, 3], "diverged": False}),
+              1: pd.DataFrame({"updates": [20], "sigma_shift": [np.nan], "sigma_raised": [np.nan],
+                               "sigma_lowered": [np.nan], "values_out_of_range": [0], "diverged": False})}
+    summary = summarize_regime(frames)
+    assert summary["mean_shift"] == pytest.approx((10 - 30) / 40)
+    assert summary["raised"] == pytest.approx(0.25) and summary["lowered"] == pytest.approx(0.75)
+    assert (summary["left_bounds"], summary["runs"], summary["phases"]) == (1, 2, 3)
+
+
+def test_a_budget_for_readings_of_two_units_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="one unit"):
+        reproduce_sigma_regime(n_seeds=1, budget=4, readings=["gridworld", "walker"], out_dir=tmp_path)
+    with pytest.raises(SystemExit):
+        main(["reproduce", "sigma-regime", "--readings", "nowhere"])
+    assert set(READINGS) >= {"walker-optimistic", "pendulum-0.33"}
