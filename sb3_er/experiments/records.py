@@ -163,12 +163,12 @@ def normalized(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_config(job) -> dict[str, Any]:
-    """The configuration of `job` (a :class:`~sb3_er.experiments.runner.RunJob`) as the driver plans it.
+    """The configuration of `job` (a :class:`~sb3_er.experiments.jobs.RunJob`) as the driver plans it.
 
     Raises ValueError for an algorithm that has no class (the zoo lookup names the known ones) and KeyError when
     ``zoo_configs/<algo>.yml`` has no entry for the experiment's env.
     """
-    from sb3_er.experiments.runner import job_model_kwargs
+    from sb3_er.experiments.jobs import job_model_kwargs
     from sb3_er.zoo import algorithm_classes
 
     experiment = job.experiment

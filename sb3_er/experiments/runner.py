@@ -34,6 +34,8 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from sb3_er.experiments import records
+# The job and its derived settings and paths live in jobs.py (records.py uses them too); importable from here.
+from sb3_er.experiments.jobs import RunJob, accepted_parameters, job_model_kwargs, run_csv_path  # noqa: F401
 from sb3_er.experiments.specs import Experiment
 
 BACKENDS = ("local", "ray")
@@ -41,66 +43,6 @@ THREAD_LIMITS = {name: "1" for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "N
                                         "OPENBLAS_NUM_THREADS")}
 RAY_ENV_VARS = {"RAY_USAGE_STATS_ENABLED": "0", **THREAD_LIMITS}
 RAY_MISSING = "the Ray backend needs the ray package: pip install 'sb3-er[ray]'"
-
-
-@dataclass(frozen=True)
-class RunJob:
-    """One learning run: an algorithm on an experiment with one seed, for `budget` episodes or seconds.
-
-    `csv_path` is where the driver writes the run's CSV; the run itself never touches it. `env_kwargs` and
-    `algo_kwargs` (sorted ``(name, value)`` pairs) are a reading to run instead of the defaults: keyword arguments of
-    ``gymnasium.make`` and overrides of the zoo config's constructor arguments (see :func:`job_model_kwargs`).
-    `figure_run` asks the run for the data of its per-run figures (the walker's gait and animation).
-    `label` names the run in place of `algo` (its key ``<label>/seed_<seed>``), so that several runs of one algorithm
-    with different `algo_kwargs` (the sigma study's definitions) are told apart by the driver and in their records.
-
-    :param experiment: the experiment (or analysis) the run belongs to.
-    :param algo: the algorithm's rl-zoo name.
-    :param seed: the run's seed.
-    :param budget: run length in the experiment's unit (episodes or seconds of learning time).
-    :param csv_path: where the driver writes the run's CSV.
-    :param env_kwargs: ``gymnasium.make`` keyword arguments as sorted ``(name, value)`` pairs (default none).
-    :param algo_kwargs: constructor overrides as sorted ``(name, value)`` pairs (default none).
-    :param figure_run: whether the run returns the data of its per-run figures (default False).
-    :param label: the run's name in place of `algo` (default "": `algo`).
-    """
-
-    experiment: Experiment
-    algo: str
-    seed: int
-    budget: float
-    csv_path: Path
-    env_kwargs: tuple = ()
-    algo_kwargs: tuple = ()
-    figure_run: bool = False
-    label: str = ""
-
-    @property
-    def key(self) -> str:
-        return f"{self.label or self.algo}/seed_{self.seed}"
-
-
-def accepted_parameters(algorithm_class: type) -> set[str]:
-    """Constructor parameter names of `algorithm_class` and its sb3_er base classes (which receive ``**kwargs``)."""
-    import inspect
-
-    names: set[str] = set()
-    for cls in algorithm_class.__mro__:
-        if cls.__module__.startswith("sb3_er") and "__init__" in vars(cls):
-            names.update(name for name, parameter in inspect.signature(cls.__init__).parameters.items()
-                         if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY))
-    return names
-
-
-def job_model_kwargs(job: RunJob) -> dict[str, Any]:
-    """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
-    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
-    from sb3_er.zoo import algorithm_classes, model_kwargs
-
-    kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
-    accepted = accepted_parameters(algorithm_classes()[job.algo])
-    kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted})
-    return kwargs
 
 
 @dataclass
@@ -159,11 +101,6 @@ def task_function(task: str):
         raise ValueError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
     module, _, name = TASKS[task].partition(":")
     return getattr(importlib.import_module(module), name)
-
-
-def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
-    """Where the CSV of one run lives (its version record is beside it, ``.json``)."""
-    return Path(out_dir) / "runs" / algo / f"seed_{seed}.csv"
 
 
 def _limit_threads_of_children() -> None:
