@@ -2,9 +2,9 @@
 
 At every Sphinx build (``builder-inited``) this writes ``docs/results/<dir>.md`` for every folder of
 ``results/measured/`` (a new folder gets its page without any edit here) and ``docs/results/index.md`` with the
-verdict table. A results page shows what the folder holds, as committed: its ``summary.md`` (or the summaries of its
-sub-folders), other Markdown files (``VERSIONS.md``, ``READING.md``, ...), text reports, the figures, and the
-analysis written for it in ``docs/_notes/results_<dir>.md`` when there is one.
+verdict table. A results page shows what the folder holds, as committed: its verdicts, its ``summary.md``, the
+analysis written for it in ``docs/_notes/results_<dir>.md`` when there is one, its other Markdown files
+(``VERSIONS.md``, ``READING.md``, the summaries of its sub-folders), text reports and figures.
 
 The verdicts come from machine-readable findings files, ``results/measured/<dir>/findings.json``::
 
@@ -183,14 +183,22 @@ def results_page(name: str) -> str:
                       for f in findings]
             lines.append("")
     notes = NOTES / f"results_{name}.md"
+    markdown = sorted((p for p in folder.rglob("*.md") if "runs" not in p.relative_to(folder).parts),
+                      key=lambda p: (p.relative_to(folder).as_posix() != "summary.md", p.relative_to(folder).parts))
+    summaries = [p for p in markdown if p == folder / "summary.md"]
+    others = [p for p in markdown if p not in summaries]
+
+    def include(path: Path, heading: str) -> list[str]:
+        return [f"## {heading}", "", "```{include} " + _relative(path), ":heading-offset: 2", "```", ""]
+
+    for path in summaries:
+        lines += include(path, "Summary")
     if notes.is_file():
         lines += ["## Analysis", "", "```{include} " + _relative(notes), "```", ""]
-    markdown = sorted(p for p in folder.rglob("*.md") if "runs" not in p.relative_to(folder).parts)
-    for path in markdown:
-        where = path.relative_to(folder)
-        heading = "Summary" if where.as_posix() == "summary.md" else where.as_posix()
-        lines += [f"## {heading}", "", "```{include} " + _relative(path), ":heading-offset: 2", "```", ""]
-    texts = sorted(p for p in folder.rglob("*") if p.suffix in TEXT_SUFFIXES and "runs" not in p.parts)
+    for path in others:
+        lines += include(path, path.relative_to(folder).as_posix())
+    texts = sorted(p for p in folder.rglob("*") if p.suffix in TEXT_SUFFIXES
+                   and "runs" not in p.relative_to(folder).parts)
     for path in texts:
         lines += [f"## {path.relative_to(folder).as_posix()}", "", "```{literalinclude} " + _relative(path), "```", ""]
     figures = sorted(p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES
