@@ -119,6 +119,22 @@ def reproduce(
     `env_kwargs` and `algo_kwargs` run a reading other than the defaults: keyword arguments of ``gymnasium.make`` for
     the learning and evaluation envs, and constructor arguments that override the zoo config of every algorithm that
     has them (a name that no chosen algorithm accepts is a ValueError). The table's heading names them.
+
+    :param experiment_name: "gridworld", "pendulum", "walker" or "leo".
+    :param n_seeds: seeds per algorithm (default 20, the thesis's).
+    :param algos: rl-zoo names of the algorithms (default all five of the thesis).
+    :param out_dir: output folder; None (default) is ``results/<experiment_name>``.
+    :param budget: run length in episodes (grid world, pendulum) or seconds of learning time (walker, LEO); None
+        (default) is the experiment's (100 episodes, 100 episodes, 5000 s, 12000 s).
+    :param n_workers: worker processes, or the CPUs of a local Ray instance; None (default): every CPU.
+    :param first_seed: the first seed (default 0); the seeds are ``first_seed .. first_seed + n_seeds - 1``.
+    :param show_progress: show one progress bar over all runs (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster, "auto" or "HOST:PORT"; None (default) starts a local instance.
+    :param allow_mixed_versions: resume next to runs of other code or settings with a warning (default False).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments of the reading to run; None (default) for the defaults.
+    :param algo_kwargs: constructor arguments over the zoo configs; None (default) for none.
+    :returns: a :class:`Reproduction` naming the files written and the wall time.
     """
     from sb3_er.experiments.plots import plot_mean_with_ci
 
