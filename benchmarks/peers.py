@@ -479,8 +479,10 @@ def main(argv=None) -> None:
                     python = str(mushroom_python(args.mushroom_venv))
                 result = run_one(config, python)
                 results.append(result)
-                if args.json is not None:
-                    args.json.write_text(json.dumps(results, indent=1))
+                if args.json is not None:  # atomically: a killed benchmark keeps every result before the last
+                    from sb3_er.experiments.files import write_atomically
+
+                    write_atomically(args.json, json.dumps(results, indent=1))
                 print(f"{env_id} {method} seed {seed}: final {result['final_mean']:.1f}, "
                       f"{result['learn_cpu_s']:.1f} CPU s", file=sys.stderr, flush=True)
     print(markdown_tables(results))

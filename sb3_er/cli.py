@@ -137,8 +137,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
                           help="sigma-regime: the env readings to run (default all five)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
-        help="resume next to finished runs made by other code (version, git commit) or another configuration, or "
-        "without a version record (seed_<n>.json); without it such a resume is refused",
+        help="resume next to finished runs made by other code (version, git commit) or another configuration; "
+        "without it such a resume is refused",
     )
 
 
@@ -173,11 +173,21 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
 def reproduce_command(argv: Sequence[str]) -> None:
     """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J] [--backend ray ...]`.
 
-    Bad option combinations, a missing import (ray) and version conflicts with finished runs exit with the message
-    (status 2).
+    Bad option combinations, a missing import (ray), version conflicts with finished runs, a folder another command
+    is writing and a damaged settings or record file exit with the message (status 2). SIGTERM (a scheduler's time
+    limit, ``timeout``) ends the command as Ctrl-C does: its worker processes and the Ray instance it started end
+    with it, and the runs written so far stay for a resume.
     """
+    import signal
+    import threading
+
+    from sb3_er.experiments.files import DamagedFileError, FolderLockedError
     from sb3_er.experiments.records import MixedVersionsError
     from sb3_er.experiments.reproduce import reproduce
+    from sb3_er.experiments.runner import RUNNER_ARGUMENTS
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
 
     parser = reproduce_parser()
     args = parser.parse_args(argv)
@@ -188,6 +198,11 @@ def reproduce_command(argv: Sequence[str]) -> None:
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
     options = _analysis_options(parser, args)
+    reserved = [name for name, _ in args.algo_kwargs if name in RUNNER_ARGUMENTS]
+    if reserved:
+        parser.error("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}" for name in reserved))
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, terminate) if in_main_thread else None
     try:
         if args.experiment in ANALYSIS_NAMES:
             from sb3_er.experiments.analyses import command
@@ -221,8 +236,11 @@ def reproduce_command(argv: Sequence[str]) -> None:
                 env_kwargs=dict(args.env_kwargs),
                 algo_kwargs=dict(args.algo_kwargs),
             )
-    except (ImportError, MixedVersionsError) as error:  # a missing ray, or finished runs of other code
+    except (ImportError, MixedVersionsError, FolderLockedError, DamagedFileError) as error:
         parser.exit(2, f"sb3-er reproduce: error: {error}\n")
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     print(result.table_markdown.read_text())
     print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
     print(f"table:      {result.table_markdown}  and  {result.table_csv}")

@@ -8,6 +8,7 @@ from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import BufferedTileQAlgorithm, stored_transitions
+from sb3_er.common.checks import check_choice, check_integer, check_number
 from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 from sb3_er.common.tile_coding import TileCoder
@@ -180,19 +181,12 @@ class Dyna(BufferedTileQAlgorithm):
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
-        if not (isinstance(self.planning_steps, int) and self.planning_steps >= 0):
-            raise ValueError(f"planning_steps cannot be negative and must be an integer, got {self.planning_steps!r}")
-        if self.target not in TARGETS:
-            raise ValueError(f"target must be one of {list(TARGETS)}, got {self.target!r}")
-        if self.planning_actions not in PLANNING_ACTIONS:
-            raise ValueError(f"planning_actions must be one of {list(PLANNING_ACTIONS)}, got {self.planning_actions!r}")
-        if not (isinstance(self.n_neighbors, int) and self.n_neighbors >= 1):
-            raise ValueError(f"n_neighbors must be an integer of at least 1, got {self.n_neighbors!r}")
-        radius = self.model_radius
-        if not (isinstance(radius, (int, float)) and np.isfinite(radius) and radius > 0):
-            raise ValueError(f"model_radius must be positive and finite (in tile widths), got {self.model_radius!r}")
-        if not (isinstance(self.model_refit_every, int) and self.model_refit_every >= 1):
-            raise ValueError(f"model_refit_every must be an integer of at least 1 step, got {self.model_refit_every!r}")
+        check_integer("planning_steps", self.planning_steps, minimum=0)
+        check_choice("target", self.target, TARGETS)
+        check_choice("planning_actions", self.planning_actions, PLANNING_ACTIONS)
+        check_integer("n_neighbors", self.n_neighbors, minimum=1)
+        check_number("model_radius", self.model_radius, 0.0, low_open=True, unit=" (in tile widths)")
+        check_integer("model_refit_every", self.model_refit_every, minimum=1, unit=" step")
 
     def _setup_model(self) -> None:
         super()._setup_model()

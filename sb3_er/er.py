@@ -1,16 +1,14 @@
 """Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
 
-import math
-import pathlib
 from typing import Any, Literal, Optional, Union
 
 import numpy as np
-from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
 from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
 from sb3_er.common.base_class import TileQAlgorithm
-from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.buffers import TrajectoryBufferIO, TrajectoryReplayBuffer
+from sb3_er.common.checks import check_choice, check_integer, check_number
 from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
@@ -41,18 +39,8 @@ REPLAY_UNITS = ("episode", "segment")
 RESIDUAL_ACTIONS = ("taken", "next")
 
 
-def _check_choice(name: str, value: Any, options) -> None:
-    if value not in options:
-        raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
-
-
-def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
-
-
 @inherit_parameters(hidden=("trace_lambda",))  # ER sets trace_lambda from online_lambda
-class ER(TileQAlgorithm):
+class ER(TrajectoryBufferIO, TileQAlgorithm):
     """Experience replay with the Sarsa update (thesis Alg. 7-8) and its variants (Alg. 9-14).
 
     Every transition is stored in trajectories. A trajectory is a whole episode (``replay_unit="episode"``, Alg. 7:
@@ -106,6 +94,8 @@ class ER(TileQAlgorithm):
         prune_threshold=0.9)`` for the pruned database of thesis 3.5.3; default None.
     """
 
+    _trace_lambda_parameter = "online_lambda"
+
     def __init__(
         self,
         policy: Union[str, type[TileQPolicy]] = "TileQ",
@@ -157,30 +147,23 @@ class ER(TileQAlgorithm):
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
-        _check_choice("replay_trigger", self.replay_trigger, REPLAY_TRIGGERS)
-        _check_choice("replay_unit", self.replay_unit, REPLAY_UNITS)
-        _check_choice("replay_order", self.replay_order, REPLAY_ORDERS)
-        _check_choice("target", self.target, TARGETS)
-        _check_choice("sigma", self.sigma, SIGMAS)
-        _check_choice("residual_action", self.residual_action, RESIDUAL_ACTIONS)
-        _check_integer("buffer_size", self.buffer_size, minimum=1)
-        _check_integer("replay_every", self.replay_every, minimum=1, unit=" episode")
-        _check_integer("n_replays", self.n_replays, minimum=0)
-        x = self.replays_per_stored_trajectory
-        if x is not None and not (isinstance(x, (int, float)) and math.isfinite(x) and x >= 0):
-            raise ValueError(f"replays_per_stored_trajectory must be a finite number >= 0 or None, got {x!r}")
-        zeta = self.residual_zeta
-        if zeta is not None and not (isinstance(zeta, (int, float)) and 0.0 <= zeta <= 1.0):
-            raise ValueError(f"residual_zeta must be in [0, 1] (Eq. 5.9) or None, got {zeta!r}")
+        check_choice("replay_trigger", self.replay_trigger, REPLAY_TRIGGERS)
+        check_choice("replay_unit", self.replay_unit, REPLAY_UNITS)
+        check_choice("replay_order", self.replay_order, REPLAY_ORDERS)
+        check_choice("target", self.target, TARGETS)
+        check_choice("sigma", self.sigma, SIGMAS)
+        check_choice("residual_action", self.residual_action, RESIDUAL_ACTIONS)
+        check_integer("buffer_size", self.buffer_size, minimum=1)
+        check_integer("replay_every", self.replay_every, minimum=1, unit=" episode")
+        check_integer("n_replays", self.n_replays, minimum=0)
+        check_number("replays_per_stored_trajectory", self.replays_per_stored_trajectory, 0.0, optional=True)
+        check_number("residual_zeta (Eq. 5.9)", self.residual_zeta, 0.0, 1.0, optional=True)
         if self.residual_action == "next" and self.target == "expected_sarsa":
             raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
-        _check_choice("predecessors", self.predecessors, PREDECESSORS)
-        theta = self.priority_threshold
-        if isinstance(theta, bool) or not (isinstance(theta, (int, float)) and math.isfinite(theta) and theta >= 0):
-            raise ValueError(f"priority_threshold must be a finite number >= 0 (a |delta|), got {theta!r}")
-        _check_integer("max_predecessors", self.max_predecessors, minimum=0)
-        if self.prioritized_updates is not None:
-            _check_integer("prioritized_updates", self.prioritized_updates, minimum=0)
+        check_choice("predecessors", self.predecessors, PREDECESSORS)
+        check_number("priority_threshold", self.priority_threshold, 0.0, unit=" (a |delta|)")
+        check_integer("max_predecessors", self.max_predecessors, minimum=0)
+        check_integer("prioritized_updates", self.prioritized_updates, minimum=0, optional=True)
         TrajectoryReplayBuffer.check_kwargs(self.replay_buffer_kwargs)
 
     def _setup_model(self) -> None:
@@ -332,31 +315,8 @@ class ER(TileQAlgorithm):
             self.logger.record("train/priority_evaluations", self.priority_evaluations)
         self.replay_buffer.record_fill(self.logger)
 
-    def save_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
-        """Save the trajectories and the visit vector w."""
-        save_to_pkl(path, self.replay_buffer, self.verbose)
-
-    def load_replay_buffer(self, path: Union[str, pathlib.Path], truncate_last_traj: bool = True) -> None:
-        """Load a buffer saved by save_replay_buffer; its tile coding must match this model's.
-
-        :param truncate_last_traj: as in SB3: if True (the default, which rl-zoo always passes), the episode that was
-            in progress when the buffer was saved is over: its open trajectory is closed as truncated at its last
-            s_{t+1}. If False, it stays open, to be continued by ``learn(reset_num_timesteps=False)`` on an env that
-            was not reset since; any env reset (a ``learn()`` that resets, ``set_env``, a freshly loaded model) closes
-            it as truncated all the same, so it is never joined to another episode.
-        """
-        buffer = load_from_pkl(path, self.verbose)
-        if not isinstance(buffer, TrajectoryReplayBuffer):
-            raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
-        if buffer.tile_coder.config() != self.policy.tile_coder.config():
-            raise ValueError("The replay buffer was stored with a different tile coding than this model's")
-        buffer.tile_coder = self.policy.tile_coder
-        if truncate_last_traj:
-            buffer.truncate_open_trajectory()
-        self.replay_buffer = buffer
+    def _on_buffer_replaced(self) -> None:
         self._priority_workspace = None
-        if self._observing_rewards:
-            self._watch.observe_many(*buffer.stored_rewards())
 
 
 @inherit_parameters

@@ -8,6 +8,7 @@ from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary
+from sb3_er.common.checks import check_bool, check_integer, check_number
 from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
@@ -76,10 +77,9 @@ class FQI(FittedTileQAlgorithm):
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
-        if not (isinstance(self.solver_iterations, int) and self.solver_iterations >= 1):
-            raise ValueError(f"solver_iterations must be an integer of at least 1, got {self.solver_iterations!r}")
-        if not (isinstance(self.solver_tolerance, float) and 0.0 < self.solver_tolerance < 1.0):
-            raise ValueError(f"solver_tolerance must be in (0, 1), got {self.solver_tolerance!r}")
+        check_integer("solver_iterations", self.solver_iterations, minimum=1)
+        check_number("solver_tolerance", self.solver_tolerance, 0.0, 1.0, low_open=True, high_open=True)
+        check_bool("warm_start", self.warm_start)
 
     def _fit(self, data: Transitions) -> dict[str, float]:
         coder = self.policy.tile_coder

@@ -9,6 +9,7 @@ from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary, weight_indices
+from sb3_er.common.checks import check_integer
 from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
@@ -69,8 +70,7 @@ class LSPI(FittedTileQAlgorithm):
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
-        if not (isinstance(self.max_features, int) and self.max_features >= 1):
-            raise ValueError(f"max_features must be an integer of at least 1, got {self.max_features!r}")
+        check_integer("max_features", self.max_features, minimum=1)
 
     def _too_large(self, n_features: int, n_transitions: int) -> ValueError:
         return ValueError(

@@ -179,7 +179,7 @@ def test_save_load_round_trip_with_buffer_and_model(tmp_path):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(planning_steps=-1), "planning_steps cannot be negative"),
+        (dict(planning_steps=-1), "planning_steps must be an integer of at least 0"),
         (dict(target="expected_sarsa"), "target"),
         (dict(planning_actions="all"), "planning_actions"),
         (dict(n_neighbors=0), "n_neighbors"),

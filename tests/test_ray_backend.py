@@ -1,9 +1,13 @@
 """The Ray backend on a local two-CPU Ray instance: same runs as the local backend, resumption, failed tasks."""
 
 import os
+import signal
+import subprocess
+import sys
 
 import pandas as pd
 import pytest
+from processes import alive, tree, wait_for
 
 from sb3_er.experiments.records import read_record
 from sb3_er.experiments.reproduce import reproduce
@@ -31,6 +35,7 @@ def test_ray_runs_equal_local_runs_and_resume(tmp_path, local_ray):
     local = reproduce("gridworld", out_dir=tmp_path / "local", n_workers=1, **SETTINGS)
     on_ray = reproduce("gridworld", out_dir=tmp_path / "ray", backend="ray", **SETTINGS)
     assert (on_ray.runs_done, on_ray.runs_skipped) == (4, 0)
+    assert ray.is_initialized()  # an instance the command did not start is left running
     for algo in ALGOS:
         for seed in SEEDS:
             local_csv, ray_csv = run_csv_path(local.out_dir, algo, seed), run_csv_path(on_ray.out_dir, algo, seed)
@@ -76,3 +81,18 @@ def test_ray_usage_statistics_stay_off(monkeypatch):
         from ray._private.usage import usage_lib
 
     assert not usage_lib.usage_stats_enabled()
+
+
+def test_a_killed_driver_leaves_no_ray_process_behind(tmp_path):
+    """SIGKILL of a driver that started its own local Ray instance: Ray's agents, which outlive a killed driver on
+    their own, are ended by the driver's reaper, and nothing of the instance is left."""
+    driver = subprocess.Popen([sys.executable, "-m", "sb3_er.cli", "reproduce", "pendulum", "--seeds", "2", "--algos",
+                               "er", "--budget", "30", "--backend", "ray", "--jobs", "2", "--out", str(tmp_path),
+                               "--no-progress"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wait_for(lambda: any("execute_run" in command for command in tree(driver.pid).values()) or None,
+              "a Ray task to run", 180)
+    started = tree(driver.pid)
+    assert any("raylet" in command for command in started.values())
+    os.kill(driver.pid, signal.SIGKILL)
+    driver.wait()
+    wait_for(lambda: not alive(started) or None, f"Ray's processes {alive(started)} to end", 30)

@@ -1,10 +1,14 @@
 """Saving and loading lose nothing: weights, tile coding, hyperparameters, generators, the replay buffer and w."""
 
+import copy
+import pickle
+
 import numpy as np
 import pytest
+import torch as th
 
 from conftest import LineWalkEnv
-from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
+from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
 
 ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma]
 KWARGS = dict(policy_kwargs=dict(n_tilings=8, memory_size=2**15, tile_widths=[0.7]), exploration_rate=0.1)
@@ -89,3 +93,113 @@ def test_same_data_same_replays_across_variants():
         result = model.replay(25)
         touched.append(result["updates"])
     assert len(set(touched)) == 1 and touched[0] > 0
+
+
+# --- one weight array through every copy ------------------------------------------------------------------------------
+
+EVERY_ALGO = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma, Dyna, FQI, LSPI]
+EVERY_KWARGS = {Dyna: dict(planning_steps=3, model_refit_every=50), FQI: dict(fit_every=1, n_iterations=2),
+                LSPI: dict(fit_every=1, n_iterations=2)}
+
+
+def fresh_model(algo, seed=0):
+    return algo("TileQ", LineWalkEnv(segment_every=7), seed=seed, **KWARGS, **EVERY_KWARGS.get(algo, {}))
+
+
+def pickle_round_trip(model, tmp_path):
+    return pickle.loads(pickle.dumps(model))
+
+
+def load_round_trip(model, tmp_path):
+    model.save(tmp_path / "copied")
+    loaded = type(model).load(tmp_path / "copied.zip", env=LineWalkEnv(segment_every=7))
+    if hasattr(model, "replay_buffer"):
+        model.save_replay_buffer(tmp_path / "copied_buffer.npz")
+        loaded.load_replay_buffer(tmp_path / "copied_buffer.npz")
+    return loaded
+
+
+def set_env_copy(model, tmp_path):
+    model.set_env(LineWalkEnv(segment_every=7))
+    return model
+
+
+def set_parameters_copy(model, tmp_path):
+    target = fresh_model(type(model), seed=1)
+    target.set_parameters(model.get_parameters())
+    return target
+
+
+COPIES = {"deepcopy": lambda model, tmp_path: copy.deepcopy(model), "pickle": pickle_round_trip,
+          "load": load_round_trip, "set_env": set_env_copy, "set_parameters": set_parameters_copy}
+
+
+def assert_one_weight_array(model, tmp_path):
+    """Acting (the kernels' array), get_parameters and a saved file see the same numbers."""
+    policy = model.policy
+    assert np.shares_memory(policy.theta_array, policy.theta.numpy())
+    np.testing.assert_array_equal(model.get_parameters()["policy"]["theta"].numpy(), policy.theta_array)
+    model.save(tmp_path / "check")
+    reloaded = type(model).load(tmp_path / "check.zip")
+    np.testing.assert_array_equal(reloaded.policy.q_values(PROBES), policy.q_values(PROBES))
+    np.testing.assert_array_equal(reloaded.predict(PROBES, deterministic=True)[0],
+                                  model.predict(PROBES, deterministic=True)[0])
+
+
+@pytest.mark.parametrize("how", list(COPIES))
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_a_copy_learns_saves_and_acts_on_one_weight_array(algo, how, tmp_path):
+    """Copy a model that has learned (deepcopy, pickle as Ray and multiprocessing do, save/load, set_env,
+    set_parameters), learn on the copy, and the copy's acting, get_parameters, save and set_parameters agree; the
+    original keeps its own weights."""
+    model = fresh_model(algo).learn(300)
+    before = model.policy.q_values(PROBES)
+    copied = COPIES[how](model, tmp_path)
+    copied.learn(400, reset_num_timesteps=False)
+    assert_one_weight_array(copied, tmp_path)
+    if copied is not model:
+        np.testing.assert_array_equal(model.policy.q_values(PROBES), before)
+        assert not np.array_equal(copied.policy.q_values(PROBES), before)  # it learned on its own array
+        if hasattr(model, "replay_buffer"):
+            assert not np.shares_memory(copied.replay_buffer.visits, model.replay_buffer.visits)
+            assert copied.replay_buffer.tile_coder.config() == copied.policy.tile_coder.config()
+            assert copied.replay_buffer.n_transitions > model.replay_buffer.n_transitions
+    # set_parameters on the copy changes how it acts
+    zeros = {"policy": {"theta": th.zeros(copied.policy.tile_coder.n_weights, dtype=th.float64)}}
+    copied.set_parameters(zeros)
+    assert not copied.policy.theta_array.any()
+    np.testing.assert_array_equal(copied.policy.q_values(PROBES), 0.0)
+
+
+@pytest.mark.parametrize("algo", [SarsaLambda, Dyna])
+def test_a_deep_copy_mid_episode_continues_like_the_original(algo):
+    """Traces (Sarsa(lambda)) and the model data (Dyna) are copied with the weights: the copy and the original,
+    continued from the same state, make the same updates."""
+    model = fresh_model(algo).learn(317)  # mid-episode
+    copied = copy.deepcopy(model)
+    model.learn(200, reset_num_timesteps=False)
+    copied.learn(200, reset_num_timesteps=False)
+    np.testing.assert_array_equal(copied.policy.theta_array, model.policy.theta_array)
+    assert np.shares_memory(copied.policy.theta_array, copied.policy.theta.numpy())
+
+
+def test_assigning_theta_rebuilds_the_kernels_view():
+    model = SarsaLambda("TileQ", LineWalkEnv(), seed=0, **KWARGS)
+    n = model.policy.tile_coder.n_weights
+    model.policy.theta = th.ones(n, dtype=th.float64)
+    assert np.shares_memory(model.policy.theta_array, model.policy.theta.numpy())
+    np.testing.assert_array_equal(model.policy.q_values(PROBES), 8.0)  # 8 tilings of weight 1
+    with pytest.raises(ValueError, match="one contiguous float64 CPU tensor of 32768 entries"):
+        model.policy.theta = th.ones(n, dtype=th.float32)
+    np.testing.assert_array_equal(model.policy.q_values(PROBES), 8.0)  # refused before it replaced anything
+    assert model.policy.theta.dtype == th.float64
+
+
+def test_a_model_that_logged_to_tensorboard_can_be_copied(tmp_path, capsys):
+    """A logger's writers hold open files; copies leave it out and log on their own from their next learn()."""
+    model = ER("TileQ", LineWalkEnv(), seed=0, verbose=1, tensorboard_log=str(tmp_path / "tb"), **KWARGS).learn(100)
+    for copied in (copy.deepcopy(model), pickle.loads(pickle.dumps(model))):
+        assert np.shares_memory(copied.policy.theta_array, copied.policy.theta.numpy())
+        copied.learn(100)  # a new TensorBoard run, as a new learn() of the original would start
+        assert copied.logger.dir != model.logger.dir and copied.logger is not model.logger
+    assert sorted(p.name for p in (tmp_path / "tb").iterdir()) == ["ER_1", "ER_2", "ER_3"]

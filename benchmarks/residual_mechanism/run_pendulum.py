@@ -21,6 +21,7 @@ import torch
 from instrument import instrumented_phase, summarize
 
 from sb3_er import ER, DivergenceError
+from sb3_er.experiments import files
 from sb3_er.experiments.protocols import EpisodeReturnProtocol
 from sb3_er.zoo import model_kwargs
 
@@ -94,10 +95,10 @@ def run(variant: str, seed: int, episodes: int, out: Path, instrument: bool = Tr
     meta = {"variant": variant, "seed": seed, "kwargs": kwargs, "wall_s": wall, "diverged": diverged,
             "replay_updates": model.replay_updates, "env": {k: getattr(env.unwrapped, k) for k in (
                 "inertia_about", "velocity_tile_width", "actuation", "max_torque", "terminate_at_goal")}}
-    csv.with_suffix(".json").write_text(json.dumps(meta, default=str, indent=1))
+    files.write_atomically(csv.with_suffix(".json"), json.dumps(meta, default=str, indent=1))
     if model.measurements:
-        pd.DataFrame(model.measurements).to_csv(csv.with_name(f"seed_{seed}_mechanism.csv"), index=False)
-    frame.to_csv(csv, index=False)
+        files.write_csv(csv.with_name(f"seed_{seed}_mechanism.csv"), pd.DataFrame(model.measurements))
+    files.write_csv(csv, frame)  # last: a run whose CSV exists is finished
     print(f"{variant} seed {seed}: {wall:.0f} s, diverged={diverged}, last10={frame['return'].tail(10).mean():.0f}",
           flush=True)
     env.close()

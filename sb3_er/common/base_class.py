@@ -1,10 +1,15 @@
 """Shared SB3 machinery of the tile-coded algorithms: spaces, the learn loop, online Sarsa(lambda), logging."""
 
 import inspect
+import io
 import math
+import pathlib
+import re
 import sys
 import time
 import warnings
+from collections import deque
+from collections.abc import Iterable
 from typing import Any, ClassVar, Optional, TypeVar, Union
 
 import numpy as np
@@ -18,7 +23,18 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
+from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
+from sb3_er.common.serialization import (
+    PLAIN_STATE_KEY,
+    REBUILT_ON_LOAD,
+    atomic_path,
+    check_rng_state,
+    custom_objects_without_pickle,
+    plain_state,
+    read_zip_data,
+    resolve_zip_path,
+)
 from sb3_er.common.tile_coding import (
     DEFAULT_CELL_BUDGET,
     default_tile_widths,
@@ -102,6 +118,8 @@ class TileQAlgorithm(BaseAlgorithm):
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"TileQ": TileQPolicy, "TileQPolicy": TileQPolicy}
     policy: TileQPolicy
+    #: The name users give lambda of online Sarsa(lambda) (ER calls it online_lambda), for error messages.
+    _trace_lambda_parameter: ClassVar[str] = "trace_lambda"
 
     def __init__(
         self,
@@ -155,22 +173,14 @@ class TileQAlgorithm(BaseAlgorithm):
     def _check_hyperparameters(self) -> None:
         """Validate every hyperparameter; runs wherever a model is built, loaded (``load(..., **kwargs)``) or rebuilt."""
         learning_rate = self.learning_rate(1.0) if callable(self.learning_rate) else self.learning_rate
-        if not (isinstance(learning_rate, (int, float, np.floating)) and math.isfinite(learning_rate)
-                and learning_rate >= 0.0):
-            raise ValueError(f"learning_rate (alpha) must be a finite number >= 0, got {learning_rate!r}")
-        if not 0.0 <= self.gamma <= 1.0:
-            raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
-        if not 0.0 <= self.exploration_rate <= 1.0:
-            raise ValueError(f"exploration_rate must be in [0, 1], got {self.exploration_rate}")
-        if self.trace_lambda is not None and not 0.0 <= self.trace_lambda <= 1.0:
-            raise ValueError(f"the trace decay lambda must be in [0, 1], got {self.trace_lambda}")
-        if not 0.0 < self.trace_cutoff < 1.0:
-            raise ValueError(f"trace_cutoff must be in (0, 1), got {self.trace_cutoff}")
-        if not isinstance(self.value_watch, (bool, np.bool_)):
-            raise ValueError(f"value_watch must be True or False, got {self.value_watch!r}")
-        if self.value_bound_action not in VALUE_BOUND_ACTIONS:
-            raise ValueError(f"value_bound_action must be one of {list(VALUE_BOUND_ACTIONS)}, got "
-                             f"{self.value_bound_action!r}")
+        check_number("learning_rate (alpha)", learning_rate, 0.0)
+        check_number("gamma", self.gamma, 0.0, 1.0)
+        check_number("exploration_rate", self.exploration_rate, 0.0, 1.0)
+        check_number(self._trace_lambda_parameter, self.trace_lambda, 0.0, 1.0, optional=True)
+        check_number("trace_cutoff", self.trace_cutoff, 0.0, 1.0, low_open=True, high_open=True)
+        check_integer("stats_window_size", self._stats_window_size, minimum=1)
+        check_bool("value_watch", self.value_watch)
+        check_choice("value_bound_action", self.value_bound_action, VALUE_BOUND_ACTIONS)
 
     @staticmethod
     def _check_env_wrappers(env: VecEnv) -> None:
@@ -405,6 +415,7 @@ class TileQAlgorithm(BaseAlgorithm):
             self._seed_generators(seed)
 
     def _seed_generators(self, seed: Optional[int]) -> None:
+        check_integer("seed", seed, minimum=0, optional=True)
         self.action_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_ACTIONS)
         self.predict_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(kernels.RNG_STREAM_PREDICT,)))
 
@@ -481,6 +492,100 @@ class TileQAlgorithm(BaseAlgorithm):
         self._check_env_wrappers(self.env)
         if getattr(self, "policy", None) is not None:
             self._setup_value_watch()  # the new env's rewards
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What a copy keeps (``copy.deepcopy``, pickling by Ray or ``multiprocessing``): everything but the logger,
+        whose writers hold open files (stdout, TensorBoard); the copy configures its own at its next ``learn()``, as a
+        new model does (``set_logger`` gives it another)."""
+        state = self.__dict__.copy()
+        state.pop("_logger", None)
+        state["_custom_logger"] = False
+        return state
+
+    # --- files: SB3's save and load, written atomically, checked when read, and loadable without pickle ------------
+
+    def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase], exclude: Optional[Iterable[str]] = None,
+             include: Optional[Iterable[str]] = None) -> None:
+        """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
+        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling."""
+        self.__dict__[PLAIN_STATE_KEY] = plain_state(self, exclude, include)
+        try:
+            if isinstance(path, (str, pathlib.Path)):
+                with atomic_path(path, ".zip") as partial:
+                    super().save(partial, exclude, include)
+            else:
+                super().save(path, exclude, include)
+        finally:
+            del self.__dict__[PLAIN_STATE_KEY]
+
+    @classmethod
+    def load(cls: type[SelfTileQAlgorithm], path: Union[str, pathlib.Path, io.BufferedIOBase],
+             env: Optional[GymEnv] = None, device: Union[str, Any] = "auto",
+             custom_objects: Optional[dict[str, Any]] = None, print_system_info: bool = False,
+             force_reset: bool = True, allow_pickle: bool = True, **kwargs) -> SelfTileQAlgorithm:
+        """SB3's ``load``, with every field checked (hyperparameters, generator states, counters, the last
+        observation, the weights' shape and finiteness): a corrupt or crafted file is a ValueError naming the file and
+        the field. An entry SB3 cannot unpickle is an error too (SB3 only warns and leaves the attribute at its
+        default), except ``lr_schedule``, which is rebuilt from ``learning_rate``.
+
+        :param allow_pickle: True (SB3's behaviour) unpickles the zip's ``":serialized:"`` entries, which runs any code
+            a crafted file names. False unpickles nothing: those entries are rebuilt from the plain copies sb3-er saves
+            beside them (spaces, generators, arrays, the policy class), ``custom_objects`` supplies any other, and a
+            file that needs more is refused with the entry named.
+        """
+        if isinstance(path, (str, pathlib.Path)):
+            path = resolve_zip_path(path)  # so that errors name the file read
+        try:
+            data, source = read_zip_data(path)
+            if not allow_pickle:
+                classes = {f"{c.__module__}:{c.__qualname__}": c for c in cls.policy_aliases.values()}
+                custom_objects = custom_objects_without_pickle(data, classes, custom_objects)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                model = super().load(source, env, device, custom_objects, print_system_info, force_reset, **kwargs)
+            for warning in caught:
+                lost = re.match(r"Could not deserialize object (\S+)\.", str(warning.message))
+                if lost and lost.group(1) not in REBUILT_ON_LOAD:
+                    raise ValueError(f"data entry {lost.group(1)!r} cannot be unpickled here: {warning.message}")
+                warnings.warn(warning.message, warning.category, stacklevel=2)
+            model.__dict__.pop(PLAIN_STATE_KEY, None)
+            model._check_loaded_state()
+        except FileNotFoundError:
+            raise
+        except Exception as error:  # a corrupt file fails inside zipfile, json, torch or SB3 with many error types
+            cause = f" ({error.__cause__})" if error.__cause__ is not None else ""
+            problem = str(error) if isinstance(error, ValueError) else f"{type(error).__name__}: {error}"
+            raise ValueError(f"{path}: {problem}{cause}") from error
+        return model
+
+    def _check_loaded_state(self) -> None:
+        """Check what a loaded file restored that a kernel or the learn loop reads: generator states, counters, the
+        last observation. ValueError naming the attribute."""
+        for name, value in vars(self).items():
+            if name.endswith("_rng"):
+                check_rng_state(name, value)
+        for name in ("num_timesteps", "_num_timesteps_at_start", "_total_timesteps", "_episode_num", "falls"):
+            check_integer(name, getattr(self, name), minimum=0)
+        last_obs = self._last_obs
+        if last_obs is not None:
+            shape = (self.n_envs, *self.observation_space.shape)
+            if not (isinstance(last_obs, np.ndarray) and last_obs.shape == shape and last_obs.dtype.kind in "biuf"
+                    and np.all(np.isfinite(last_obs))):
+                raise ValueError(f"_last_obs: expected finite numbers of shape {shape}, got {last_obs!r}")
+        for name in ("ep_info_buffer", "ep_success_buffer"):
+            if not isinstance(getattr(self, name), (deque, type(None))):
+                raise ValueError(f"{name}: expected a deque, got {type(getattr(self, name)).__name__}")
+
+    def set_parameters(self, load_path_or_dict: Union[str, pathlib.Path, dict[str, Any]], exact_match: bool = True,
+                       device: Union[str, Any] = "auto") -> None:
+        """SB3's ``set_parameters``; the weights are checked (shape, finite) before they replace the current ones,
+        which stay as they were on failure. A bad file is a ValueError naming it."""
+        try:
+            super().set_parameters(load_path_or_dict, exact_match, device)
+        except (ValueError, RuntimeError) as error:
+            if isinstance(load_path_or_dict, dict):
+                raise
+            raise ValueError(f"{load_path_or_dict}: {error}") from error
 
     def _select_action(self, obs: np.ndarray) -> int:
         action = kernels.select_action(
@@ -592,8 +697,10 @@ class TileQAlgorithm(BaseAlgorithm):
                     self.logger.record(f"train/{name}", value)
 
     def dump_logs(self) -> None:
-        """Write the rollout, train and time scalars (skipped when the logger has no output)."""
-        if not self.logger.output_formats:
+        """Record and write the rollout, train and time scalars. Skipped only for SB3's own logger when it writes
+        nowhere (verbose=0 without TensorBoard), where no one could read them; a logger given with ``set_logger``
+        receives every key, with or without output formats (SB3's in-memory logger pattern)."""
+        if not self.logger.output_formats and not self._custom_logger:
             return
         time_elapsed = max((time.time_ns() - self.start_time) / 1e9, sys.float_info.epsilon)
         fps = int((self.num_timesteps - self._num_timesteps_at_start) / time_elapsed)
@@ -601,6 +708,8 @@ class TileQAlgorithm(BaseAlgorithm):
         if len(self.ep_info_buffer) > 0:
             self.logger.record("rollout/ep_rew_mean", safe_mean([ep["r"] for ep in self.ep_info_buffer]))
             self.logger.record("rollout/ep_len_mean", safe_mean([ep["l"] for ep in self.ep_info_buffer]))
+        if len(self.ep_success_buffer) > 0:
+            self.logger.record("rollout/success_rate", safe_mean(self.ep_success_buffer))
         self.logger.record("rollout/falls", self.falls)
         self._record_train_metrics()
         self.logger.record("time/fps", fps)

@@ -10,17 +10,16 @@
 """
 
 import contextlib
-import pathlib
 import time
-from typing import Any, NamedTuple, Optional, Union
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 import scipy.sparse as sp
-from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
 
 from sb3_er.common import kernels
 from sb3_er.common.base_class import DivergenceError, TileQAlgorithm
-from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.buffers import TrajectoryBufferIO, TrajectoryReplayBuffer
+from sb3_er.common.checks import check_integer, check_number
 from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.tile_coding import TileCoder
 
@@ -135,13 +134,8 @@ class TileFeatures:
         return matrix
 
 
-def _check_integer(name: str, value: Any, minimum: int, unit: str = "") -> None:
-    if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= minimum):
-        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}, got {value!r}")
-
-
 @inherit_parameters
-class BufferedTileQAlgorithm(TileQAlgorithm):
+class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
     """A TileQAlgorithm that keeps every transition in a TrajectoryReplayBuffer (the database D of thesis 3.5.3).
 
     A trajectory closes at each episode end and wherever the env sets ``info["segment_end"]``, as in ER.
@@ -160,7 +154,7 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
-        _check_integer("buffer_size", self.buffer_size, minimum=1)
+        check_integer("buffer_size", self.buffer_size, minimum=1)
         TrajectoryReplayBuffer.check_kwargs(self.replay_buffer_kwargs)
 
     def _setup_model(self) -> None:
@@ -189,32 +183,6 @@ class BufferedTileQAlgorithm(TileQAlgorithm):
         self.logger.record("train/trajectories", self.replay_buffer.n_trajectories)
         self.replay_buffer.record_fill(self.logger)
 
-    def save_replay_buffer(self, path: Union[str, pathlib.Path]) -> None:
-        """Save the stored transitions (and the visit vector w)."""
-        save_to_pkl(path, self.replay_buffer, self.verbose)
-
-    def load_replay_buffer(self, path: Union[str, pathlib.Path], truncate_last_traj: bool = True) -> None:
-        """Load a buffer saved by save_replay_buffer (of any algorithm of this package); its tile coding must match.
-
-        :param truncate_last_traj: as in SB3 and ER: close the episode that was in progress when the buffer was saved
-            as truncated (True, the default), or keep it open to be continued without an env reset.
-        """
-        buffer = load_from_pkl(path, self.verbose)
-        if not isinstance(buffer, TrajectoryReplayBuffer):
-            raise ValueError(f"{path} does not hold a TrajectoryReplayBuffer")
-        if buffer.tile_coder.config() != self.policy.tile_coder.config():
-            raise ValueError("The replay buffer was stored with a different tile coding than this model's")
-        buffer.tile_coder = self.policy.tile_coder
-        if truncate_last_traj:
-            buffer.truncate_open_trajectory()
-        self.replay_buffer = buffer
-        self._on_buffer_replaced()
-        if self._observing_rewards:
-            self._watch.observe_many(*buffer.stored_rewards())
-
-    def _on_buffer_replaced(self) -> None:
-        """Hook: drop anything derived from the previous buffer."""
-
 
 @inherit_parameters
 class FittedTileQAlgorithm(BufferedTileQAlgorithm):
@@ -240,10 +208,9 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
-        _check_integer("fit_every", self.fit_every, minimum=1, unit=" episode")
-        _check_integer("n_iterations", self.n_iterations, minimum=1)
-        if not (isinstance(self.ridge, (int, float)) and np.isfinite(self.ridge) and self.ridge > 0.0):
-            raise ValueError(f"ridge must be positive and finite (it keeps the systems regular), got {self.ridge!r}")
+        check_integer("fit_every", self.fit_every, minimum=1, unit=" episode")
+        check_integer("n_iterations", self.n_iterations, minimum=1)
+        check_number("ridge", self.ridge, 0.0, low_open=True, unit=" (it keeps the systems regular)")
 
     def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
         self._store_transition(obs, action, reward, next_obs, terminated, done, info)

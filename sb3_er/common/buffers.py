@@ -1,12 +1,29 @@
-"""The trajectory replay buffer of experience replay (thesis Alg. 7 lines 10-12, Alg. 9 lines 10-13)."""
+"""The trajectory replay buffer of experience replay (thesis Alg. 7 lines 10-12, Alg. 9 lines 10-13), and its files.
 
-import math
-from typing import Any, Optional
+A buffer is saved as a pickle (``.pkl``, SB3's and rl-zoo's format: loading a pickle can run code from the file) or as
+an ``.npz`` archive of plain arrays (read without unpickling anything). Either way every field is checked when it is
+read back, before any kernel indexes with it: a corrupt or crafted file is a ValueError naming the file and the field.
+"""
+
+import io
+import json
+import os
+import pathlib
+import pickle
+import zlib
+from typing import Any, Optional, Union
 
 import numpy as np
+from stable_baselines3.common.save_util import save_to_pkl
 
 from sb3_er.common import kernels
+from sb3_er.common.checks import check_choice, check_number
 from sb3_er.common.tile_coding import TileCoder
+
+#: The format of a buffer's .npz file, stored in it: arrays as .npy members, everything else in its "meta" JSON.
+NPZ_FORMAT = "sb3-er trajectory replay buffer"
+NPZ_VERSION = 1
+ZIP_MAGIC = b"PK\x03\x04"
 
 
 class TrajectoryReplayBuffer:
@@ -44,8 +61,8 @@ class TrajectoryReplayBuffer:
 
     def __init__(self, capacity: int, tile_coder: TileCoder, prune: Optional[str] = None,
                  prune_threshold: float = DEFAULT_PRUNE_THRESHOLD):
-        if capacity < 1:
-            raise ValueError(f"buffer_size must be at least 1, got {capacity}")
+        if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1:
+            raise ValueError(f"buffer_size must be an integer of at least 1, got {capacity!r}")
         self.check_kwargs({"prune": prune, "prune_threshold": prune_threshold})
         self.capacity = int(capacity)
         self.tile_coder = tile_coder
@@ -87,13 +104,9 @@ class TrajectoryReplayBuffer:
         if unknown:
             raise ValueError(f"replay_buffer_kwargs: unknown {unknown}; the trajectory buffer takes prune and "
                              "prune_threshold")
-        prune = kwargs.get("prune")
-        if prune not in TrajectoryReplayBuffer.PRUNE_OPTIONS:
-            raise ValueError(f"prune must be one of {list(TrajectoryReplayBuffer.PRUNE_OPTIONS)}, got {prune!r}")
-        threshold = kwargs.get("prune_threshold", TrajectoryReplayBuffer.DEFAULT_PRUNE_THRESHOLD)
-        if isinstance(threshold, bool) or not (isinstance(threshold, (int, float)) and math.isfinite(threshold)
-                                               and 0.0 < threshold <= 1.0):
-            raise ValueError(f"prune_threshold must be a share in (0, 1], got {threshold!r}")
+        check_choice("prune", kwargs.get("prune"), TrajectoryReplayBuffer.PRUNE_OPTIONS)
+        check_number("prune_threshold (a share)", kwargs.get("prune_threshold", TrajectoryReplayBuffer.DEFAULT_PRUNE_THRESHOLD),
+                     0.0, 1.0, low_open=True)
 
     def pruned_share(self) -> float:
         """The share of closed trajectories that pruning dropped (0 before any closed)."""
@@ -241,11 +254,11 @@ class TrajectoryReplayBuffer:
         return result
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickle only the stored rows, oldest first, so a large empty buffer saves small."""
+        """Only the stored rows, oldest first, so a large empty buffer saves small; each field with its checksum."""
         rows = (self._oldest_row() + np.arange(self.n_transitions)) % self.capacity
         trajectories = (self.oldest_trajectory + np.arange(self.n_trajectories)) % self.capacity
         starts = (self.trajectory_start[trajectories] - self._oldest_row()) % self.capacity
-        return {
+        state = {
             "capacity": self.capacity,
             "tile_coder_config": self.tile_coder.config(),
             "observations": self.observations[rows],
@@ -266,6 +279,8 @@ class TrajectoryReplayBuffer:
             "open_covered": self.open_covered,
             "pruned": (self.n_closed_total, self.n_pruned_trajectories, self.n_pruned_transitions),
         }
+        state["checksums"] = {name: field_checksum(value) for name, value in state.items()}
+        return state
 
     def _oldest_row(self) -> int:
         if self.n_trajectories > 0:
@@ -273,7 +288,10 @@ class TrajectoryReplayBuffer:
         return self.write_row
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(state["capacity"], TileCoder(**state["tile_coder_config"]), state.get("prune"),
+        """Restore a saved state after checking every field (see ``check_state``): a corrupt or crafted state is a
+        ValueError naming the field, never an index out of range inside a kernel."""
+        check_state(state)
+        self.__init__(int(state["capacity"]), TileCoder(**state["tile_coder_config"]), state.get("prune"),
                       state.get("prune_threshold", self.DEFAULT_PRUNE_THRESHOLD))
         if self.prune:
             new = state["open_new_features"]
@@ -281,9 +299,9 @@ class TrajectoryReplayBuffer:
             self.open_new_features[: new.shape[0]] = new
             self.n_open_new = new.shape[0]
             self.fresh[new] = 1
-            self.open_covered = state["open_covered"]
-            self.n_closed_total, self.n_pruned_trajectories, self.n_pruned_transitions = state["pruned"]
-        n, m = len(state["actions"]), len(state["trajectory_length"])
+            self.open_covered = int(state["open_covered"])
+            self.n_closed_total, self.n_pruned_trajectories, self.n_pruned_transitions = map(int, state["pruned"])
+        n, m, open_length = len(state["actions"]), len(state["trajectory_length"]), int(state["open_length"])
         for name in ("observations", "slots", "actions", "rewards"):
             getattr(self, name)[:n] = state[name]
         for name in ("trajectory_start", "trajectory_length", "trajectory_terminated", "trajectory_next_obs",
@@ -292,11 +310,320 @@ class TrajectoryReplayBuffer:
         for j in range(m):
             rows = self.trajectory_start[j] + np.arange(self.trajectory_length[j])
             self.transition_trajectory[rows] = j
-        self.transition_trajectory[n - state["open_length"] : n] = m
+        self.transition_trajectory[n - open_length : n] = m
         self.visits[:] = state["visits"]
-        self.n_trajectories, self.n_transitions, self.open_length = m, n, state["open_length"]
+        self.n_trajectories, self.n_transitions, self.open_length = m, n, open_length
         if "open_next_obs" in state:
             self.open_next_obs[:] = state["open_next_obs"]
         else:  # saved before the open trajectory kept its s_{t+1}: it cannot be closed, so drop it
-            self.n_transitions, self.open_length = n - state["open_length"], 0
-        self.write_row = (n - state["open_length"]) % self.capacity
+            self.n_transitions, self.open_length = n - open_length, 0
+        self.write_row = (n - open_length) % self.capacity
+
+
+# --- checking a saved state ------------------------------------------------------------------------------------------
+
+
+def field_checksum(value: Any) -> int:
+    """CRC-32 of one saved field: an array's dtype, shape and bytes, or any other value's JSON form."""
+    if isinstance(value, np.ndarray):
+        header = f"{value.dtype.str}{value.shape}".encode()
+        return zlib.crc32(np.ascontiguousarray(value).tobytes(), zlib.crc32(header))
+    return zlib.crc32(json.dumps(value, sort_keys=True).encode())
+
+
+def _field_error(name: str, problem: str) -> ValueError:
+    return ValueError(f"replay buffer field {name!r}: {problem}")
+
+
+def _array(state: dict[str, Any], name: str, dtype, shape: tuple) -> np.ndarray:
+    """The array ``state[name]`` of exactly this dtype and shape (None: any length)."""
+    if name not in state:
+        raise _field_error(name, "missing")
+    value = state[name]
+    if not isinstance(value, np.ndarray):
+        raise _field_error(name, f"expected an array, got {type(value).__name__}")
+    if value.dtype != np.dtype(dtype):
+        raise _field_error(name, f"expected dtype {np.dtype(dtype)}, got {value.dtype}")
+    if value.ndim != len(shape) or any(want is not None and got != want for got, want in zip(value.shape, shape)):
+        expected = tuple("n" if want is None else want for want in shape)
+        raise _field_error(name, f"expected shape {expected}, got {value.shape}")
+    return value
+
+
+def _in_range(name: str, values: np.ndarray, stop: int, what: str) -> None:
+    if values.size and (values.min() < 0 or values.max() >= stop):
+        bad = np.flatnonzero((values < 0) | (values >= stop))[0]
+        raise _field_error(name, f"entry {np.unravel_index(bad, values.shape)} = {values.reshape(-1)[bad]} is "
+                                 f"outside [0, {stop}), {what}")
+
+
+def _integer(state: dict[str, Any], name: str, minimum: int, maximum: Optional[int] = None) -> int:
+    if name not in state:
+        raise _field_error(name, "missing")
+    value = state[name]
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum or (
+            maximum is not None and value > maximum):
+        bound = f"in [{minimum}, {maximum}]" if maximum is not None else f"at least {minimum}"
+        raise _field_error(name, f"expected an integer {bound}, got {value!r}")
+    return int(value)
+
+
+def _finite(name: str, values: np.ndarray) -> None:
+    if not np.all(np.isfinite(values)):
+        raise _field_error(name, f"non-finite values at {np.argwhere(~np.isfinite(values))[:3].tolist()}")
+
+
+def _tiles_match(name: str, slots_name: str, observations: np.ndarray, slots: np.ndarray, coder: TileCoder) -> None:
+    """The stored tiles are the tiles of the stored observations (either one altered shows here)."""
+    expected = np.empty_like(slots)
+    if not kernels.batch_state_slots(observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask,
+                                     expected):
+        raise _field_error(name, "observations too large to tile")
+    mismatch = np.flatnonzero(np.any(expected != slots, axis=1))
+    if mismatch.size:
+        raise _field_error(slots_name, f"row {mismatch[0]} does not hold the tiles of its observation in {name!r} "
+                                       f"({mismatch.size} such rows)")
+
+
+def check_state(state: Any) -> None:
+    """Check a saved buffer state field by field: the checksums where saved, dtypes, shapes, index ranges (tile slots,
+    actions, visited features), trajectory starts and lengths against the stored rows, and the stored tiles against
+    the stored observations. ValueError naming the first bad field. Runs once, where a buffer is restored."""
+    if not isinstance(state, dict):
+        raise ValueError(f"a replay buffer state must be a dict of fields, got {type(state).__name__}")
+    checksums = state.get("checksums")
+    if checksums is not None:
+        if not isinstance(checksums, dict):
+            raise _field_error("checksums", f"expected a dict, got {type(checksums).__name__}")
+        for name in sorted(set(checksums) - set(state)):
+            raise _field_error(name, "missing (its checksum is stored)")
+        for name, value in state.items():
+            try:
+                intact = name == "checksums" or checksums.get(name) == field_checksum(value)
+            except (TypeError, ValueError):  # a value without a JSON form was never saved by this package
+                intact = False
+            if not intact:
+                raise _field_error(name, "does not match its checksum: the file is corrupt")
+    capacity = _integer(state, "capacity", 1)
+    config = state.get("tile_coder_config")
+    expected_keys = set(TileCoder([1.0], [1]).config())
+    if not isinstance(config, dict) or set(config) != expected_keys:
+        raise _field_error("tile_coder_config", f"expected a dict with keys {sorted(expected_keys)}, got {config!r}")
+    try:
+        coder = TileCoder(**config)
+    except (ValueError, TypeError) as error:
+        raise _field_error("tile_coder_config", str(error)) from None
+    n_dims, n_tilings = coder.n_dims, coder.n_tilings
+    observations = _array(state, "observations", np.float64, (None, n_dims))
+    n = observations.shape[0]
+    if n > capacity:
+        raise _field_error("observations", f"{n} rows in a buffer of capacity {capacity}")
+    _finite("observations", observations)
+    slots = _array(state, "slots", np.int64, (n, n_tilings))
+    _in_range("slots", slots, coder.n_slots, "the tile coding's slots")
+    _tiles_match("observations", "slots", observations, slots, coder)
+    actions = _array(state, "actions", np.int64, (n,))
+    _in_range("actions", actions, coder.n_actions, "the flat action indices")
+    _finite("rewards", _array(state, "rewards", np.float64, (n,)))
+
+    lengths = _array(state, "trajectory_length", np.int64, (None,))
+    m = lengths.shape[0]
+    if m and lengths.min() < 1:
+        raise _field_error("trajectory_length", f"trajectory {int(np.argmin(lengths))} has length {lengths.min()}")
+    open_length = _integer(state, "open_length", 0, n)
+    if int(lengths.sum()) + open_length != n:
+        raise _field_error("trajectory_length", f"lengths sum to {int(lengths.sum())} plus {open_length} open rows, "
+                                                f"but {n} rows are stored")
+    starts = _array(state, "trajectory_start", np.int64, (m,))
+    expected_starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if m else starts
+    if not np.array_equal(starts, expected_starts):
+        bad = int(np.flatnonzero(starts != expected_starts)[0])
+        raise _field_error("trajectory_start", f"trajectory {bad} starts at row {starts[bad]}, but the rows before it "
+                                               f"end at {expected_starts[bad]}")
+    _array(state, "trajectory_terminated", np.bool_, (m,))
+    next_obs = _array(state, "trajectory_next_obs", np.float64, (m, n_dims))
+    _finite("trajectory_next_obs", next_obs)
+    next_slots = _array(state, "trajectory_next_slots", np.int64, (m, n_tilings))
+    _in_range("trajectory_next_slots", next_slots, coder.n_slots, "the tile coding's slots")
+    _tiles_match("trajectory_next_obs", "trajectory_next_slots", next_obs, next_slots, coder)
+    if "open_next_obs" in state:
+        open_next_obs = _array(state, "open_next_obs", np.float64, (n_dims,))
+        if open_length:
+            _finite("open_next_obs", open_next_obs)
+
+    visits = _array(state, "visits", np.uint8, (coder.n_weights,))
+    if visits.size and visits.max() > 1:
+        raise _field_error("visits", f"w is 0 or 1 per weight, got {visits.max()} at {int(np.argmax(visits))}")
+    stored = slots * coder.stride + coder.action_columns[np.arange(n_tilings)[None, :], actions[:, None]]
+    if n and not visits[stored].all():
+        raise _field_error("visits", "features of stored samples are marked unvisited")
+
+    prune, threshold = state.get("prune"), state.get("prune_threshold", TrajectoryReplayBuffer.DEFAULT_PRUNE_THRESHOLD)
+    try:
+        TrajectoryReplayBuffer.check_kwargs({"prune": prune, "prune_threshold": threshold})
+    except ValueError as error:
+        raise _field_error("prune" if prune not in TrajectoryReplayBuffer.PRUNE_OPTIONS else "prune_threshold",
+                           str(error)) from None
+    if prune:
+        new = _array(state, "open_new_features", np.int64, (None,))
+        _in_range("open_new_features", new, coder.n_weights, "the weight indices")
+        _integer(state, "open_covered", 0, open_length)
+        pruned = state.get("pruned")
+        if not (isinstance(pruned, (tuple, list)) and len(pruned) == 3):
+            raise _field_error("pruned", f"expected (closed, pruned trajectories, pruned transitions), got {pruned!r}")
+        closed, pruned_trajectories, _ = (_integer({"pruned": v}, "pruned", 0) for v in pruned)
+        if pruned_trajectories > closed:
+            raise _field_error("pruned", f"{pruned_trajectories} pruned of {closed} closed trajectories")
+
+
+# --- files -----------------------------------------------------------------------------------------------------------
+
+
+def _npz_bytes(state: dict[str, Any]) -> bytes:
+    arrays = {name: value for name, value in state.items() if isinstance(value, np.ndarray)}
+    meta = {name: value for name, value in state.items() if not isinstance(value, np.ndarray)}
+    meta = {"format": NPZ_FORMAT, "version": NPZ_VERSION, **meta}
+    out = io.BytesIO()
+    np.savez(out, meta=np.array(json.dumps(meta)), **arrays)
+    return out.getvalue()
+
+
+def _state_from_npz(data: bytes) -> dict[str, Any]:
+    """The state stored in an .npz buffer file, read with ``allow_pickle=False``; ValueError naming a bad member."""
+    try:
+        archive = np.load(io.BytesIO(data), allow_pickle=False)
+    except Exception as error:  # a truncated or altered archive fails in zipfile or numpy with many error types
+        raise ValueError(f"not a readable .npz archive ({type(error).__name__}: {error})") from None
+    state: dict[str, Any] = {}
+    with archive:
+        for name in archive.files:
+            try:
+                state[name] = archive[name]
+            except Exception as error:
+                raise _field_error(name, f"unreadable ({type(error).__name__}: {error})") from None
+    meta_array = state.pop("meta", None)
+    if meta_array is None or meta_array.dtype.kind != "U" or meta_array.ndim != 0:
+        raise _field_error("meta", "missing or not a JSON string")
+    try:
+        meta = json.loads(str(meta_array))
+    except ValueError as error:
+        raise _field_error("meta", f"not JSON ({error})") from None
+    if not isinstance(meta, dict) or meta.pop("format", None) != NPZ_FORMAT or meta.pop("version", None) != NPZ_VERSION:
+        raise _field_error("meta", f"not a version-{NPZ_VERSION} {NPZ_FORMAT} file")
+    overlap = sorted(set(meta) & set(state))
+    if overlap:
+        raise _field_error(overlap[0], "stored twice")
+    state.update(meta)
+    return state
+
+
+def _resolve_read_path(path: pathlib.Path) -> pathlib.Path:
+    """SB3's convention: a path without suffix that does not exist is tried with .pkl (and here .npz)."""
+    if path.exists() or path.suffix:
+        return path
+    for suffix in (".pkl", ".npz"):
+        candidate = path.with_name(path.name + suffix)
+        if candidate.exists():
+            return candidate
+    return path
+
+
+def save_buffer(buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, io.BufferedIOBase],
+                verbose: int = 0) -> None:
+    """Write ``buffer`` to ``path``: an .npz archive of plain arrays if the path ends in .npz, else a pickle (SB3's
+    format; ``.pkl`` is added to a path without suffix). A path is written atomically (a partial file, then renamed)."""
+    if not isinstance(path, (str, pathlib.Path)):
+        save_to_pkl(path, buffer, verbose)
+        return
+    path = pathlib.Path(path)
+    if not path.suffix:
+        path = path.with_suffix(".pkl")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = _npz_bytes(buffer.__getstate__()) if path.suffix == ".npz" else pickle.dumps(buffer, pickle.HIGHEST_PROTOCOL)
+    partial = path.with_name(path.name + ".partial")
+    with open(partial, "wb") as stream:
+        stream.write(data)
+        stream.flush()
+        os.fsync(stream.fileno())
+    os.replace(partial, path)
+
+
+def load_buffer(path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: TileCoder,
+                allow_pickle: bool = True) -> TrajectoryReplayBuffer:
+    """Read a buffer written by ``save_buffer`` and check it against ``tile_coder``; ValueError naming the file and
+    the field for anything corrupt, truncated, crafted or of another tile coding.
+
+    An .npz file is read without unpickling; a file whose name ends in .npz is never unpickled. A pickle is unpickled
+    only with ``allow_pickle`` (the default, as in SB3): unpickling a crafted file runs code from it, before any check.
+    """
+    if isinstance(path, (str, pathlib.Path)):
+        path = _resolve_read_path(pathlib.Path(path))
+        with open(path, "rb") as stream:
+            data = stream.read()
+        is_npz_name = path.suffix == ".npz"
+    else:
+        data, is_npz_name = path.read(), False
+    try:
+        if data.startswith(ZIP_MAGIC):
+            buffer = TrajectoryReplayBuffer.__new__(TrajectoryReplayBuffer)
+            buffer.__setstate__(_state_from_npz(data))
+        elif is_npz_name:
+            raise ValueError("not an .npz archive (a file named .npz is never unpickled)")
+        elif not allow_pickle:
+            raise ValueError("a pickle, refused with allow_pickle=False (unpickling can run code from the file); "
+                             "save buffers as .npz to load them without pickle")
+        else:
+            try:
+                buffer = pickle.loads(data)
+            except ValueError:
+                raise
+            except Exception as error:  # truncated or altered pickles fail with many error types
+                raise ValueError(f"not a readable pickle ({type(error).__name__}: {error})") from None
+            if not isinstance(buffer, TrajectoryReplayBuffer):
+                raise ValueError(f"holds a {type(buffer).__name__}, not a TrajectoryReplayBuffer")
+        if buffer.tile_coder.config() != tile_coder.config():
+            raise ValueError("the replay buffer was stored with a different tile coding than this model's "
+                             f"({buffer.tile_coder!r}, the model's {tile_coder!r})")
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from error.__cause__
+    buffer.tile_coder = tile_coder
+    return buffer
+
+
+class TrajectoryBufferIO:
+    """``save_replay_buffer`` and ``load_replay_buffer`` of the algorithms that keep a ``TrajectoryReplayBuffer``
+    (ER and its presets, Dyna, FQI, LSPI); a mixin before TileQAlgorithm."""
+
+    replay_buffer: Optional[TrajectoryReplayBuffer]
+
+    def save_replay_buffer(self, path: Union[str, pathlib.Path, io.BufferedIOBase]) -> None:
+        """Save the trajectories and the visit vector w: an .npz archive of plain arrays if ``path`` ends in .npz
+        (loadable without unpickling), else a pickle (SB3's format; .pkl is added to a path without suffix)."""
+        save_buffer(self.replay_buffer, path, self.verbose)
+
+    def load_replay_buffer(self, path: Union[str, pathlib.Path, io.BufferedIOBase], truncate_last_traj: bool = True,
+                           allow_pickle: bool = True) -> None:
+        """Load a buffer saved by save_replay_buffer (of any algorithm of this package); its tile coding must match.
+        Every field is checked first; a bad file is a ValueError naming it and the field, and the model keeps its
+        previous buffer.
+
+        :param truncate_last_traj: as in SB3: if True (the default, which rl-zoo always passes), the episode that was
+            in progress when the buffer was saved is over: its open trajectory is closed as truncated at its last
+            s_{t+1}. If False, it stays open, to be continued by ``learn(reset_num_timesteps=False)`` on an env that
+            was not reset since; any env reset (a ``learn()`` that resets, ``set_env``, a freshly loaded model) closes
+            it as truncated all the same, so it is never joined to another episode.
+        :param allow_pickle: unpickle .pkl files (True, SB3's behaviour). Unpickling a crafted file runs code from
+            it; with False only .npz buffers load.
+        """
+        buffer = load_buffer(path, self.policy.tile_coder, allow_pickle)
+        if truncate_last_traj:
+            buffer.truncate_open_trajectory()
+        self.replay_buffer = buffer
+        self._on_buffer_replaced()
+        if self._observing_rewards:  # the value watch takes the reward range of the loaded data too
+            self._watch.observe_many(*buffer.stored_rewards())
+
+    def _on_buffer_replaced(self) -> None:
+        """Hook: drop anything derived from the previous buffer."""

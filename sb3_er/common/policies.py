@@ -1,5 +1,7 @@
 """TileQ: a tile-coded linear action-value function Q(s, a) = theta . phi(s, a) as an SB3 policy."""
 
+import pathlib
+import pickle
 from collections.abc import Sequence
 from typing import Optional, Union
 
@@ -11,6 +13,7 @@ from stable_baselines3.common.type_aliases import Schedule
 from stable_baselines3.common.utils import is_vectorized_observation
 
 from sb3_er.common import kernels
+from sb3_er.common.serialization import atomic_path, decode_plain, encode_plain
 from sb3_er.common.tile_coding import TileCoder
 
 
@@ -123,7 +126,7 @@ class TileQPolicy(BasePolicy):
         """Initial weights in kernel order: initial_low, initial_span (per weight) and initial_seed."""
         # NumPy allocates large arrays with transparent huge pages, which spares the random row reads TLB misses.
         self.register_buffer("theta", th.from_numpy(np.zeros(self.tile_coder.n_weights, dtype=np.float64)))
-        self.theta_array = self.theta.numpy()
+        self._share_theta()
         if low != 0.0 or high != 0.0:
             kernels.fill_initial_weights(self.theta_array, *self.initial_arguments)
         self.action_table = np.stack(
@@ -133,16 +136,117 @@ class TileQPolicy(BasePolicy):
         self._slots_scratch = np.zeros(self.tile_coder.n_tilings, dtype=np.int64)
         self._q_scratch = np.zeros(self.tile_coder.n_actions, dtype=np.float64)
 
+    # theta_array is the NumPy view of the tensor theta that the kernels update in place; acting, learning, saving and
+    # get/set_parameters must see one array. The view is rebuilt wherever the tensor can be replaced (assigning theta,
+    # ``.to()``, a deep copy, unpickling) rather than derived at each access, which would cost every step.
+
+    def __setattr__(self, name, value) -> None:
+        if name == "theta":
+            self._check_theta(value)  # before it replaces the weights in place
+        super().__setattr__(name, value)
+        if name == "theta":
+            self._share_theta()
+
+    def _check_theta(self, theta) -> None:
+        if not (isinstance(theta, th.Tensor) and theta.device.type == "cpu" and theta.dtype == th.float64
+                and tuple(theta.shape) == (self.tile_coder.n_weights,) and theta.is_contiguous()):
+            raise ValueError(f"TileQPolicy keeps its weights as one contiguous float64 CPU tensor of "
+                             f"{self.tile_coder.n_weights} entries, got {getattr(theta, 'dtype', type(theta).__name__)} "
+                             f"{tuple(getattr(theta, 'shape', ()))} on {getattr(theta, 'device', '?')}")
+
+    def _share_theta(self) -> None:
+        self._check_theta(self.theta)
+        self.__dict__["theta_array"] = self.theta.numpy()
+
     def _apply(self, fn, recurse=True):
         """Keep theta a CPU float64 tensor whose NumPy view the kernels share (``.to(device)`` must not rebind it)."""
         result = super()._apply(fn, recurse)
-        if self.theta.device.type != "cpu" or self.theta.dtype != th.float64:
-            raise ValueError("TileQPolicy keeps its weights as float64 on the CPU")
-        self.theta_array = self.theta.numpy()
+        self._share_theta()
         return result
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state.pop("theta_array", None)  # a copy of the view would be a second array: rebuilt from theta instead
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        super().__setstate__(state)
+        self._share_theta()
+
+    def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
+                              error_msgs) -> None:
+        """Check incoming weights before they are copied into theta (set_parameters, load, ``TileQPolicy.load``): the
+        tile coding's number of weights, all finite. A problem is reported as PyTorch reports a size mismatch (a
+        RuntimeError of ``load_state_dict``), and the weights in place stay as they were."""
+        theta = state_dict.get(prefix + "theta")
+        problem = None
+        if theta is not None:
+            if not isinstance(theta, th.Tensor) or not theta.dtype.is_floating_point:
+                problem = (f"the weights theta must be a floating-point tensor, got {type(theta).__name__} "
+                           f"{getattr(theta, 'dtype', '')}")
+            elif tuple(theta.shape) != (self.tile_coder.n_weights,):
+                problem = (f"the weights theta have shape {tuple(theta.shape)}, but this tile coding has "
+                           f"{self.tile_coder.n_weights} weights: they were saved with another tile coding")
+            elif not bool(th.isfinite(theta).all()):
+                bad = th.nonzero(~th.isfinite(theta)).reshape(-1)[:5].tolist()
+                problem = f"the weights theta hold non-finite values (at indices {bad})"
+        if problem is not None:
+            error_msgs.append(problem)
+            return
+        super()._load_from_state_dict(state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
+                                      error_msgs)
+
+    def parameters_to_vector(self) -> np.ndarray:
+        """The weights theta as a 1D array (a copy; SB3's BasePolicy reads ``parameters()``, which theta, a buffer the
+        kernels update without gradients, is not among)."""
+        return self.theta_array.copy()
+
+    def load_from_vector(self, vector: np.ndarray) -> None:
+        """Write a 1D array of weights into theta in place (the inverse of ``parameters_to_vector``)."""
+        self.load_state_dict({"theta": th.as_tensor(np.asarray(vector, dtype=np.float64))})
+
+    def save(self, path: Union[str, pathlib.Path]) -> None:
+        """Save the weights and the constructor settings (SB3's policy file, ``TileQPolicy.load`` reads it back), the
+        spaces in plain form, so that loading needs no pickle; written atomically."""
+        data = encode_plain(self._get_constructor_parameters())
+        with atomic_path(path, ".pth") as partial:
+            th.save({"state_dict": self.state_dict(), "data": data}, partial)
+
+    @classmethod
+    def load(cls, path: Union[str, pathlib.Path], device: Union[th.device, str] = "auto",
+             allow_pickle: bool = True) -> "TileQPolicy":
+        """Load a policy saved by ``save``. Its file is read with ``torch.load(weights_only=True)``: no pickle runs.
+        A policy file in SB3's own format (spaces pickled) needs ``allow_pickle`` (the default, as in SB3), as
+        unpickling it can run code from the file. ValueError naming the file for anything unreadable or inconsistent.
+
+        :param device: accepted for SB3's signature; the weights live on the CPU.
+        """
+        try:
+            try:
+                saved = th.load(path, map_location="cpu", weights_only=True)
+                plain = True
+            except pickle.UnpicklingError:
+                if not allow_pickle:
+                    raise ValueError("a policy file with pickled settings, refused with allow_pickle=False") from None
+                saved = th.load(path, map_location="cpu", weights_only=False)
+                plain = False
+            if not (isinstance(saved, dict) and set(saved) == {"state_dict", "data"}):
+                raise ValueError("not a policy file: expected the entries state_dict and data")
+            data = decode_plain(saved["data"], {}) if plain else dict(saved["data"])
+            if not isinstance(data, dict):
+                raise ValueError("the data entry is not a dict of constructor settings")
+            data.pop("normalize_images", None)  # written by SB3's BaseModel, not a setting of tile coding
+            model = cls(**data)
+            model.load_state_dict(saved["state_dict"])
+        except (ValueError, TypeError, RuntimeError, EOFError, OSError) as error:
+            if isinstance(error, FileNotFoundError):
+                raise
+            raise ValueError(f"{path}: {error}") from error
+        return model
 
     def _get_constructor_parameters(self) -> dict:
         data = super()._get_constructor_parameters()
+        data.pop("normalize_images", None)  # SB3's image option: tile coding takes flat vectors and has no such setting
         config = self.tile_coder.config()
         del config["action_nvec"]
         data.update(config, initial_value=self.initial_value, initial_value_seed=self.initial_value_seed)
@@ -195,6 +299,10 @@ class TileQPolicy(BasePolicy):
         """Greedy actions for one observation or a batch, computed in float64 (no float32 round trip)."""
         if isinstance(observation, dict):
             raise ValueError("TileQPolicy needs a flat Box observation, got a dict")
+        if isinstance(observation, tuple):
+            # SB3's own predict, whose checks catch a Gymnasium (obs, info) pair passed for a VecEnv observation;
+            # any other tuple is an observation and comes back through _predict.
+            return super().predict(observation, state, episode_start, deterministic)
         batch, vectorized = self._as_batch(observation)
         actions = self.to_env_actions(self.flat_greedy_actions(batch))
         actions = actions.reshape((-1, *self.action_space.shape))

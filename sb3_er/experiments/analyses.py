@@ -9,13 +9,12 @@ Each analysis module has a ``reproduce_<name>(...)`` function that returns a
 from __future__ import annotations
 
 import importlib
-import json
 import os
 from pathlib import Path
 from typing import Any
 
 from sb3_er.experiments import records
-from sb3_er.experiments.runner import BACKENDS, RunJob, run_jobs
+from sb3_er.experiments.runner import BACKENDS, RunJob, run_jobs, split_finished
 
 COMMANDS = {
     "replay-order": "sb3_er.experiments.replay_order:reproduce_replay_order",
@@ -47,20 +46,10 @@ def check_request(n_seeds: int, budget: float, unit: str, backend: str, address:
         raise ValueError(f"an address ({address!r}) is for the Ray backend only; add --backend ray")
 
 
-def pin_settings(out_dir: Path, settings: dict[str, Any]) -> None:
-    """Write `settings` to ``out_dir/settings.json``, or refuse (ValueError) when the folder holds runs of others."""
-    settings = records.normalized(settings)
-    path = Path(out_dir) / "settings.json"
-    if path.is_file():
-        existing = json.loads(path.read_text())
-        if existing != settings:
-            raise ValueError(
-                f"{out_dir} holds runs made with {existing}, not {settings}; resume with the same settings or choose "
-                "another --out"
-            )
-    else:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(settings, indent=2))
+def check_settings(out_dir: Path, settings: dict[str, Any]) -> None:
+    """Refuse (ValueError) when `out_dir` holds runs made with other settings (see
+    :func:`sb3_er.experiments.records.check_settings`); the settings are written once a run has finished."""
+    records.check_settings(out_dir, settings)
 
 
 def run_analysis_jobs(
@@ -71,15 +60,26 @@ def run_analysis_jobs(
     backend: str,
     address: str | None,
     allow_mixed_versions: bool,
+    settings: dict[Path, dict[str, Any]] | None = None,
 ) -> tuple[int, int]:
-    """Run the jobs whose CSV does not exist yet and return (runs done, runs already finished).
+    """Run the jobs that have not finished and return (runs done, runs already finished). Call it holding the lock
+    of every folder the jobs write (:func:`sb3_er.experiments.files.lock_folders`).
 
-    Finished runs are first checked against the current code and configuration (MixedVersionsError naming the runs
-    and fields unless `allow_mixed_versions`, see :mod:`sb3_er.experiments.records`). Failed runs raise RunFailure
+    Finished runs are those whose record matches their files; damaged ones are moved aside and done again (see
+    :func:`sb3_er.experiments.runner.split_finished`). Finished runs are first checked against the current code and
+    configuration (MixedVersionsError naming the runs and fields unless `allow_mixed_versions`, see
+    :mod:`sb3_er.experiments.records`). `settings` maps results folders (a run's folder holds ``runs/``) to the
+    settings their ``settings.json`` pins, written once a run of the folder has finished. Failed runs raise RunFailure
     after the others are written.
     """
-    finished = [job for job in jobs if job.csv_path.is_file()]
-    to_run = [job for job in jobs if not job.csv_path.is_file()]
+    settings = {Path(folder): pinned for folder, pinned in (settings or {}).items()}
+
+    def pin(job: RunJob) -> None:
+        folder = job.csv_path.parents[2]  # <folder>/runs/<algo or label>/seed_<n>.csv
+        if folder in settings:
+            records.pin_settings(folder, settings[folder])
+
+    to_run, finished = split_finished(jobs)
     if finished:
         code = records.code_version()
         records.check_versions(
@@ -88,10 +88,12 @@ def run_analysis_jobs(
             allow_mixed_versions,
             f"{out_dir} holds finished runs that",
         )
+        for job in finished:
+            pin(job)
     if backend == "local":
         n_workers = n_workers or os.cpu_count() or 1
     run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
-             allow_mixed_versions=allow_mixed_versions)
+             allow_mixed_versions=allow_mixed_versions, on_written=pin)
     return len(to_run), len(finished)
 
 

@@ -34,15 +34,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from sb3_er.experiments import files
 from sb3_er.experiments.analyses import (
     check_request,
+    check_settings,
     code_line,
-    pin_settings,
     run_analysis_jobs,
 )
 from sb3_er.experiments.metrics import mean_confidence_interval
 from sb3_er.experiments.protocols import EpisodeReturnProtocol
-from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, run_csv_path
+from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
 from sb3_er.experiments.summary import _format_number, _format_with_ci
 
@@ -349,6 +350,7 @@ def measured_table_markdown(problem: Problem, table: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+@files.holds_folder_locks
 def reproduce_framework(
     n_seeds: int = 20,
     out_dir: str | Path | None = None,
@@ -389,15 +391,16 @@ def reproduce_framework(
     if budget is not None and int(budget) != budget:
         raise ValueError(f"the run length is a whole number of episodes, got {budget}")
     out_dir = Path(out_dir if out_dir is not None else Path("results") / "framework")
-    for name in problems:
-        problem = PROBLEMS[name]
-        pin_settings(out_dir / name, {"experiment": f"framework-{name}", "env_id": problem.env_id,
-                                      "budget": float(problem.episodes if budget is None else budget),
-                                      "level": problem.level, "window": WINDOW})
+    settings = {out_dir / name: {"experiment": f"framework-{name}", "env_id": PROBLEMS[name].env_id,
+                                 "budget": float(PROBLEMS[name].episodes if budget is None else budget),
+                                 "level": PROBLEMS[name].level, "window": WINDOW} for name in problems}
+    files.lock_folder(out_dir, *settings)  # one writer per folder, until this function returns
+    for folder, pinned in settings.items():
+        check_settings(folder, pinned)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = framework_jobs(out_dir, problems, methods, seeds, budget)
     done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions)
+                                      allow_mixed_versions, settings=settings)
 
     rows, sections, figures = [], [], []
     for name in problems:
@@ -405,7 +408,7 @@ def reproduce_framework(
         episodes = int(problem.episodes if budget is None else budget)
         table_rows, curves = [], {}
         for method in methods:
-            frames = {seed: pd.read_csv(run_csv_path(out_dir / name, method, seed)) for seed in seeds
+            frames = {seed: read_run_csv(run_csv_path(out_dir / name, method, seed)) for seed in seeds
                       if run_csv_path(out_dir / name, method, seed).is_file()}
             summary = {"problem": name, "method": method, **summarize_runs(frames, problem.level)}
             table_rows.append(summary)
@@ -424,8 +427,7 @@ def reproduce_framework(
                      "run"), "",
                      measured_table_markdown(problem, pd.DataFrame(table_rows)), ""]
     table = pd.DataFrame(rows)
-    table_csv = out_dir / "summary.csv"
-    table.to_csv(table_csv, index=False)
+    table_csv = files.write_csv(out_dir / "summary.csv", table)
     text = [
         f"# The framework of sample re-use (thesis Table 3.1), measured: {_count(n_seeds, 'seed')}",
         "",
@@ -444,7 +446,6 @@ def reproduce_framework(
         *sections,
         code_line(jobs),
     ]
-    table_markdown = out_dir / "summary.md"
-    table_markdown.write_text("\n".join(text) + "\n")
+    table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(text) + "\n")
     return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=figures,
                         runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)

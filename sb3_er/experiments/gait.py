@@ -21,6 +21,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from sb3_er.experiments import files
 from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT
 
 
@@ -134,7 +135,7 @@ def plot_gait(traces: Mapping[str, GaitTrace], path: str | Path, title: str | No
     axes[0].legend(fontsize="small")
     axes[0].set_title(title or "Simplest walker: greedy gait")
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    files.save_figure(figure, path, dpi=120)
     plt.close(figure)
     return path
 
@@ -169,5 +170,6 @@ def save_walker_gif(
     frames: list[np.ndarray] = []
     _greedy_walk(model, env, seconds, start_state, seed, lambda info, terminated: frames.append(env.render()))
     path = Path(path)
-    imageio.mimsave(path, frames, duration=1000.0 / fps, loop=0)
+    with files.atomic_output(path) as temporary:
+        imageio.mimsave(temporary, frames, duration=1000.0 / fps, loop=0)
     return path

@@ -5,6 +5,7 @@ imports the other for it."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -61,6 +62,35 @@ def accepted_parameters(algorithm_class: type) -> set[str]:
     return names
 
 
+RUNNER_ARGUMENTS = {
+    "self": "a method's own object",
+    "policy": "the runner passes the policy, 'TileQ'",
+    "env": "the runner makes each run's env (give its arguments with --env-kwargs)",
+    "seed": "the runner passes each run's seed (choose them with --seeds and --first-seed)",
+    "_init_setup_model": "the runner needs the model set up",
+    "tensorboard_log": "the runner's workers keep no logs; train with `sb3-er train` for TensorBoard",
+    "verbose": "the runner's workers report through the progress bar",
+}
+"""Constructor arguments that the runner sets itself (or that are no setting of a run), with why: ``--algo-kwargs``
+refuses them (:func:`check_algo_kwargs`)."""
+
+
+def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, Any], who: str | None = None) -> None:
+    """ValueError naming the problem when `algo_kwargs` sets an argument the runner sets itself (RUNNER_ARGUMENTS)
+    or one that none of `algorithm_classes` has; `who` names the one algorithm in the message (default: "no chosen
+    algorithm")."""
+    reserved = [name for name in algo_kwargs if name in RUNNER_ARGUMENTS]
+    if reserved:
+        raise ValueError("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}"
+                                                                 for name in reserved))
+    accepted = set().union(*(accepted_parameters(cls) for cls in algorithm_classes)) - set(RUNNER_ARGUMENTS)
+    unknown = sorted(set(algo_kwargs) - accepted)
+    if unknown:
+        if who is None:
+            raise ValueError(f"no chosen algorithm has the parameters {unknown}; they take {sorted(accepted)}")
+        raise ValueError(f"{who} has no parameters {unknown}; it takes {sorted(accepted)}")
+
+
 def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
     where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
@@ -68,7 +98,7 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
 
     kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
     accepted = accepted_parameters(algorithm_classes()[job.algo])
-    kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted})
+    kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS})
     return kwargs
 
 

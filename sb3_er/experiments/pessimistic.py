@@ -28,7 +28,6 @@ show the maps (Figure 5.5); the table gives the positive cells per variant over 
 
 from __future__ import annotations
 
-import io
 import math
 import tempfile
 import time
@@ -37,9 +36,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_er.experiments.analyses import check_request, code_line, env_reading, pin_settings, run_analysis_jobs
+from sb3_er.experiments import files
+from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
-from sb3_er.experiments.runner import RunJob, TaskOutput, artifact_path, run_csv_path
+from sb3_er.experiments.runner import RunJob, TaskOutput, artifact_path, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import ANALYSES, Analysis
 
 RUN_FOLDER = "pessimistic"
@@ -124,9 +124,7 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
                 report((case_index * len(VARIANTS) + variant_index + 1) / steps)
     artifacts = {}
     if map_rows:
-        buffer = io.StringIO()
-        pd.DataFrame(map_rows).to_csv(buffer, index=False)
-        artifacts[MAPS_ARTIFACT] = buffer.getvalue().encode()
+        artifacts[MAPS_ARTIFACT] = files.csv_bytes(pd.DataFrame(map_rows))
     return TaskOutput(pd.DataFrame(rows), collector, artifacts)
 
 
@@ -210,6 +208,7 @@ def _verdict(table: pd.DataFrame, largest_value: float) -> str:
     return "Ours, pessimistic ER against ER-σ: " + "; ".join(parts) + "." if parts else ""
 
 
+@files.holds_folder_locks
 def reproduce_pessimistic(
     n_seeds: int = 20,
     out_dir: str | Path | None = None,
@@ -252,26 +251,27 @@ def reproduce_pessimistic(
     experiment = base.with_settings(initial_value=initial_value)
     env_kwargs = dict(env_kwargs or {})
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    pin_settings(out_dir, {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
-                           "initial_value": initial_value, "env_kwargs": env_kwargs})
+    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
+                "initial_value": initial_value, "env_kwargs": env_kwargs}
+    files.lock_folder(out_dir)  # one writer per folder, until this function returns
+    check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = [RunJob(experiment, "er", seed, budget, run_csv_path(out_dir, RUN_FOLDER, seed),
                    tuple(sorted(env_kwargs.items())), figure_run=seed == first_seed, label=RUN_FOLDER)
             for seed in seeds]
     done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions)
+                                      allow_mixed_versions, settings={out_dir: settings})
 
     phases = int(budget)
-    frames = {job.seed: pd.read_csv(job.csv_path) for job in jobs if job.csv_path.is_file()}
+    frames = {job.seed: read_run_csv(job.csv_path) for job in jobs if job.csv_path.is_file()}
     table = pessimistic_table(frames, phases, initial_value)
-    table_csv = out_dir / "summary.csv"
-    table.to_csv(table_csv, index=False)
+    table_csv = files.write_csv(out_dir / "summary.csv", table)
     figures = []
     maps_csv = artifact_path(jobs[0].csv_path, MAPS_ARTIFACT)
     grid = gym.make(experiment.env_id, **env_kwargs).unwrapped
     first_windy_row, largest_value = grid.first_windy_row, max(grid.goal_reward, 0.0)
     if maps_csv.is_file():
-        maps = pd.read_csv(maps_csv)
+        maps = read_run_csv(maps_csv)
         for situation, phase in (("after_goal", 1), ("long_replay", phases)):
             cases = {}
             for case in dict.fromkeys(maps["case"]):
@@ -312,8 +312,7 @@ def reproduce_pessimistic(
         "",
         code_line(jobs),
     ]
-    table_markdown = out_dir / "summary.md"
-    table_markdown.write_text("\n".join(sections) + "\n")
+    table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
     return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=figures,
                         runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
 
@@ -342,6 +341,6 @@ def _plot_positive_cells(frames: dict[int, pd.DataFrame], initial_value: float, 
     figure.suptitle(f"Windy cliff: spread of the goal's reward on the same data and replays "
                     f"(pessimistic Q₀ = {initial_value:g}), mean of {len(frames)} seeds, 95% CI", fontsize="medium")
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    files.save_figure(figure, path, dpi=120)
     plt.close(figure)
     return path

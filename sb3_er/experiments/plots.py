@@ -12,6 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from sb3_er.experiments import files  # noqa: E402
 from sb3_er.experiments.metrics import mean_confidence_interval  # noqa: E402
 from sb3_er.experiments.thesis import ALGORITHM_LABELS  # noqa: E402
 
@@ -32,7 +33,7 @@ def plot_mean_with_ci(
     axes.grid(alpha=0.3)
     axes.legend(fontsize="small")
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    files.save_figure(figure, path, dpi=120)
     plt.close(figure)
     return path
 
@@ -51,7 +52,7 @@ def plot_typical_runs(
     axes.grid(alpha=0.3)
     axes.legend(fontsize="small")
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    files.save_figure(figure, path, dpi=120)
     plt.close(figure)
     return path
 
@@ -85,7 +86,7 @@ def plot_value_maps(
             axes_cell.set_yticks([])
             axes_cell.set_title(f"{ALGORITHM_LABELS.get(algo, algo)}, {case}", fontsize="small")
     figure.suptitle(title)
-    figure.savefig(path, dpi=120, bbox_inches="tight")
+    files.save_figure(figure, path, dpi=120, bbox_inches="tight")
     plt.close(figure)
     return path
 
@@ -121,7 +122,7 @@ def plot_mean_with_error_bars(
     axes.grid(alpha=0.3)
     axes.legend(fontsize="small")
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    files.save_figure(figure, path, dpi=120)
     plt.close(figure)
     return path
 
@@ -144,6 +145,6 @@ def plot_scores(scores: Mapping[str, np.ndarray], y_label: str, title: str, path
     axes.set_title(title, fontsize="medium")
     axes.grid(alpha=0.3, axis="y")
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    files.save_figure(figure, path, dpi=120)
     plt.close(figure)
     return path

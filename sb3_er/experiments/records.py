@@ -18,7 +18,13 @@ made where the run ran (a worker process or a Ray worker on another machine) and
   hierarchy within sb3_er read back from the model (e.g. ``policy_kwargs`` with the env's tiling filled in) and the
   environment's constructor arguments with their defaults;
 - ``dependencies`` (versions of the numerical libraries) and ``python``; ``host``, ``finished_at`` (UTC, ISO 8601) and
-  ``wall_time_s`` (seconds from the run's start to its end).
+  ``wall_time_s`` (seconds from the run's start to its end);
+- ``format`` (RECORD_FORMAT), ``files`` and ``checksum``, added by the driver when it writes the record after the run's
+  files (:func:`sealed`): each file's name with its SHA-256 and, for the CSV, its row count, and a SHA-256 of all the
+  record's other fields. :func:`check_sealed` tells whether a record still matches its files. A field added to the
+  record later (by the run or the driver) is covered by the checksum without further change. Records of format 1
+  predate the checksums; the runner checks their CSVs (:func:`check_legacy_csv`) and seals them once
+  (``upgraded_from_format``).
 
 :func:`compare_records` decides what a resume may mix. A missing record, a different ``sb3_er_version``,
 ``code_sha256`` or any ``config`` field refuses. Runs of different commits with identical code (a commit that touched
@@ -35,6 +41,7 @@ import functools
 import hashlib
 import importlib.metadata
 import inspect
+import io
 import json
 import os
 import platform
@@ -44,7 +51,11 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-RECORD_FORMAT = 1
+from sb3_er.experiments import files
+
+# 2: the record is written after the run's files and holds their checksums (`files`) and its own (`checksum`).
+RECORD_FORMAT = 2
+CHECKSUM_FIELD = "checksum"
 # The directory that holds the sb3_er package: a checkout's top level, or site-packages for an installed wheel.
 PACKAGE_ROOT = Path(__file__).resolve().parents[2]
 DEPENDENCIES = ("stable-baselines3", "gymnasium", "numpy", "numba", "torch", "mujoco", "dm-control")
@@ -275,25 +286,148 @@ def record_path(csv_path: str | Path) -> Path:
 
 
 def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
-    """Write `data` as indented JSON to `path` through a ``.partial`` file and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".partial")
-    partial.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    os.replace(partial, path)
+    """Write `data` as indented JSON to `path` atomically (see :func:`sb3_er.experiments.files.write_json`)."""
+    files.write_json(path, data)
+
+
+RECORD_REMEDY = ("rerun the command: it moves the run's files aside (renamed, kept) and runs it again; or delete the "
+                 "run's .csv and .json files")
 
 
 def read_record(csv_path: str | Path) -> dict[str, Any] | None:
-    """The record beside `csv_path`, or None when there is none. A file that is not a JSON object raises ValueError."""
+    """The record beside `csv_path`, or None when there is none. An empty file, a file that is not JSON or not a JSON
+    object raises DamagedFileError (a ValueError) naming the file and what to do."""
     path = record_path(csv_path)
     if not path.is_file():
         return None
-    try:
-        record = json.loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{path} is not valid JSON ({error}); delete it and its CSV to rerun the run") from error
+    record = files.read_json(path, RECORD_REMEDY)
     if not isinstance(record, dict):
-        raise ValueError(f"{path} holds no version record (a JSON object); delete it and its CSV to rerun the run")
+        raise files.DamagedFileError(f"{path} holds no version record (a JSON object); {RECORD_REMEDY}")
     return record
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def record_checksum(record: dict[str, Any]) -> str:
+    """SHA-256 of every field of `record` but ``checksum`` itself, as key-sorted compact JSON: a field added to the
+    record (by the run, the driver or a later version) is covered without any change here."""
+    content = {key: value for key, value in record.items() if key != CHECKSUM_FIELD}
+    return _sha256(json.dumps(content, sort_keys=True, separators=(",", ":")).encode())
+
+
+def csv_rows(data: bytes) -> int:
+    """The number of data rows of CSV text `data` (lines after the header; a quoted field may span lines)."""
+    import csv
+
+    return max(0, sum(1 for _ in csv.reader(io.StringIO(data.decode(errors="replace")))) - 1)
+
+
+def sealed(record: dict[str, Any], csv_name: str, csv_data: bytes, artifacts: dict[str, bytes] | None = None,
+           **fields: Any) -> dict[str, Any]:
+    """`record` ready to be written after its files: ``format`` set to RECORD_FORMAT, ``files`` holding each file's
+    name (beside the record) with its SHA-256 and, for the run's CSV `csv_name`, its row count; `fields` added; and
+    ``checksum`` (see :func:`record_checksum`) over all of it. `artifacts` maps file names to their contents."""
+    record = {key: value for key, value in normalized(record).items() if key != CHECKSUM_FIELD}
+    record.update(normalized(fields))
+    record["format"] = RECORD_FORMAT
+    record["files"] = {csv_name: {"rows": csv_rows(csv_data), "sha256": _sha256(csv_data)},
+                       **{name: {"sha256": _sha256(content)} for name, content in (artifacts or {}).items()}}
+    record[CHECKSUM_FIELD] = record_checksum(record)
+    return record
+
+
+def check_sealed(record: dict[str, Any], csv_path: Path) -> str | None:
+    """What is wrong with a sealed run (its record and the files it names, see :func:`sealed`), or None when the
+    record's checksum matches its content and every file its checksum and row count."""
+    if record.get(CHECKSUM_FIELD) != record_checksum(record):
+        return f"{record_path(csv_path)}: the record's checksum does not match its content (edited or damaged)"
+    named = record.get("files")
+    if not isinstance(named, dict) or csv_path.name not in named:
+        return f"{record_path(csv_path)}: the record names no checksum of {csv_path.name}"
+    for name, expected in named.items():
+        path = csv_path.with_name(name)
+        if not path.is_file():
+            return f"{path} is missing (its record names it)"
+        data = path.read_bytes()
+        if "rows" in expected and csv_rows(data) != expected["rows"]:
+            return f"{path} has {csv_rows(data)} rows, its record says {expected['rows']} (cut short or damaged)"
+        if _sha256(data) != expected.get("sha256"):
+            return f"{path}: the checksum differs from its record's (changed or damaged since the run was written)"
+    return None
+
+
+def check_legacy_csv(csv_path: Path, expected_rows: int | None) -> str | None:
+    """What is wrong with the CSV of a run whose record predates checksums, or None: it must be well-formed CSV
+    (a header, every line as many fields as the header, ending in a newline) with `expected_rows` rows, the length
+    the protocol gives the run (when `expected_rows` is known), or fewer only when its ``diverged`` column says so."""
+    import csv
+
+    data = csv_path.read_bytes()
+    if not data.strip():
+        return f"{csv_path} is empty"
+    lines = list(csv.reader(io.StringIO(data.decode(errors="replace"))))
+    width = len(lines[0])
+    if not data.endswith(b"\n") or any(len(line) != width for line in lines[1:]):
+        return f"{csv_path} is cut short (its last row is incomplete)"
+    rows = len(lines) - 1
+    if expected_rows is None or rows == expected_rows:
+        return None if rows else f"{csv_path} has no rows"
+    header = lines[0]
+    diverged = "diverged" in header and rows and all(line[header.index("diverged")] == "True" for line in lines[1:])
+    if rows < expected_rows and diverged:
+        return None  # a diverged run stops early
+    return f"{csv_path} has {rows} rows, its run has {expected_rows} (cut short or damaged)"
+
+
+SETTINGS_NAME = "settings.json"
+
+
+def holds_runs(out_dir: str | Path) -> bool:
+    """Whether results folder `out_dir` holds the CSV of any run (``runs/**/seed_<n>.csv``)."""
+    return any(path.is_file() for path in (Path(out_dir) / "runs").rglob("seed_*.csv"))
+
+
+def check_settings(out_dir: str | Path, settings: dict[str, Any]) -> None:
+    """Refuse (ValueError) to run `settings` in `out_dir` when its ``settings.json`` pins others and it holds runs.
+
+    The settings are pinned by :func:`pin_settings` once a run has finished; a folder whose settings file pins other
+    settings but holds no run (left by a command whose runs all failed) is not refused: its settings are replaced
+    when the first run finishes. An empty or unreadable settings file is moved aside (renamed, kept) with a warning
+    naming it and is pinned anew: the runs' records hold their settings too and are checked on their own.
+    """
+    import warnings
+
+    path = Path(out_dir) / SETTINGS_NAME
+    if not path.is_file():
+        return
+    try:
+        existing = files.read_json(path, "it is moved aside and written anew")
+    except files.DamagedFileError as error:
+        moved = files.move_aside(path)
+        warnings.warn(f"{error}: moved aside as {moved}; the runs' own records are checked instead",
+                      files.DamagedFileWarning, stacklevel=3)
+        return
+    wanted = normalized(settings)
+    if existing != wanted and holds_runs(out_dir):
+        raise ValueError(
+            f"{out_dir} holds runs made with {existing}, not {wanted}; resume with the same settings or choose "
+            "another --out"
+        )
+
+
+def pin_settings(out_dir: str | Path, settings: dict[str, Any]) -> None:
+    """Write `settings` to ``out_dir/settings.json`` (atomically) unless it holds them already. Call it once a run of
+    `out_dir` has finished (see :func:`check_settings`)."""
+    path = Path(out_dir) / SETTINGS_NAME
+    wanted = normalized(settings)
+    try:
+        if path.is_file() and files.read_json(path, "") == wanted:
+            return
+    except files.DamagedFileError:
+        pass
+    files.write_json(path, wanted)
 
 
 def _leaves(value: Any, prefix: str) -> dict[str, Any]:

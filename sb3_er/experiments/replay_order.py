@@ -39,9 +39,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_er.experiments.analyses import check_request, code_line, env_reading, pin_settings, run_analysis_jobs
+from sb3_er.experiments import files
+from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
-from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, run_csv_path
+from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import ANALYSES, Analysis
 
 ORDERS = ("reversed", "forward", "uniform")
@@ -275,6 +276,7 @@ def _check_orders_saw_one_database(frames: dict[int, pd.DataFrame]) -> list[int]
             or frame["weights_at_start_sha256"].nunique(dropna=False) > 1]
 
 
+@files.holds_folder_locks
 def reproduce_replay_order(
     n_seeds: int = 20,
     out_dir: str | Path | None = None,
@@ -314,19 +316,20 @@ def reproduce_replay_order(
     experiment = base.with_settings(database_episodes=database_episodes, eval_every=eval_every)
     env_kwargs = dict(env_kwargs or {})
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    pin_settings(out_dir, {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
-                           "database_episodes": database_episodes, "eval_every": eval_every, "env_kwargs": env_kwargs})
+    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
+                "database_episodes": database_episodes, "eval_every": eval_every, "env_kwargs": env_kwargs}
+    files.lock_folder(out_dir)  # one writer per folder, until this function returns
+    check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = [RunJob(experiment, "er", seed, budget, run_csv_path(out_dir, RUN_FOLDER, seed),
                    tuple(sorted(env_kwargs.items())), tuple(sorted(COLLECTOR_KWARGS.items())), label=RUN_FOLDER)
             for seed in seeds]
     done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions)
+                                      allow_mixed_versions, settings={out_dir: settings})
 
-    frames = {job.seed: pd.read_csv(job.csv_path) for job in jobs if job.csv_path.is_file()}
+    frames = {job.seed: read_run_csv(job.csv_path) for job in jobs if job.csv_path.is_file()}
     table = replay_order_table(frames)
-    table_csv = out_dir / "summary.csv"
-    table.to_csv(table_csv, index=False)
+    table_csv = files.write_csv(out_dir / "summary.csv", table)
     data = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
     series = {}
     for order in ORDERS:
@@ -372,7 +375,6 @@ def reproduce_replay_order(
         "",
         code_line(jobs),
     ]
-    table_markdown = out_dir / "summary.md"
-    table_markdown.write_text("\n".join(sections) + "\n")
+    table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
     return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=[figure],
                         runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sb3_er.experiments import records
-from sb3_er.experiments.runner import BACKENDS, RunJob, plan_jobs, run_jobs
+from sb3_er.experiments import files, records
+from sb3_er.experiments.runner import BACKENDS, RunJob, plan_jobs, read_run_csv, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
 from sb3_er.experiments.summary import load_curves, markdown_table, summary_table
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
@@ -53,23 +52,12 @@ def _checked_algorithms(algos: Sequence[str]) -> list[str]:
     return list(dict.fromkeys(algos))
 
 
-def _pin_settings(out_dir: Path, experiment: Experiment, budget: float, env_kwargs: dict, algo_kwargs: dict) -> None:
-    """Record the experiment, run length and reading of `out_dir`; refuse to mix runs of different settings in one
-    folder."""
-    settings_path = out_dir / "settings.json"
+def _settings(experiment: Experiment, budget: float, env_kwargs: dict, algo_kwargs: dict) -> dict:
+    """What ``settings.json`` pins for a reproduction: the experiment, run length and reading."""
     settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget}
     if env_kwargs or algo_kwargs:
         settings.update(env_kwargs=records.normalized(env_kwargs), algo_kwargs=records.normalized(algo_kwargs))
-    if settings_path.is_file():
-        existing = json.loads(settings_path.read_text())
-        if existing != settings:
-            raise ValueError(
-                f"{out_dir} holds runs made with {existing}, not {settings}; resume with the same settings or choose "
-                "another --out"
-            )
-    else:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        settings_path.write_text(json.dumps(settings, indent=2))
+    return settings
 
 
 def _check_finished_runs(finished: list[RunJob], out_dir: Path, allow_mixed_versions: bool) -> None:
@@ -93,6 +81,7 @@ def _code_versions_line(out_dir: Path, algos: Sequence[str], seeds: Sequence[int
     return records.code_versions_line([records.read_record(path) for path in paths if path.is_file()])
 
 
+@files.holds_folder_locks
 def reproduce(
     experiment_name: str,
     n_seeds: int = 20,
@@ -118,7 +107,12 @@ def reproduce(
 
     `env_kwargs` and `algo_kwargs` run a reading other than the defaults: keyword arguments of ``gymnasium.make`` for
     the learning and evaluation envs, and constructor arguments that override the zoo config of every algorithm that
-    has them (a name that no chosen algorithm accepts is a ValueError). The table's heading names them.
+    has them (a name that no chosen algorithm accepts is a ValueError, and so is a name the runner sets itself, such
+    as ``seed``). The table's heading names them.
+
+    One command writes a folder at a time: a second one raises FolderLockedError naming the holder and changes
+    nothing. A finished run whose files do not match its record is moved aside and done again (DamagedRunWarning).
+    ``settings.json`` is written once a run has finished.
 
     :param experiment_name: "gridworld", "pendulum", "walker" or "leo".
     :param n_seeds: seeds per algorithm (default 20, the thesis's).
@@ -153,21 +147,24 @@ def reproduce(
     env_kwargs, algo_kwargs = dict(env_kwargs or {}), dict(algo_kwargs or {})
     _check_algo_kwargs(algos, algo_kwargs)
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    _pin_settings(out_dir, experiment, budget, env_kwargs, algo_kwargs)
+    files.lock_folder(out_dir)  # one writer per folder, until this function returns
+    settings = _settings(experiment, budget, env_kwargs, algo_kwargs)
+    records.check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
 
     to_run, finished = plan_jobs(experiment, algos, seeds, budget, out_dir, env_kwargs, algo_kwargs)
     _check_finished_runs(finished, out_dir, allow_mixed_versions)
+    if finished:
+        records.pin_settings(out_dir, settings)
     if backend == "local":
         n_workers = n_workers or os.cpu_count() or 1
     run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
-             allow_mixed_versions=allow_mixed_versions)
+             allow_mixed_versions=allow_mixed_versions, on_written=lambda job: records.pin_settings(out_dir, settings))
 
     curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
     table = summary_table(experiment, curves, budget)
     plotted = {algo: curve for algo, curve in curves.items() if curve.seeds}
-    table_csv = out_dir / "summary.csv"
-    table.to_csv(table_csv, index=False)
+    table_csv = files.write_csv(out_dir / "summary.csv", table)
 
     figures = [
         plot_mean_with_ci(
@@ -207,8 +204,7 @@ def reproduce(
         value_figures, value_section = _gridworld_value_maps(out_dir, first_seed)
         figures += value_figures
         sections += ["", value_section]
-    table_markdown = out_dir / "summary.md"
-    table_markdown.write_text("\n".join(sections) + "\n")
+    table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
     return Reproduction(
         out_dir=out_dir,
         table_markdown=table_markdown,
@@ -221,23 +217,16 @@ def reproduce(
 
 
 def _check_algo_kwargs(algos: Sequence[str], algo_kwargs: dict) -> None:
-    from sb3_er.experiments.runner import accepted_parameters
+    from sb3_er.experiments.runner import check_algo_kwargs
     from sb3_er.zoo import algorithm_classes
 
-    accepted = set().union(*(accepted_parameters(algorithm_classes()[algo]) for algo in algos))
-    unknown = sorted(set(algo_kwargs) - accepted)
-    if unknown:
-        raise ValueError(f"no chosen algorithm has the parameters {unknown}; they take {sorted(accepted)}")
+    check_algo_kwargs([algorithm_classes()[algo] for algo in algos], algo_kwargs)
 
 
 def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: int) -> list[Path]:
     """Figure 4.5 (one seed's learning curve per algorithm, for the walking experiments) and, for the walker, each
     algorithm's learned gait (Figures 4.6 / 6.3, ``gait_<algo>.png``) and animation (``walker_<algo>.gif``) from the
     first seed's final greedy policy."""
-    import shutil
-
-    import pandas as pd
-
     from sb3_er.experiments.gait import GaitTrace, plot_gait
     from sb3_er.experiments.plots import plot_typical_runs
     from sb3_er.experiments.runner import artifact_path, run_csv_path
@@ -247,7 +236,7 @@ def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: 
         runs = {}
         for algo, curve in curves.items():
             if curve is not None and seed in curve.seeds:
-                frame = pd.read_csv(run_csv_path(out_dir, algo, seed))
+                frame = read_run_csv(run_csv_path(out_dir, algo, seed))
                 runs[ALGORITHM_LABELS[algo]] = (frame[experiment.x_column].to_numpy(),
                                                 frame[experiment.performance_column].to_numpy())
         if runs:
@@ -258,13 +247,13 @@ def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: 
         csv_path = run_csv_path(out_dir, algo, seed)
         gait_csv, gif = artifact_path(csv_path, "gait.csv"), artifact_path(csv_path, "walker.gif")
         if gait_csv.is_file():
-            table = pd.read_csv(gait_csv)
+            table = read_run_csv(gait_csv)
             trace = GaitTrace(table["time"].to_numpy(), table["stance_angle"].to_numpy(), table["hip_angle"].to_numpy(),
                               table["swing_foot_height"].to_numpy(), bool(table["fell"].iloc[-1]), 0.0)
             figures.append(plot_gait({ALGORITHM_LABELS[algo]: trace}, out_dir / f"gait_{algo}.png",
                                      f"{experiment.title}: greedy gait after learning, {ALGORITHM_LABELS[algo]}"))
         if gif.is_file():
-            figures.append(Path(shutil.copyfile(gif, out_dir / f"walker_{algo}.gif")))
+            figures.append(files.write_atomically(out_dir / f"walker_{algo}.gif", gif.read_bytes()))
     return figures
 
 
@@ -277,7 +266,7 @@ def _gridworld_value_maps(out_dir: Path, seed: int) -> tuple[list[Path], str]:
     from sb3_er.experiments.plots import plot_value_maps
 
     maps, statistics = same_data_value_maps(seed)
-    statistics.to_csv(out_dir / "value_maps.csv", index=False)
+    files.write_csv(out_dir / "value_maps.csv", statistics)
     first_windy_row = gym.make(ENV_ID).unwrapped.first_windy_row
     figures = [
         plot_value_maps(

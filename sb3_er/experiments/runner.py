@@ -2,14 +2,18 @@
 
 One function, :func:`execute_run`, does a run's work on either backend and returns its result as data (the protocol's
 records and the run's version record); the driver, the process that called :func:`run_jobs`, writes each result as it
-arrives with :func:`write_run`: ``<out>/runs/<algo>/seed_<seed>.json`` (the version record, see
-:mod:`sb3_er.experiments.records`), then ``seed_<seed>.csv``, each atomically. A run whose CSV exists is finished, so an
-interrupted reproduction resumes where it stopped, and Ray workers need no shared file system.
+arrives with :func:`write_run`: the run's artifacts, ``<out>/runs/<algo>/seed_<seed>.csv``, then ``seed_<seed>.json``
+(the version record, see :mod:`sb3_er.experiments.records`, with the checksums of the files before it), each atomically
+(:mod:`sb3_er.experiments.files`). A run whose record matches its files is finished (:func:`check_run`), so an
+interrupted reproduction resumes where it stopped, a damaged run is moved aside and done again
+(:func:`split_finished`), and Ray workers need no shared file system.
 
-Backends: ``"local"`` runs the jobs in this process (one worker) or in spawned worker processes with one BLAS/OpenMP
-thread each, so that N workers use N cores; ``"ray"`` runs each job as a Ray task with one CPU, on a local Ray instance
-that the driver starts (and stops) or on an existing cluster (``address="auto"`` or ``"HOST:PORT"``). Ray's usage
-statistics are switched off for the driver, the instance it starts and the workers.
+Backends: ``"local"`` runs the jobs in this process (one worker) or in spawned worker processes of the driver's own
+(one job each at a time, one BLAS/OpenMP thread each, so that N workers use N cores; a worker that dies costs only its
+own run, which is started again once); ``"ray"`` runs each job as a Ray task with one CPU, on a local Ray instance
+that the driver starts (and stops) or on an existing cluster (``address="auto"`` or ``"HOST:PORT"``). Every process the
+driver starts ends with it, however the driver ends (:mod:`sb3_er.experiments.lifetime`). Ray's usage statistics are
+switched off for the driver, the instance it starts and the workers.
 
 The thesis's analyses (:data:`~sb3_er.experiments.specs.ANALYSES`) use the same machinery: the sigma study's runs are
 walker runs told apart by their ``label``, and the runs of an :class:`~sb3_er.experiments.specs.Analysis` are done by
@@ -25,7 +29,6 @@ import re
 import time
 import traceback
 import warnings
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,9 +36,16 @@ from typing import Any
 import pandas as pd
 from tqdm.auto import tqdm
 
-from sb3_er.experiments import records
-# The job and its derived settings and paths live in jobs.py (records.py uses them too); importable from here.
-from sb3_er.experiments.jobs import RunJob, accepted_parameters, job_model_kwargs, run_csv_path  # noqa: F401
+from sb3_er.experiments import files, lifetime, records
+# The job, its settings and its paths live in jobs.py (records.py uses them too); importable from here.
+from sb3_er.experiments.jobs import (  # noqa: F401
+    RUNNER_ARGUMENTS,
+    RunJob,
+    accepted_parameters,
+    check_algo_kwargs,
+    job_model_kwargs,
+    run_csv_path,
+)
 from sb3_er.experiments.specs import Experiment
 
 BACKENDS = ("local", "ray")
@@ -211,7 +221,6 @@ def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
     gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` and an animation as ``walker.gif``."""
     if not job.experiment.env_id.endswith("SimplestWalker-v0"):
         return {}
-    import io
     import tempfile
 
     import gymnasium as gym
@@ -222,12 +231,15 @@ def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
     trace = gait_trace(model, env, seconds=GAIT_SECONDS)
     table = pd.DataFrame({"time": trace.time, "stance_angle": trace.stance_angle, "hip_angle": trace.hip_angle,
                           "swing_foot_height": trace.swing_foot_height, "fell": trace.fell})
-    buffer = io.StringIO()
-    table.to_csv(buffer, index=False)
     with tempfile.TemporaryDirectory() as folder:
         gif = save_walker_gif(model, Path(folder) / "walker.gif", seconds=GAIT_SECONDS, env=env).read_bytes()
     env.close()
-    return {"gait.csv": buffer.getvalue().encode(), "walker.gif": gif}
+    return {"gait.csv": files.csv_bytes(table), "walker.gif": gif}
+
+
+def read_run_csv(csv_path: str | Path) -> pd.DataFrame:
+    """The CSV of a run; DamagedFileError (a ValueError) naming the file and what to do when it is empty or torn."""
+    return files.read_csv(csv_path, records.RECORD_REMEDY)
 
 
 def artifact_path(csv_path: Path, suffix: str) -> Path:
@@ -236,14 +248,17 @@ def artifact_path(csv_path: Path, suffix: str) -> Path:
 
 
 def write_run(job: RunJob, result: RunResult) -> None:
-    """Write `result` to ``job.csv_path`` and its version record beside it, each atomically, the CSV last."""
+    """Write `result`: its artifacts, then its CSV ``job.csv_path``, then its version record beside it (see
+    :func:`sb3_er.experiments.records.sealed`), each atomically. The record, written last, holds the checksums and row
+    count of the files before it, so a run is finished exactly when its record matches them (:func:`check_run`)."""
     job.csv_path.parent.mkdir(parents=True, exist_ok=True)
-    for suffix, content in result.artifacts.items():
-        artifact_path(job.csv_path, suffix).write_bytes(content)
-    records.write_json_atomically(records.record_path(job.csv_path), result.record)
-    partial = job.csv_path.with_suffix(".csv.partial")
-    result.frame.to_csv(partial, index=False)
-    os.replace(partial, job.csv_path)
+    artifacts = {artifact_path(job.csv_path, suffix).name: content for suffix, content in result.artifacts.items()}
+    for name, content in artifacts.items():
+        files.write_atomically(job.csv_path.with_name(name), content)
+    csv_data = files.csv_bytes(result.frame)
+    files.write_atomically(job.csv_path, csv_data)
+    files.write_json(records.record_path(job.csv_path), records.sealed(result.record, job.csv_path.name, csv_data,
+                                                                       artifacts))
 
 
 def run_single(job: RunJob, progress_queue=None) -> float:
@@ -253,35 +268,135 @@ def run_single(job: RunJob, progress_queue=None) -> float:
     return result.wall_time_s
 
 
+def expected_rows(job: RunJob) -> int | None:
+    """The rows a finished, not diverged run of `job` has under its protocol: one per learning episode, or one per
+    evaluation (at the start, every evaluation interval and at the end) for the walking protocol; None for a task
+    (an analysis's run), whose length its task decides."""
+    experiment = job.experiment
+    if getattr(experiment, "task", ""):
+        return None
+    if experiment.protocol == "episodes":
+        return int(job.budget)
+    import gymnasium as gym
+
+    import sb3_er_envs  # noqa: F401
+
+    env = gym.make(experiment.env_id, **dict(job.env_kwargs))
+    dt = env.unwrapped.dt
+    env.close()
+    every, total = max(1, round(experiment.eval_interval / dt)), max(1, round(job.budget / dt))
+    return 1 + total // every + (1 if total % every else 0)
+
+
+class DamagedRunWarning(UserWarning):
+    """A run's files did not match its record (cut short, empty, edited, or written by a command that was stopped):
+    they were moved aside (renamed, kept) and the run is done again."""
+
+
+class RecordUpgradeWarning(UserWarning):
+    """Finished runs whose records predate checksums were checked and their records given checksums, once."""
+
+
+def run_files(csv_path: Path) -> list[Path]:
+    """The files of the run whose CSV is `csv_path`: the CSV, its record and its artifacts (``seed_<n>_*``)."""
+    artifacts = (path for path in csv_path.parent.glob(f"{csv_path.stem}_*")
+                 if path.is_file() and ".damaged-" not in path.name and files.PARTIAL_MARK not in path.name)
+    return [csv_path, records.record_path(csv_path), *sorted(artifacts)]
+
+
+def check_run(job: RunJob) -> tuple[bool, str | None]:
+    """(finished, what is wrong) for the files of `job`.
+
+    Finished: the CSV exists and its record matches it (see :func:`sb3_er.experiments.records.check_sealed`). A
+    record that predates checksums is checked as :func:`~sb3_er.experiments.records.check_legacy_csv` does, with the
+    protocol's length (:func:`expected_rows`), and, when the CSV passes, sealed with the checksums of the files as they
+    are, once (its ``upgraded_from_format`` field says so). Not finished without a problem: no CSV. Not finished with a
+    problem (a message naming the file): anything else.
+    """
+    csv_path = job.csv_path
+    if not csv_path.is_file():
+        return False, None
+    try:
+        record = records.read_record(csv_path)
+    except files.DamagedFileError as error:
+        return False, str(error).split("; ")[0]
+    if record is None:
+        return False, (f"{csv_path} has no version record (its command was stopped between writing the CSV and "
+                       "the record, or the run predates records)")
+    if records.CHECKSUM_FIELD in record:
+        problem = records.check_sealed(record, csv_path)
+        return problem is None, problem
+    problem = records.check_legacy_csv(csv_path, expected_rows(job))
+    if problem is not None:
+        return False, problem
+    artifacts = {path.name: path.read_bytes() for path in run_files(csv_path)[2:]}
+    files.write_json(records.record_path(csv_path),
+                     records.sealed(record, csv_path.name, csv_path.read_bytes(), artifacts,
+                                    upgraded_from_format=record.get("format", 1)))
+    return True, "upgraded"
+
+
+def split_finished(jobs: list[RunJob]) -> tuple[list[RunJob], list[RunJob]]:
+    """`jobs` split into (to run, finished) by :func:`check_run`. The files of a run that does not match its record
+    are moved aside (``<name>.damaged-<time>``, see :func:`sb3_er.experiments.files.move_aside`) with a
+    DamagedRunWarning naming them, and the run is to run again. Needs the folder's lock (it renames files)."""
+    to_run, finished, upgraded = [], [], []
+    for folder in dict.fromkeys(job.csv_path.parent for job in jobs):
+        files.remove_partial_files(folder)
+    for job in jobs:
+        done, problem = check_run(job)
+        if done:
+            finished.append(job)
+            if problem == "upgraded":
+                upgraded.append(job.key)
+            continue
+        to_run.append(job)
+        if problem is not None:
+            moved = [path.name for path in map(files.move_aside, run_files(job.csv_path)) if path is not None]
+            warnings.warn(f"{problem}; moved aside as {', '.join(moved)} and done again", DamagedRunWarning,
+                          stacklevel=2)
+    if upgraded:
+        warnings.warn(f"{len(upgraded)} finished runs had records without checksums ({records.compact_runs(upgraded)})"
+                      ": their CSVs were checked (well-formed, the protocol's number of rows) and their records "
+                      "given checksums", RecordUpgradeWarning, stacklevel=2)
+    return to_run, finished
+
+
 def plan_jobs(experiment: Experiment, algos, seeds, budget: float, out_dir: Path, env_kwargs=None,
               algo_kwargs=None) -> tuple[list[RunJob], list[RunJob]]:
-    """All jobs of the reproduction, split into (to run, already finished). The first seed's runs make the per-run
-    figures' data."""
+    """All jobs of the reproduction, split into (to run, already finished) by :func:`split_finished` (which moves
+    damaged runs aside). The first seed's runs make the per-run figures' data."""
     env_items = tuple(sorted((env_kwargs or {}).items()))
     algo_items = tuple(sorted((algo_kwargs or {}).items()))
     seeds = list(seeds)
     jobs = [RunJob(experiment, algo, seed, budget, run_csv_path(out_dir, algo, seed), env_items, algo_items,
                    figure_run=seed == seeds[0]) for algo in algos for seed in seeds]
-    finished = [job for job in jobs if job.csv_path.is_file()]
-    return [job for job in jobs if not job.csv_path.is_file()], finished
+    return split_finished(jobs)
 
 
 class RunFailure(RuntimeError):
     """One or more learning runs raised; the message names each run and its traceback."""
 
 
+WORKER_DEATH_RETRIES = 1
+"""How often a run whose worker process died (killed by the OOM killer or a signal) is started again, on a fresh
+worker, before it counts as failed; a run that raises is not retried (it would raise again). Both backends."""
+
+
 class _Driver:
     """The driver's side of both backends: progress bar, version checks of returned runs, writing, failures."""
 
-    def __init__(self, jobs: list[RunJob], show_progress: bool, allow_mixed_versions: bool) -> None:
+    def __init__(self, jobs: list[RunJob], show_progress: bool, allow_mixed_versions: bool, on_written=None) -> None:
         self.jobs = jobs
         self.allow_mixed_versions = allow_mixed_versions
+        self.on_written = on_written
         self.wall_times: dict[str, float] = {}
         self.failures: list[str] = []
         self.fractions = {job.key: 0.0 for job in jobs}
         self.bar = tqdm(total=len(jobs), unit="run", desc="runs", disable=not show_progress or not jobs,
                         smoothing=0.0)
         self.expected: dict[str, dict[str, Any]] = {}
+        self.reaper: lifetime.Reaper | None = None
         code = records.code_version()
         for job in jobs:
             try:
@@ -303,6 +418,10 @@ class _Driver:
     def failed(self, job: RunJob, text: str) -> None:
         self.failures.append(f"{job.key}:\n{text}")
 
+    def restarted(self, job: RunJob, why: str) -> None:
+        self.fractions[job.key] = 0.0
+        warnings.warn(f"{job.key}: {why}; the run is started again on a fresh worker", RuntimeWarning, stacklevel=2)
+
     def finished(self, job: RunJob, result: RunResult) -> None:
         """Write a returned run, unless it ran with other code or configuration than this driver expects."""
         refusals, cautions = records.compare_records(result.record, self.expected[job.key])
@@ -318,6 +437,8 @@ class _Driver:
         write_run(job, result)
         self.wall_times[job.key] = result.wall_time_s
         self.fractions[job.key] = 1.0
+        if self.on_written is not None:
+            self.on_written(job)
 
     def close(self) -> dict[str, float]:
         self.refresh()
@@ -334,6 +455,7 @@ def run_jobs(
     backend: str = "local",
     address: str | None = None,
     allow_mixed_versions: bool = False,
+    on_written=None,
 ) -> dict[str, float]:
     """Run `jobs`, write each finished one, and return each run's wall time in seconds by key.
 
@@ -342,7 +464,12 @@ def run_jobs(
     the cluster at `address` (``"auto"`` or ``"HOST:PORT"``), whose CPUs set the parallelism. When Ray is already
     initialised in this process, its instance is used as it is. A run whose version record differs from the driver's
     (e.g. a cluster node with other code) fails unless `allow_mixed_versions`. Runs that fail do not stop the others;
-    the finished ones are written and a RunFailure naming each failed run with its traceback is raised at the end.
+    the finished ones are written and a RunFailure naming each failed run with its traceback is raised at the end. A
+    run whose worker process dies is started again on a fresh worker (WORKER_DEATH_RETRIES times), the other runs go
+    on. Every process the call starts ends with it, also when the driver is killed: local workers die with their
+    parent (:func:`sb3_er.experiments.lifetime.die_with_parent`), and what a local Ray instance started is ended by a
+    :class:`~sb3_er.experiments.lifetime.Reaper`; a cluster the call did not start is never stopped.
+    `on_written(job)` is called after each run is written (e.g. to pin the folder's settings).
     Raises ValueError for a bad backend, worker count or an address without the Ray backend, and ImportError naming
     ``pip install 'sb3-er[ray]'`` when Ray is not installed.
     """
@@ -354,7 +481,7 @@ def run_jobs(
         raise ValueError(f"an address ({address!r}) is for the Ray backend only; add backend='ray' (--backend ray)")
     if address is not None and n_workers is not None:
         raise ValueError("n_workers (--jobs) sets the CPUs of a local Ray instance; a cluster at an address uses its own")
-    driver = _Driver(jobs, show_progress, allow_mixed_versions)
+    driver = _Driver(jobs, show_progress, allow_mixed_versions, on_written)
     runnable = driver.runnable
     try:
         if backend == "ray":
@@ -362,7 +489,7 @@ def run_jobs(
         elif (n_workers or os.cpu_count() or 1) == 1 or len(runnable) <= 1:
             _run_here(runnable, driver)
         else:
-            _run_on_process_pool(runnable, driver, n_workers or os.cpu_count() or 1)
+            _run_on_workers(runnable, driver, n_workers or os.cpu_count() or 1)
     except BaseException:
         driver.bar.close()  # interrupted: the runs written so far stay, a rerun resumes after them
         raise
@@ -383,29 +510,160 @@ def _run_here(jobs: list[RunJob], driver: _Driver) -> None:
         driver.refresh()
 
 
-def _run_on_process_pool(jobs: list[RunJob], driver: _Driver, n_workers: int) -> None:
+class _PipeReports:
+    """A worker's progress reports, sent over its pipe to the driver (``put`` as a queue's)."""
+
+    def __init__(self, connection) -> None:
+        self.connection = connection
+
+    def put(self, item) -> None:
+        self.connection.send(("progress", item))
+
+
+def _worker_main(connection, parent_pid: int) -> None:
+    """A local worker process: runs the jobs its driver sends over `connection`, one at a time, and sends back
+    ``("result", RunResult)`` or ``("error", traceback text)``; ends at None, at the end of the pipe, and when the
+    driver dies. Ctrl-C is the driver's to handle (it ends the workers)."""
+    import signal
+
+    lifetime.die_with_parent(parent_pid, name=WORKER_NAME)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    reports = _PipeReports(connection)
+    while True:
+        try:
+            job = connection.recv()
+        except (EOFError, OSError):
+            return
+        if job is None:
+            return
+        try:
+            message = ("result", execute_run(job, reports))
+        except Exception:  # noqa: BLE001  (sent to the driver with the run's traceback)
+            message = ("error", traceback.format_exc())
+        try:
+            connection.send(message)
+        except (OSError, EOFError):  # the driver is gone
+            return
+        except Exception:  # noqa: BLE001  (a result that does not pickle)
+            connection.send(("error", traceback.format_exc()))
+
+
+WORKER_NAME = "sb3-er-worker"
+"""The name of a local worker process (``ps -C sb3-er-worker``), set once it dies with its driver."""
+
+
+class _Worker:
+    """One local worker process, its end of the pipe and the job it runs (None when idle)."""
+
+    def __init__(self, context) -> None:
+        self.connection, child_end = context.Pipe(duplex=True)
+        self.process = context.Process(target=_worker_main, args=(child_end, os.getpid()), daemon=True,
+                                       name="sb3-er-worker")
+        self.process.start()
+        child_end.close()
+        self.job: RunJob | None = None
+
+    def assign(self, job: RunJob) -> bool:
+        """Send `job` to the worker; False when its pipe is gone (the worker died)."""
+        try:
+            self.connection.send(job)
+        except OSError:
+            return False
+        self.job = job
+        return True
+
+    def stop(self) -> None:
+        """End the worker: asked to when idle, terminated (then killed) when it still runs a job."""
+        if self.process.is_alive():
+            try:
+                self.connection.send(None)
+            except OSError:
+                pass
+        self.process.join(timeout=5 if self.job is None else 0)
+        if self.process.is_alive():
+            self.process.terminate()
+            self.process.join(timeout=5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.connection.close()
+
+
+def _run_on_workers(jobs: list[RunJob], driver: _Driver, n_workers: int) -> None:
+    """Run `jobs` on up to `n_workers` spawned worker processes of this driver, one job per worker at a time.
+
+    A worker that dies (a signal, the OOM killer) takes only its own run with it: that run is started again on a fresh
+    worker (WORKER_DEATH_RETRIES times, then it fails), the other workers go on and the jobs not yet started are
+    started. Workers die with the driver (see :func:`_worker_main`); on any exit of this function they are ended."""
+    import collections
+    from multiprocessing.connection import wait as wait_for
+
     _limit_threads_of_children()
     context = multiprocessing.get_context("spawn")
-    with context.Manager() as manager, ProcessPoolExecutor(max_workers=n_workers, mp_context=context) as pool:
-        progress_queue = manager.Queue()
-        futures: dict[Future, RunJob] = {pool.submit(execute_run, job, progress_queue): job for job in jobs}
-        pending = set(futures)
-        while pending:
-            done, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
-            for future in done:
-                job = futures[future]
-                try:
-                    result = future.result()
-                except Exception:  # noqa: BLE001
-                    driver.failed(job, traceback.format_exc())
+    pending = collections.deque(jobs)
+    deaths: dict[str, int] = {}
+    workers: list[_Worker] = []
+    try:
+        while pending or workers:
+            for worker in [worker for worker in workers if worker.job is None]:
+                if not pending:  # nothing left for it
+                    workers.remove(worker)
+                    worker.stop()
+                elif not worker.assign(pending[0]):  # it died idle: the job never started
+                    workers.remove(worker)
+                    worker.stop()
                 else:
-                    driver.finished(job, result)
-            while True:
+                    pending.popleft()
+            while pending and len(workers) < n_workers:
+                worker = _Worker(context)
+                workers.append(worker)
+                if worker.assign(pending[0]):
+                    pending.popleft()
+            wait_for([worker.connection for worker in workers] + [worker.process.sentinel for worker in workers],
+                     timeout=0.5)
+            for worker in list(workers):
+                job, messages = worker.job, []
                 try:
-                    driver.progress(*progress_queue.get_nowait())
-                except queue.Empty:
-                    break
+                    while worker.connection.poll():
+                        messages.append(worker.connection.recv())
+                except (EOFError, OSError):
+                    pass  # the worker died; its sentinel says so below
+                for kind, content in messages:
+                    if kind == "progress":
+                        driver.progress(*content)
+                        continue
+                    worker.job = None
+                    if kind == "result":
+                        driver.finished(job, content)
+                    else:
+                        driver.failed(job, content)
+                if job is not None and worker.job is not None and not worker.process.is_alive():
+                    worker.process.join()
+                    why = f"its worker process died ({_exit_description(worker.process.exitcode)})"
+                    workers.remove(worker)
+                    worker.job = None
+                    worker.stop()
+                    deaths[job.key] = deaths.get(job.key, 0) + 1
+                    if deaths[job.key] <= WORKER_DEATH_RETRIES:
+                        driver.restarted(job, why)
+                        pending.appendleft(job)
+                    else:
+                        driver.failed(job, f"{why} {deaths[job.key]} times; out of memory? (see dmesg)\n")
             driver.refresh()
+    finally:
+        for worker in workers:
+            worker.stop()
+
+
+def _exit_description(code: int | None) -> str:
+    import signal
+
+    if code is not None and code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
 
 
 def import_ray():
@@ -423,6 +681,8 @@ def _run_on_ray(jobs: list[RunJob], driver: _Driver, address: str | None, n_cpus
         return
     ray = import_ray()
     started_here = not ray.is_initialized()
+    if started_here and address is None:  # a local instance: its processes end with this driver, however it ends
+        driver.reaper = lifetime.Reaper()
     if started_here:
         ray.init(
             address=address or "local",
@@ -436,7 +696,7 @@ def _run_on_ray(jobs: list[RunJob], driver: _Driver, address: str | None, n_cpus
         from ray.util.queue import Empty, Queue
 
         progress_queue = Queue(actor_options={"num_cpus": 0})
-        remote_run = ray.remote(num_cpus=1)(execute_run)
+        remote_run = ray.remote(num_cpus=1, max_retries=WORKER_DEATH_RETRIES)(execute_run)
         refs = {remote_run.remote(job, progress_queue): job for job in jobs}
         pending = list(refs)
         while pending:
@@ -464,3 +724,6 @@ def _run_on_ray(jobs: list[RunJob], driver: _Driver, address: str | None, n_cpus
             progress_queue.shutdown()
         if started_here:
             ray.shutdown()
+        if driver.reaper is not None:
+            driver.reaper.close()
+            driver.reaper = None

@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_er.experiments.analyses import check_request, code_line, pin_settings, run_analysis_jobs
-from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, run_csv_path
+from sb3_er.experiments import files
+from sb3_er.experiments.analyses import check_request, check_settings, code_line, run_analysis_jobs
+from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
 
 COLUMNS = ("phase", "timesteps", "episode", "updates", "sigma_shift", "sigma_raised", "sigma_lowered",
@@ -171,6 +172,7 @@ def summarize_regime(frames: dict[int, pd.DataFrame]) -> dict:
     }
 
 
+@files.holds_folder_locks
 def reproduce_sigma_regime(
     n_seeds: int = 4,
     out_dir: str | Path | None = None,
@@ -202,22 +204,24 @@ def reproduce_sigma_regime(
                          "choose the readings with --readings")
     check_request(n_seeds, 1.0 if budget is None else budget, units.pop(), backend, address)
     out_dir = Path(out_dir if out_dir is not None else Path("results") / "sigma_regime")
-    for name in readings:
-        reading = READINGS[name]
-        pin_settings(out_dir / name, {"experiment": f"sigma-regime-{name}", "env_id": reading.env_id,
-                                      "budget": float(reading.budget if budget is None else budget),
-                                      "env_kwargs": dict(reading.env_kwargs), "initial_value": reading.initial_value})
+    settings = {out_dir / name: {"experiment": f"sigma-regime-{name}", "env_id": READINGS[name].env_id,
+                                 "budget": float(READINGS[name].budget if budget is None else budget),
+                                 "env_kwargs": dict(READINGS[name].env_kwargs),
+                                 "initial_value": READINGS[name].initial_value} for name in readings}
+    files.lock_folder(out_dir, *settings)  # one writer per folder, until this function returns
+    for folder, pinned in settings.items():
+        check_settings(folder, pinned)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = regime_jobs(out_dir, readings, seeds, budget)
-    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions)
+    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions,
+                                      settings=settings)
     rows = []
     for name in readings:
-        frames = {seed: pd.read_csv(path) for seed in seeds
+        frames = {seed: read_run_csv(path) for seed in seeds
                   if (path := run_csv_path(out_dir / name, "er_sigma", seed)).is_file()}
         rows.append({"reading": name, **summarize_regime(frames)})
     table = pd.DataFrame(rows)
-    table_csv = out_dir / "summary.csv"
-    table.to_csv(table_csv, index=False)
+    table_csv = files.write_csv(out_dir / "summary.csv", table)
     lines = [
         f"# Which way ER-σ moves its targets: {n_seeds} seed{'s' if n_seeds != 1 else ''} per reading",
         "",
@@ -238,7 +242,6 @@ def reproduce_sigma_regime(
                      f"{row['raised']:.1%} | {row['lowered']:.1%} | {row['left_bounds']} of {row['runs']} | "
                      f"{row['diverged']} of {row['runs']} |")
     lines += ["", code_line(jobs)]
-    table_markdown = out_dir / "summary.md"
-    table_markdown.write_text("\n".join(lines) + "\n")
+    table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(lines) + "\n")
     return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=[],
                         runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)

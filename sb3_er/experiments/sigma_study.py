@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_er.experiments.analyses import check_request, code_line, env_reading, pin_settings, run_analysis_jobs
+from sb3_er.experiments import files
+from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
-from sb3_er.experiments.runner import RunJob, run_csv_path
+from sb3_er.experiments.runner import RunJob, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import ANALYSES
 
 ALGO = "er_sigma"
@@ -132,6 +133,7 @@ def _markdown(table: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+@files.holds_folder_locks
 def reproduce_sigma(
     n_seeds: int = 20,
     out_dir: str | Path | None = None,
@@ -159,7 +161,7 @@ def reproduce_sigma(
     from sb3_er import ERSigma
     from sb3_er.experiments.plots import plot_mean_with_ci, plot_scores
     from sb3_er.experiments.reproduce import Reproduction
-    from sb3_er.experiments.runner import accepted_parameters
+    from sb3_er.experiments.runner import check_algo_kwargs
 
     start = time.perf_counter()
     experiment = ANALYSES["sigma"]
@@ -173,23 +175,22 @@ def reproduce_sigma(
     algo_kwargs, env_kwargs = dict(algo_kwargs or {}), dict(env_kwargs or {})
     if "sigma" in algo_kwargs:
         raise ValueError("the sigma study sets sigma itself; choose definitions with sigmas (--sigmas)")
-    unknown = sorted(set(algo_kwargs) - accepted_parameters(ERSigma))
-    if unknown:
-        raise ValueError(f"ER-sigma has no parameters {unknown}; it takes {sorted(accepted_parameters(ERSigma))}")
+    check_algo_kwargs([ERSigma], algo_kwargs, who="ER-sigma")
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    pin_settings(out_dir, {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
-                           "env_kwargs": env_kwargs, "algo_kwargs": algo_kwargs})
+    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
+                "env_kwargs": env_kwargs, "algo_kwargs": algo_kwargs}
+    files.lock_folder(out_dir)  # one writer per folder, until this function returns
+    check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = sigma_jobs(out_dir, definitions, seeds, budget, env_kwargs, algo_kwargs)
     done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions)
+                                      allow_mixed_versions, settings={out_dir: settings})
 
-    frames = {definition: {job.seed: pd.read_csv(job.csv_path) for job in jobs
+    frames = {definition: {job.seed: read_run_csv(job.csv_path) for job in jobs
                            if job.label == run_label(definition) and job.csv_path.is_file()}
               for definition in definitions}
     table = sigma_table(frames)
-    table_csv = out_dir / "summary.csv"
-    table.to_csv(table_csv, index=False)
+    table_csv = files.write_csv(out_dir / "summary.csv", table)
     labels = {definition: f"{definition} ({DEFINITIONS[definition][0]})" for definition in definitions}
     scores = {labels[definition]: np.array([score for frame in runs.values() if math.isfinite(score := run_score(frame))])
               for definition, runs in frames.items()}
@@ -225,7 +226,6 @@ def reproduce_sigma(
         "",
         code_line(jobs),
     ]
-    table_markdown = out_dir / "summary.md"
-    table_markdown.write_text("\n".join(sections) + "\n")
+    table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
     return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=figures,
                         runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)

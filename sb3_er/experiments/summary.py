@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_er.experiments.metrics import CurveSummary, relative_difference, summarize_curves
-from sb3_er.experiments.runner import run_csv_path
+from sb3_er.experiments.runner import read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Experiment
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
@@ -68,7 +68,7 @@ def left_the_bounds(frame: pd.DataFrame) -> bool | None:
 
 def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curves | None:
     """The finished runs of `algo` among `seeds`, or None when none has finished."""
-    frames = {seed: pd.read_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
+    frames = {seed: read_run_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
     if not frames:
         return None
     diverged = tuple(seed for seed, frame in sorted(frames.items()) if frame.empty or frame["diverged"].any())

@@ -1,0 +1,261 @@
+"""Model files without surprises: a plain (JSON) copy of what SB3 pickles, a loading path that unpickles nothing, and
+the checks of a loaded model's state.
+
+SB3 saves a model's non-JSON attributes (spaces, generators, arrays, the policy class, schedules) as cloudpickle
+bytes in the zip's ``data`` entry (``":serialized:"``); unpickling them runs whatever code the file names. sb3-er also
+stores each such attribute that has a plain form under :data:`PLAIN_STATE_KEY`. ``load(..., allow_pickle=False)``
+rebuilds those attributes from it through SB3's ``custom_objects`` and refuses any entry that only a pickle holds, so
+the file's pickles are never read. The weights are read by SB3 with ``torch.load(weights_only=True)`` either way.
+"""
+
+import io
+import json
+import os
+import pathlib
+import zipfile
+from collections import deque
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any, Optional, Union
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.save_util import is_json_serializable
+
+#: The data entry holding the plain copies of the attributes SB3 pickles.
+PLAIN_STATE_KEY = "_plain_state"
+#: Pickled entries that loading rebuilds from other settings (``_setup_model`` makes lr_schedule from learning_rate).
+REBUILT_ON_LOAD = ("lr_schedule",)
+NUMERIC_KINDS = "biuf"
+BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
+
+
+def _numeric_dtype(name: Any) -> np.dtype:
+    try:
+        dtype = np.dtype(name) if isinstance(name, str) else None
+    except TypeError:
+        dtype = None
+    if dtype is None or dtype.kind not in NUMERIC_KINDS:
+        raise ValueError(f"expected a numeric dtype, got {name!r}")
+    return dtype
+
+
+def encode_plain(value: Any) -> Any:
+    """A JSON-native form of ``value`` (numbers, strings, lists, dicts, NumPy arrays and generators, deques, gymnasium
+    Box/Discrete/MultiDiscrete spaces, torch devices, classes by name); TypeError for anything else."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, list):
+        return [encode_plain(v) for v in value]
+    if isinstance(value, tuple):
+        return {"__tuple__": [encode_plain(v) for v in value]}
+    if isinstance(value, dict) and all(isinstance(k, str) for k in value):
+        return {"__dict__": {k: encode_plain(v) for k, v in value.items()}}
+    if isinstance(value, np.ndarray) and value.dtype.kind in NUMERIC_KINDS:
+        return {"__ndarray__": [value.dtype.str, list(value.shape), value.ravel().tolist()]}
+    if isinstance(value, np.generic) and value.dtype.kind in NUMERIC_KINDS:
+        return {"__scalar__": [value.dtype.str, value.item()]}
+    if isinstance(value, np.random.Generator) and type(value.bit_generator).__name__ in BIT_GENERATORS:
+        return {"__generator__": encode_plain(value.bit_generator.state)}
+    if isinstance(value, deque):
+        return {"__deque__": [value.maxlen, [encode_plain(v) for v in value]]}
+    if isinstance(value, spaces.Box):
+        return {"__space__": {"type": "Box", "low": encode_plain(value.low), "high": encode_plain(value.high),
+                              "dtype": value.dtype.str}}
+    if type(value) is spaces.Discrete:
+        return {"__space__": {"type": "Discrete", "n": int(value.n), "start": int(value.start)}}
+    if type(value) is spaces.MultiDiscrete:
+        return {"__space__": {"type": "MultiDiscrete", "nvec": encode_plain(value.nvec),
+                              "start": encode_plain(value.start), "dtype": value.dtype.str}}
+    if isinstance(value, th.device):
+        return {"__device__": str(value)}
+    if isinstance(value, type):
+        return {"__class__": f"{value.__module__}:{value.__qualname__}"}
+    raise TypeError(f"{type(value).__name__} has no plain form")
+
+
+def decode_plain(value: Any, classes: dict[str, type]) -> Any:
+    """The inverse of :func:`encode_plain`, checking every part; a class is looked up in ``classes`` ("module:name"
+    to class), never imported. ValueError for anything malformed."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, list):
+        return [decode_plain(v, classes) for v in value]
+    if not (isinstance(value, dict) and len(value) == 1):
+        raise ValueError(f"malformed plain value {str(value)[:80]}")
+    (kind, body), = value.items()
+    if kind == "__tuple__" and isinstance(body, list):
+        return tuple(decode_plain(v, classes) for v in body)
+    if kind == "__dict__" and isinstance(body, dict):
+        return {k: decode_plain(v, classes) for k, v in body.items()}
+    if kind == "__ndarray__" and isinstance(body, list) and len(body) == 3:
+        dtype, shape, data = _numeric_dtype(body[0]), body[1], body[2]
+        if not (isinstance(shape, list) and all(isinstance(d, int) and not isinstance(d, bool) and d >= 0
+                                                for d in shape) and isinstance(data, list)
+                and len(data) == int(np.prod(shape, dtype=np.int64))):
+            raise ValueError(f"malformed array: shape {shape!r} for {len(data) if isinstance(data, list) else data!r}")
+        if not all(isinstance(x, (bool, int, float)) for x in data):
+            raise ValueError("malformed array: entries must be numbers")
+        try:
+            return np.array(data, dtype=dtype).reshape(shape)
+        except (OverflowError, ValueError, TypeError) as error:
+            raise ValueError(f"malformed {dtype} array ({error})") from None
+    if kind == "__scalar__" and isinstance(body, list) and len(body) == 2 and isinstance(body[1], (bool, int, float)):
+        try:
+            return _numeric_dtype(body[0]).type(body[1])
+        except (OverflowError, ValueError, TypeError) as error:
+            raise ValueError(f"malformed scalar ({error})") from None
+    if kind == "__generator__":
+        state = decode_plain(body, classes)
+        name = state.get("bit_generator") if isinstance(state, dict) else None
+        if name not in BIT_GENERATORS:
+            raise ValueError(f"unknown bit generator {name!r}")
+        bit_generator = getattr(np.random, name)()
+        try:
+            bit_generator.state = state
+        except (TypeError, ValueError, KeyError) as error:
+            raise ValueError(f"malformed {name} state ({error})") from None
+        return np.random.Generator(bit_generator)
+    if kind == "__deque__" and isinstance(body, list) and len(body) == 2 and isinstance(body[1], list):
+        maxlen = body[0]
+        if maxlen is not None and not (isinstance(maxlen, int) and maxlen >= 0):
+            raise ValueError(f"malformed deque length {maxlen!r}")
+        return deque((decode_plain(v, classes) for v in body[1]), maxlen=maxlen)
+    if kind == "__space__" and isinstance(body, dict):
+        return _decode_space(body, classes)
+    if kind == "__device__" and isinstance(body, str):
+        try:
+            return th.device(body)
+        except RuntimeError as error:
+            raise ValueError(f"malformed device {body!r} ({error})") from None
+    if kind == "__class__" and isinstance(body, str):
+        if body not in classes:
+            raise ValueError(f"class {body} is not among the classes this load accepts: {sorted(classes)}")
+        return classes[body]
+    raise ValueError(f"malformed plain value {str(value)[:80]}")
+
+
+def _decode_space(body: dict[str, Any], classes: dict[str, type]) -> spaces.Space:
+    kind = body.get("type")
+    fields = {k: decode_plain(v, classes) for k, v in body.items() if k != "type"}
+    try:
+        if kind == "Box" and set(fields) == {"low", "high", "dtype"}:
+            dtype = _numeric_dtype(fields["dtype"])
+            low, high = np.asarray(fields["low"]), np.asarray(fields["high"])
+            if low.shape != high.shape:
+                raise ValueError(f"low {low.shape} and high {high.shape} differ in shape")
+            return spaces.Box(low=low, high=high, shape=low.shape, dtype=dtype)
+        if kind == "Discrete" and set(fields) == {"n", "start"}:
+            return spaces.Discrete(fields["n"], start=fields["start"])
+        if kind == "MultiDiscrete" and set(fields) == {"nvec", "start", "dtype"}:
+            return spaces.MultiDiscrete(fields["nvec"], dtype=_numeric_dtype(fields["dtype"]), start=fields["start"])
+    except (TypeError, AssertionError, ValueError) as error:
+        raise ValueError(f"malformed {kind} space ({error})") from None
+    raise ValueError(f"unsupported or malformed space {str(body)[:80]}")
+
+
+def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[list[str]] = None) -> dict[str, Any]:
+    """Plain forms of the attributes that ``model.save(path, exclude, include)`` pickles (those without a JSON form);
+    an attribute without a plain form (a schedule function, a custom object) is left to its pickle alone."""
+    excluded = (set(exclude or []) | set(model._excluded_save_params())) - set(include or [])
+    state_dicts, torch_variables = model._get_torch_save_params()
+    excluded |= {name.split(".")[0] for name in [*state_dicts, *torch_variables]}
+    plain = {}
+    for name, value in model.__dict__.items():
+        if name in excluded or name == PLAIN_STATE_KEY or is_json_serializable(value):
+            continue
+        try:
+            plain[name] = encode_plain(value)
+        except TypeError:
+            pass
+    return plain
+
+
+def resolve_zip_path(path: Union[str, pathlib.Path]) -> pathlib.Path:
+    """SB3's convention: a path without suffix that does not exist is read with .zip added."""
+    path = pathlib.Path(path)
+    if not path.exists() and not path.suffix and path.with_suffix(".zip").exists():
+        return path.with_suffix(".zip")
+    return path
+
+
+def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[dict[str, Any], Any]:
+    """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and a path
+    or buffer to pass on to SB3."""
+    source = resolve_zip_path(path) if isinstance(path, (str, pathlib.Path)) else io.BytesIO(path.read())
+    try:
+        with zipfile.ZipFile(source) as archive:
+            corrupt = archive.testzip()  # every member's CRC, also those SB3 never reads
+            raw = archive.read("data") if corrupt is None else b""
+    except KeyError:
+        raise ValueError("the zip has no data entry") from None
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError) as error:
+        raise ValueError(f"not a readable model zip ({type(error).__name__}: {error})") from None
+    if corrupt is not None:
+        raise ValueError(f"member {corrupt!r} of the zip fails its CRC check: the file is corrupt")
+    try:
+        data = json.loads(raw.decode())
+    except ValueError as error:
+        raise ValueError(f"the data entry is not JSON ({error})") from None
+    if isinstance(source, io.BytesIO):
+        source.seek(0)
+    if not isinstance(data, dict):
+        raise ValueError("the data entry is not a JSON object")
+    return data, source
+
+
+def custom_objects_without_pickle(data: dict[str, Any], classes: dict[str, type],
+                                  custom_objects: Optional[dict[str, Any]]) -> dict[str, Any]:
+    """SB3 ``custom_objects`` that replace every pickled entry of ``data`` by its plain copy, so that SB3 unpickles
+    none; ValueError naming an entry that only its pickle holds."""
+    custom_objects = dict(custom_objects or {})
+    plain = data.get(PLAIN_STATE_KEY, {})
+    if not isinstance(plain, dict):
+        raise ValueError(f"data entry {PLAIN_STATE_KEY!r} is not a JSON object")
+    for key, item in data.items():
+        if key in custom_objects or not (isinstance(item, dict) and ":serialized:" in item):
+            continue
+        if key in plain:
+            try:
+                custom_objects[key] = decode_plain(plain[key], classes)
+            except ValueError as error:
+                raise ValueError(f"data entry {key!r}: {error}") from None
+        elif key in REBUILT_ON_LOAD:
+            custom_objects[key] = None
+        else:
+            raise ValueError(
+                f"data entry {key!r} can only be restored by unpickling it, which allow_pickle=False refuses: pass "
+                f"custom_objects={{{key!r}: ...}}, or load with allow_pickle=True if you trust the file"
+            )
+    return custom_objects
+
+
+@contextmanager
+def atomic_path(path: Union[str, pathlib.Path], suffix: str) -> Iterator[pathlib.Path]:
+    """A partial path to write to, renamed to ``path`` (with ``suffix`` added if it has none) when the block ends
+    without error, so that a crash while saving never leaves a truncated file under the final name."""
+    path = pathlib.Path(path)
+    if not path.suffix:
+        path = path.with_suffix(suffix)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        yield partial
+        os.replace(partial, path)
+    finally:
+        if partial.exists():
+            partial.unlink()
+
+
+def check_rng_state(name: str, value: Any) -> None:
+    """A kernel generator's state: 4 uint64 words of xoshiro256**, not all zero (its one fixed point); or a NumPy
+    Generator. ValueError naming the attribute."""
+    if isinstance(value, np.random.Generator):
+        return
+    if not (isinstance(value, np.ndarray) and value.dtype == np.uint64 and value.shape == (4,)
+            and value.flags.c_contiguous):
+        raise ValueError(f"{name}: expected a generator state of 4 uint64 words, got "
+                         f"{getattr(value, 'dtype', type(value).__name__)} {getattr(value, 'shape', '')}")
+    if not value.any():
+        raise ValueError(f"{name}: an all-zero xoshiro256** state never changes")
