@@ -73,6 +73,11 @@ def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
     assert "-4065" in markdown and "Table 6.1" in markdown  # the thesis's vanilla-ER end performance beside ours
     returns = pd.read_csv(run_csv_path(tmp_path, "er", 0))["return"]
     assert (returns < 0).all()  # the pendulum's reward -5 theta^2 - 0.1 theta'^2 - u^2 is never positive
+    findings = json.loads((tmp_path / "findings.json").read_text())
+    assert findings["thesis"] == "Table 6.1"
+    # without a Sarsa(lambda) run every printed difference is inconclusive, and says why
+    assert findings["findings"] and all(f["holds"] is None and "no complete run" in f["evidence"]
+                                        for f in findings["findings"])
 
 
 def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):

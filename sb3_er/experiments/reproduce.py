@@ -205,6 +205,10 @@ def reproduce(
         figures += value_figures
         sections += ["", value_section]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
+    if THESIS_TABLES.get(experiment.name):
+        from sb3_er.experiments.findings import table_findings, write_findings
+
+        write_findings(out_dir, THESIS_TABLES[experiment.name], table_findings(experiment, curves, budget))
     return Reproduction(
         out_dir=out_dir,
         table_markdown=table_markdown,
@@ -214,6 +218,10 @@ def reproduce(
         runs_skipped=len(finished),
         wall_time_s=time.perf_counter() - start,
     )
+
+
+#: The thesis table each experiment reproduces, whose printed differences become its findings.json.
+THESIS_TABLES = {"pendulum": "Table 6.1", "walker": "Table 6.2", "leo": "Table 6.3"}
 
 
 def _check_algo_kwargs(algos: Sequence[str], algo_kwargs: dict) -> None:

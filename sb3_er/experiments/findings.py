@@ -1,0 +1,140 @@
+"""The thesis's findings of Tables 6.1-6.3, each judged by one rule, into a machine-readable ``findings.json``.
+
+A finding is the sign of a difference the thesis prints: an algorithm's rise time, end performance or falls against
+Sarsa(λ)'s (Tables 6.1-6.3, their "difference" columns). Ours is the same difference, measured on the mean curves of
+our seeds with the fixed metrics of thesis 6.1, and its 95 % confidence interval comes from a bootstrap over seeds
+(each algorithm's seeds resampled with replacement, the metric recomputed on the resampled mean curve, the 2.5 and
+97.5 percentiles of the differences). The rule:
+
+- **holds** when our difference has the thesis's sign and its interval excludes zero;
+- **does not hold** when the interval excludes zero with the other sign, or when the thesis prints no difference
+  (0 %) and ours is clear;
+- **inconclusive** (``holds: null``) when the interval includes zero.
+
+A rise time that the mean curve never reaches counts as the run's end (the thesis prints such rise times as ">");
+an algorithm that learns no gait has no end performance, and its difference is then undefined (inconclusive) unless
+the thesis also prints NA, in which case the finding "learns no gait" is judged on whether our mean curve reaches the
+success level. Runs whose values left the possible returns and diverged runs are left out, as in the tables.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sb3_er.experiments import files
+from sb3_er.experiments.specs import Experiment
+from sb3_er.experiments.summary import Curves, summarize
+from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+REFERENCE = "sarsa_lambda"
+METRICS = {"rise_time": "rise time", "end_performance": "end performance", "falls": "falls"}
+#: Lower is better for these metrics; higher for end performance.
+LOWER_IS_BETTER = {"rise_time": True, "end_performance": False, "falls": True}
+N_RESAMPLES = 2000
+
+
+def thesis_sign(text: str) -> int | None:
+    """The sign of a printed difference ("-67 %" -> -1, ">+25 %" -> +1, "0 %" -> 0); None for "-" (no figure)."""
+    match = re.search(r"([+-]?)(\d+(?:\.\d+)?)\s*%", text)
+    if match is None:
+        return None
+    if float(match.group(2)) == 0.0:
+        return 0
+    return -1 if match.group(1) == "-" else 1
+
+
+def metric_value(experiment: Experiment, curves: Curves, metric: str, run_end: float) -> float:
+    """One metric of the mean curve of `curves` (rise time beyond the run: the run's end)."""
+    summary = summarize(experiment, curves)
+    if summary is None:
+        return math.nan
+    value = getattr(summary, metric)
+    if metric == "rise_time" and value is not None and math.isnan(value):
+        return run_end
+    return math.nan if value is None else float(value)
+
+
+def _resampled(curves: Curves, rows: np.ndarray) -> Curves:
+    return Curves(curves.x, curves.performance[rows], curves.cumulative_falls[rows],
+                  tuple(curves.seeds[i] for i in rows), (), 0.0, (), (), None, None)
+
+
+def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves, metric: str, run_end: float,
+                         rng: np.random.Generator, n_resamples: int = N_RESAMPLES) -> tuple[float, float, float]:
+    """(difference ours - reference on all seeds, its 2.5 and 97.5 bootstrap percentiles)."""
+    difference = (metric_value(experiment, ours, metric, run_end)
+                  - metric_value(experiment, reference, metric, run_end))
+    samples = np.empty(n_resamples)
+    for i in range(n_resamples):
+        a = rng.integers(0, len(ours.seeds), len(ours.seeds))
+        b = rng.integers(0, len(reference.seeds), len(reference.seeds))
+        samples[i] = (metric_value(experiment, _resampled(ours, a), metric, run_end)
+                      - metric_value(experiment, _resampled(reference, b), metric, run_end))
+    samples = samples[np.isfinite(samples)]
+    if samples.size < 0.95 * n_resamples:  # the metric is undefined in too many resamples (no gait learned)
+        return difference, math.nan, math.nan
+    low, high = np.percentile(samples, [2.5, 97.5])
+    return difference, float(low), float(high)
+
+
+def judge(sign: int, low: float, high: float) -> bool | None:
+    """The rule of the module docstring: True (holds), False (does not hold) or None (inconclusive)."""
+    if math.isnan(low) or math.isnan(high) or low <= 0.0 <= high:
+        return None
+    ours = 1 if low > 0.0 else -1
+    return sign != 0 and ours == sign
+
+
+def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> str:
+    label, reference = ALGORITHM_LABELS.get(algo, algo), ALGORITHM_LABELS[REFERENCE]
+    words = {-1: "lower", 0: "the same", 1: "higher"}[sign]
+    better = "" if sign == 0 else (
+        " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
+    printed = f"thesis: {thesis_entry[0]} against {reference_entry[0]}, {thesis_entry[1]}"
+    return f"{label}'s {METRICS[metric]} is {words}{better} than {reference}'s ({printed})"
+
+
+def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0,
+                   n_resamples: int = N_RESAMPLES) -> list[dict[str, Any]]:
+    """Every printed difference of the experiment's thesis table, judged on our curves (module docstring)."""
+    rng = np.random.default_rng(seed)
+    run_end = budget / experiment.rise_time_scale if experiment.protocol == "walking" else budget  # table units
+    reference = curves.get(REFERENCE)
+    table = experiment.thesis_table
+    findings = []
+    for algo, entries in table.items():
+        if algo == REFERENCE or algo not in curves:
+            continue
+        for metric, entry in entries.items():
+            sign = thesis_sign(str(entry[1]))
+            if metric not in METRICS or sign is None:
+                continue
+            ours = curves[algo]
+            if reference is None or not reference.seeds or ours is None or not ours.seeds:
+                findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]), "holds": None,
+                                 "evidence": "no complete run of one of the two algorithms"})
+                continue
+            difference, low, high = bootstrap_difference(experiment, ours, reference, metric, run_end, rng,
+                                                         n_resamples)
+            unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
+            evidence = (f"ours {difference:+.3g}{unit}, 95 % bootstrap CI [{low:+.3g}, {high:+.3g}] over "
+                        f"{len(ours.seeds)} and {len(reference.seeds)} seeds")
+            findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
+                             "holds": judge(sign, low, high), "evidence": evidence, "algorithm": algo,
+                             "metric": metric, "thesis_sign": sign, "difference": difference, "ci95": [low, high]})
+    return findings
+
+
+def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], regime: str = "") -> Path:
+    """``<out_dir>/findings.json`` (the format the docs' verdict table reads), written atomically."""
+    data = {"thesis": thesis, "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
+            "bootstrap CI over seeds excludes zero; inconclusive (null) when the CI includes zero",
+            "findings": findings}
+    if regime:
+        data["sigma_regime"] = regime
+    return files.write_json(Path(out_dir) / "findings.json", data)

@@ -1,0 +1,66 @@
+"""The verdict rule of the thesis findings on hand-made seed tables: a clear win, a clear loss, an interval across
+zero (issue: each finding judged by one rule)."""
+
+import json
+
+import numpy as np
+
+from sb3_er.experiments.findings import judge, table_findings, thesis_sign, write_findings
+from sb3_er.experiments.specs import EXPERIMENTS
+from sb3_er.experiments.summary import Curves
+
+PENDULUM = EXPERIMENTS["pendulum"]
+X = np.arange(1, 11, dtype=float)
+
+
+def _curves(ends, rise_at):
+    """One curve per seed: -1000 until episode `rise_at`, then its end value."""
+    rows = np.array([[(-1000.0 if x < rise else end) for x in X] for end, rise in zip(ends, rise_at)])
+    seeds = tuple(range(len(ends)))
+    return Curves(X, rows, np.zeros_like(rows), seeds, (), 1.0, (), ())
+
+
+def test_printed_signs():
+    assert [thesis_sign(t) for t in ("-67 %", "+76 %", ">+25 %", "0 %", "-")] == [-1, 1, 1, 0, None]
+
+
+def test_the_rule():
+    assert judge(-1, -5.0, -1.0) is True  # the thesis's sign, interval clear of zero
+    assert judge(-1, 1.0, 5.0) is False  # the other sign, clear
+    assert judge(-1, -1.0, 2.0) is None  # across zero: inconclusive
+    assert judge(0, 1.0, 2.0) is False  # the thesis saw no difference, ours is clear
+    assert judge(1, float("nan"), float("nan")) is None
+
+
+def _verdicts(ours):
+    reference = _curves([-500.0, -520.0, -480.0, -510.0, -490.0], [6, 6, 6, 6, 6])
+    findings = table_findings(PENDULUM, {"sarsa_lambda": reference, "er": ours}, budget=10, n_resamples=400)
+    return {f["metric"]: f for f in findings}
+
+
+def test_a_clear_win_holds():
+    """ER rises at episode 2 against 6 and ends at -100 against -500: the thesis's -50 % and +76 % hold."""
+    found = _verdicts(_curves([-100.0, -110.0, -90.0, -105.0, -95.0], [2, 2, 2, 2, 2]))
+    assert found["rise_time"]["holds"] is True and found["end_performance"]["holds"] is True
+    assert found["end_performance"]["ci95"][0] > 0 and "bootstrap CI" in found["end_performance"]["evidence"]
+
+
+def test_a_clear_loss_does_not_hold():
+    found = _verdicts(_curves([-900.0, -910.0, -890.0, -905.0, -895.0], [9, 9, 9, 9, 9]))
+    assert found["rise_time"]["holds"] is False and found["end_performance"]["holds"] is False
+
+
+def test_an_interval_across_zero_is_inconclusive():
+    found = _verdicts(_curves([-100.0, -900.0, -480.0, -300.0, -700.0], [6, 6, 6, 6, 6]))
+    assert found["end_performance"]["holds"] is None
+    low, high = found["end_performance"]["ci95"]
+    assert low < 0 < high
+
+
+def test_the_findings_file_is_what_the_docs_read(tmp_path):
+    found = list(_verdicts(_curves([-100.0] * 5, [2] * 5)).values())
+    path = write_findings(tmp_path, "Table 6.1", found, regime="sigma lowers 12 % of targets")
+    data = json.loads(path.read_text())
+    assert data["thesis"] == "Table 6.1" and data["sigma_regime"].startswith("sigma lowers")
+    assert all(set(f) >= {"claim", "holds", "evidence"} for f in data["findings"])
+    assert data["findings"][0]["claim"].startswith("vanilla-ER's")
