@@ -114,7 +114,7 @@ def test_verdicts_say_not_judged_yet_without_findings_and_read_them_when_present
     assert rows[:2] == [("walker", "Table 6.2, Figures 6.1b and 6.2a", "ER-sigma rises faster than Sarsa(lambda)",
                          "does not hold"),
                         ("walker", "Table 6.2, Figures 6.1b and 6.2a", "vanilla ER walks", "holds")]
-    assert rows[2][3] == "not judged yet" and rows[3] == ("extra", "Figure 7.1", "a | b", "undecided")
+    assert rows[2][3] == "not judged yet" and rows[3] == ("extra", "Figure 7.1", "a | b", "inconclusive")
     table = generator.verdict_table(lambda name: f"{name}.md", measured)
     assert "| [Simplest walker](walker.md) | Table 6.2, Figures 6.1b and 6.2a | vanilla ER walks | holds |" in table
     assert "a \\| b" in table  # a bar in a claim cannot break the table

@@ -6,13 +6,14 @@ verdict table. A results page shows what the folder holds, as committed: its ver
 analysis written for it in ``docs/_notes/results_<dir>.md`` when there is one, its other Markdown files
 (``VERSIONS.md``, ``READING.md``, the summaries of its sub-folders), text reports and figures.
 
-The verdicts come from machine-readable findings files, ``results/measured/<dir>/findings.json``::
+The verdicts come from machine-readable findings files, ``results/measured/<dir>/findings.json``, which the table
+reproductions write (:mod:`sb3_er.experiments.findings` says how each finding is judged; other keys are ignored)::
 
     {
       "thesis": "Table 6.2",                       # optional: what the folder reproduces
       "findings": [
         {"claim": "ER-sigma learns faster than Sarsa(lambda)",
-         "holds": true,                            # true, false or null (not decided by the runs)
+         "holds": true,                            # true, false or null (inconclusive)
          "evidence": "rise time 1800 s against 2400 s, paired over 20 seeds"}   # optional
       ]
     }
@@ -112,7 +113,7 @@ def read_findings(name: str, measured: Path = MEASURED) -> list[Finding] | None:
 
 
 def verdict_word(holds: bool | None) -> str:
-    return {True: "holds", False: "does not hold", None: "undecided"}[holds]
+    return {True: "holds", False: "does not hold", None: "inconclusive"}[holds]
 
 
 def _cell(text: str) -> str:
