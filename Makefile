@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo install clean
+.PHONY: test demo docs install clean
 
 install: $(STAMP)
 
@@ -24,8 +24,12 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sb3-er reproduce walker --seeds 4 --algos sarsa_lambda er_sigma --budget 2500 --out results/demo
 
+# The documentation, warnings as errors: docs/_build/html/index.html.
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
+
 # Removes the venv, caches, build files and what the demo writes; the committed measurements in results/measured/ stay.
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis *.egg-info
+	rm -rf $(VENV) .pytest_cache .hypothesis *.egg-info build dist docs/_build docs/results
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 	find results -mindepth 1 -maxdepth 1 ! -name measured -exec rm -rf {} + 2>/dev/null || true

@@ -348,7 +348,7 @@ def mushroom_tiling(env_id: str) -> dict:
     """sb3-er's tiling for env_id and the finite range MushroomRL's tiles cover."""
     import gymnasium as gym
 
-    from sb3_er.common.base_class import package_tilings
+    from sb3_er.common.tile_coding import package_tilings
 
     entry = package_tilings()[env_id]
     space = gym.make(env_id).observation_space

@@ -1,4 +1,5 @@
-"""Simplest walker of thesis 4.2.2 (Garcia et al. 1998) with hip actuation, in our reading (DESIGN.md section 7).
+"""Simplest walker of thesis 4.2.2 (Garcia et al. 1998) with hip actuation, in our reading (the
+documentation's simplest-walker page gives the readings).
 
 Model. Two massless unit legs join at a point mass at the hip; the feet have infinitesimal mass; gravity is 1; the
 slope falls by ``slope`` = mu = 0.004 rad in the walking direction. Time is in the model's units (``sqrt(l/g)``), which

@@ -1,4 +1,5 @@
-"""Windy cliff grid world of thesis section 5.1 (Figure 5.1), in our concrete reading (DESIGN.md section 7).
+"""Windy cliff grid world of thesis section 5.1 (Figure 5.1), in our concrete reading (the
+documentation's windy-cliff page gives the readings).
 
 The grid has ``width`` x ``height`` cells (default 10 x 7); cell ``(x, y)`` has ``x`` growing eastwards and ``y``
 northwards, so ``(0, 0)`` is the south-west corner, where every episode starts.

@@ -1,4 +1,8 @@
-"""The `sb3-er` command: `reproduce` the thesis's experiments, and rl-zoo `train`, `enjoy` and `optimize`."""
+"""The `sb3-er` command: `reproduce` the thesis's experiments, and rl-zoo `train`, `enjoy` and `optimize`.
+
+:func:`build_parser` is the command's one parser tree (the documentation's CLI reference is generated from it). The
+rl-zoo commands hand every argument after their name to rl_zoo3, whose own ``-h`` lists its options.
+"""
 
 from __future__ import annotations
 
@@ -27,13 +31,48 @@ def _name_value(text: str) -> tuple[str, object]:
     return name, yaml.safe_load(value)
 
 
-def _reproduce_parser() -> argparse.ArgumentParser:
-    budgets = ", ".join(f"{name} {spec.default_budget:g} {spec.budget_unit}" for name, spec in EXPERIMENTS.items())
+REPRODUCE_DESCRIPTION = (
+    "Run a thesis experiment for every (algorithm, seed) pair in parallel, resume finished runs, and write per-run "
+    "CSVs, a summary table beside the thesis's numbers and figures."
+)
+ZOO_DESCRIPTIONS = {
+    "train": "rl-zoo training (rl_zoo3 train) with the thesis's hyperparameters of zoo_configs/<algo>.yml, the env "
+    "package sb3_er_envs and TensorBoard logs under <log folder>/tensorboard filled in",
+    "enjoy": "rl-zoo enjoy (rl_zoo3 enjoy) of a trained agent, e.g. -f FOLDER --no-render",
+    "optimize": "rl-zoo's optuna hyperparameter search (rl_zoo3 train --optimize-hyperparameters) with sb3-er's "
+    "search spaces, e.g. --n-trials N --n-timesteps T",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser tree of the `sb3-er` command: ``reproduce`` with its options, and the rl-zoo commands."""
     parser = argparse.ArgumentParser(
-        prog="sb3-er reproduce",
-        description="Run a thesis experiment for every (algorithm, seed) pair in parallel, resume finished runs, and "
-        "write per-run CSVs, a summary table beside the thesis's numbers and figures.",
+        prog="sb3-er",
+        description="Reproduce the thesis's experiments, or train, watch and tune sb3-er's algorithms with rl-zoo.",
+        epilog=f"algorithms: {', '.join(ALGORITHM_LABELS)}",
     )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="{reproduce,train,enjoy,optimize}")
+    reproduce = commands.add_parser("reproduce", help="run a thesis experiment (gridworld, pendulum, walker, leo) or "
+                                    "analysis (replay-order, sigma, pessimistic, framework, sigma-regime)",
+                                    description=REPRODUCE_DESCRIPTION)
+    _add_reproduce_arguments(reproduce)
+    for name, description in ZOO_DESCRIPTIONS.items():
+        zoo_command = commands.add_parser(name, help=description, description=description, add_help=False)
+        zoo_command.add_argument("zoo_arguments", nargs=argparse.REMAINDER, metavar="--algo ALGO --env ENV ...",
+                                 help=f"rl_zoo3 {'enjoy' if name == 'enjoy' else 'train'} options, passed through "
+                                 f"(sb3-er {name} -h lists them)")
+    return parser
+
+
+def reproduce_parser() -> argparse.ArgumentParser:
+    """The parser of `sb3-er reproduce` on its own (the ``reproduce`` branch of :func:`build_parser`)."""
+    parser = argparse.ArgumentParser(prog="sb3-er reproduce", description=REPRODUCE_DESCRIPTION)
+    _add_reproduce_arguments(parser)
+    return parser
+
+
+def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
+    budgets = ", ".join(f"{name} {spec.default_budget:g} {spec.budget_unit}" for name, spec in EXPERIMENTS.items())
     parser.add_argument(
         "experiment", choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
         help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
@@ -101,7 +140,6 @@ def _reproduce_parser() -> argparse.ArgumentParser:
         help="resume next to finished runs made by other code (version, git commit) or another configuration; "
         "without it such a resume is refused",
     )
-    return parser
 
 
 # Options of one analysis: option name (argparse dest) -> keyword of its reproduce function.
@@ -151,7 +189,7 @@ def reproduce_command(argv: Sequence[str]) -> None:
     def terminate(signum, frame):
         raise SystemExit(128 + signum)
 
-    parser = _reproduce_parser()
+    parser = reproduce_parser()
     args = parser.parse_args(argv)
     if args.address is not None and args.backend != "ray":
         parser.error("--address needs --backend ray")
@@ -217,15 +255,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     arguments = list(sys.argv[1:] if argv is None else argv)
     commands = ("reproduce", *ZOO_COMMANDS)
     if not arguments or arguments[0] in ("-h", "--help") or arguments[0] not in commands:
-        print(
-            "usage: sb3-er {reproduce,train,enjoy,optimize} ...\n\n"
-            "  reproduce EXPERIMENT   run a thesis experiment (gridworld, pendulum, walker, leo) or analysis\n"
-            "                         (replay-order, sigma, pessimistic, framework, sigma-regime); see reproduce -h\n"
-            "  train --algo A --env E rl-zoo training with the thesis hyperparameters from zoo_configs/\n"
-            "  enjoy --algo A --env E rl-zoo enjoy of a trained agent (-f FOLDER, --no-render)\n"
-            "  optimize --algo A --env E  rl-zoo optuna search (--n-trials N, --n-timesteps T)\n\n"
-            f"algorithms: {', '.join(ALGORITHM_LABELS)}"
-        )
+        build_parser().print_help()
         if arguments and arguments[0] not in ("-h", "--help"):
             raise SystemExit(f"sb3-er: unknown command {arguments[0]!r}")
         raise SystemExit(0 if arguments else 2)

@@ -9,6 +9,7 @@ from stable_baselines3.common.type_aliases import GymEnv
 from sb3_er.common import kernels
 from sb3_er.common.batch import BufferedTileQAlgorithm, stored_transitions
 from sb3_er.common.checks import check_choice, check_integer, check_number
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 from sb3_er.common.tile_coding import TileCoder
 
@@ -118,6 +119,7 @@ class NearestNeighbourModel:
         return state_error[covered], np.abs(predicted_rewards - rewards)[covered], covered
 
 
+@inherit_parameters
 class Dyna(BufferedTileQAlgorithm):
     """Dyna (Sutton 1991; thesis 3.4, Alg. 3-5 with the model database update of Alg. 4): after every real step, a
     direct one-step update of Q on the real transition, then ``planning_steps`` one-step updates on transitions that a
@@ -150,8 +152,8 @@ class Dyna(BufferedTileQAlgorithm):
     :param model_radius: largest neighbour distance in tile widths.
     :param model_refit_every: real steps between model fits.
     :param buffer_size: transitions kept (the model's data).
-    Other parameters (learning_rate, gamma, exploration_rate, policy_kwargs, ...) as in TileQAlgorithm; the
-    learning rate alpha applies to the direct and the planning updates alike.
+    :param learning_rate: alpha, the step on Q of the direct and the planning updates alike (each of the N active
+        weights moves by alpha * delta / N); a float or a schedule of the remaining progress.
     """
 
     def __init__(

@@ -9,6 +9,7 @@ from sb3_er.common import kernels
 from sb3_er.common.base_class import TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryBufferIO, TrajectoryReplayBuffer
 from sb3_er.common.checks import check_choice, check_integer, check_number
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
 REPLAY_ORDERS = {
@@ -38,6 +39,7 @@ REPLAY_UNITS = ("episode", "segment")
 RESIDUAL_ACTIONS = ("taken", "next")
 
 
+@inherit_parameters(hidden=("trace_lambda",))  # ER sets trace_lambda from online_lambda
 class ER(TrajectoryBufferIO, TileQAlgorithm):
     """Experience replay with the Sarsa update (thesis Alg. 7-8) and its variants (Alg. 9-14).
 
@@ -53,17 +55,19 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     Between replays the agent acts epsilon-greedily on the current Q, or learns online with Sarsa(lambda) if
     ``online_lambda`` is given (the thesis's LEO setup).
 
-    :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
-    :param replay_trigger: "episode" replays every ``replay_every`` episodes; "segment" at every episode end and every
-        ``info["segment_end"]`` (each footstep and each fall for the walker: thesis 4.2.2, "after every step or fall").
-    :param replay_unit: what a stored trajectory is: "episode" (the thesis's Alg. 7-8) or "segment" (closed also at
-        each ``info["segment_end"]``: the walker's footstep-to-footstep stretches, our earlier reading).
-    :param replay_every: episodes between replay phases for the "episode" trigger.
-    :param n_replays: trajectories replayed per phase.
-    :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead.
-    :param replay_order: "reversed" (thesis default), "forward" or "uniform" samples (Appendix A), or "prioritized":
-        prioritized sweeping (Moore and Atkeson 1993; thesis 3.2 and 7.2), which replays single transitions by their
-        |delta| from a priority queue and re-queues the predecessors of each replayed one (see
+    :param buffer_size: transitions kept (default 1,000,000); the oldest whole trajectories are evicted beyond it.
+    :param replay_trigger: "episode" (default) replays every ``replay_every`` episodes; "segment" at every episode end
+        and every ``info["segment_end"]`` (each footstep and each fall for the walker: thesis 4.2.2, "after every step
+        or fall").
+    :param replay_unit: what a stored trajectory is: "episode" (default, the thesis's Alg. 7-8) or "segment" (closed
+        also at each ``info["segment_end"]``: the walker's footstep-to-footstep stretches, our earlier reading).
+    :param replay_every: episodes between replay phases for the "episode" trigger (default 1).
+    :param n_replays: trajectories replayed per phase (default 100, the walker's and LEO's K).
+    :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead (the
+        thesis's 10 for the pendulum and the grid world); default None.
+    :param replay_order: "reversed" (default, the thesis's), "forward" or "uniform" samples (Appendix A), or
+        "prioritized": prioritized sweeping (Moore and Atkeson 1993; thesis 3.2 and 7.2), which replays single
+        transitions by their |delta| from a priority queue and re-queues the predecessors of each replayed one (see
         ``kernels.prioritized_phase``). A phase makes as many updates as the other orders would on average
         (``prioritized_updates``), fewer when no |delta| exceeds ``priority_threshold``.
     :param priority_threshold: theta of prioritized sweeping: a transition is queued only while its |delta| exceeds
@@ -77,17 +81,17 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         costs a |delta| evaluation (about 1 + max_predecessors evaluations per update).
     :param prioritized_updates: updates per prioritized phase; None (default) matches the other orders' budget,
         the trajectories to replay times the mean length of a stored trajectory.
-    :param target: "sarsa" (thesis), "q_learning" or "expected_sarsa" (thesis 7.2, future work).
+    :param target: "sarsa" (default, the thesis's), "q_learning" or "expected_sarsa" (thesis 7.2, future work).
     :param sigma: ER-sigma's sigma(s') (Appendix B): "worst", "average", "best", "average_worst" (definition 4, the
-        thesis's choice), "average_best"; None is vanilla ER.
+        thesis's choice), "average_best"; None (default) is vanilla ER.
     :param residual_zeta: residual-gradient ER with direction phi(s, a) - zeta gamma phi(s', a) (Eq. 5.7-5.9);
-        1 is the residual gradient of Alg. 12, None plain ER.
-    :param residual_action: the action of the residual term: "taken" (a_t, the thesis's Eq. 5.7 and Alg. 12) or
+        1 is the residual gradient of Alg. 12, None (default) plain ER.
+    :param residual_action: the action of the residual term: "taken" (default; a_t, the thesis's Eq. 5.7 and Alg. 12) or
         "next" (a_{t+1}, Baird's residual gradient of the squared TD error; not with the expected-Sarsa target).
-    :param online_lambda: lambda of Sarsa(lambda) between replays, or None to act without online learning.
+    :param online_lambda: lambda of Sarsa(lambda) between replays (LEO: 0.859), or None (default) to act without
+        online learning.
     :param replay_buffer_kwargs: keyword arguments of the TrajectoryReplayBuffer, e.g. ``dict(prune="coverage",
-        prune_threshold=0.9)`` for the pruned database of thesis 3.5.3.
-    Other parameters (learning_rate, gamma, exploration_rate, trace_cutoff, policy_kwargs, ...) as in TileQAlgorithm.
+        prune_threshold=0.9)`` for the pruned database of thesis 3.5.3; default None.
     """
 
     _trace_lambda_parameter = "online_lambda"
@@ -315,22 +319,45 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self._priority_workspace = None
 
 
+@inherit_parameters
 class ERSigma(ER):
-    """ER-sigma (thesis Alg. 9-10): never-visited features take the state-dependent value sigma(s')."""
+    """ER-sigma (thesis Alg. 9-10): never-visited features take the state-dependent value sigma(s').
+
+    ER whose replayed targets replace the values of the features of (s', a) never visited by sigma(s') (Eq. 5.4),
+    estimated from the visited ones (Eq. 5.3, Appendix B).
+
+    :param sigma: the definition of sigma(s') (Appendix B): "average_worst" (default, definition 4, the thesis's
+        choice: halfway between the average and the worst case), "worst", "average", "best" or "average_best".
+    """
 
     def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", **kwargs):
         super().__init__(policy, env, sigma=sigma, **kwargs)
 
 
+@inherit_parameters
 class ResidualER(ER):
-    """Residual-gradient ER (thesis Alg. 11-12, Eq. 5.7-5.9)."""
+    """Residual-gradient ER (thesis Alg. 11-12, Eq. 5.7-5.9).
+
+    ER whose replayed updates follow the residual-gradient direction phi(s, a) - zeta gamma phi(s', a) instead of the
+    semi-gradient phi(s, a).
+
+    :param residual_zeta: zeta of Eq. 5.9 in [0, 1]: 1 (default) is the thesis's residual gradient (Alg. 12), 0 plain
+        ER, values between Baird's residual algorithm.
+    """
 
     def __init__(self, policy="TileQ", env=None, residual_zeta: float = 1.0, **kwargs):
         super().__init__(policy, env, residual_zeta=residual_zeta, **kwargs)
 
 
+@inherit_parameters
 class ResidualERSigma(ER):
-    """Residual ER-sigma (thesis Alg. 13-14): both."""
+    """Residual ER-sigma (thesis Alg. 13-14): ER-sigma's sigma(s') for never-visited features and the residual-gradient
+    direction of residual ER, both.
+
+    :param sigma: the definition of sigma(s') (Appendix B): "average_worst" (default, definition 4), "worst",
+        "average", "best" or "average_best".
+    :param residual_zeta: zeta of Eq. 5.9 in [0, 1]: 1 (default) is the thesis's residual gradient (Alg. 14).
+    """
 
     def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", residual_zeta: float = 1.0, **kwargs):
         super().__init__(policy, env, sigma=sigma, residual_zeta=residual_zeta, **kwargs)

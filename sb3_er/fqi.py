@@ -9,9 +9,11 @@ from stable_baselines3.common.type_aliases import GymEnv
 from sb3_er.common import kernels
 from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary
 from sb3_er.common.checks import check_bool, check_integer, check_number
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
 
+@inherit_parameters
 class FQI(FittedTileQAlgorithm):
     """Fitted Q-iteration: E sweeps of targets T_d = r_d + gamma max_a Q(s'_d, a) (Eq. 3.1; T_d = r_d if s'_d is
     terminal) over the whole database, each followed by a least-squares projection of T onto the tile features
@@ -51,7 +53,7 @@ class FQI(FittedTileQAlgorithm):
     :param solver_tolerance: CG stops when ||residual|| <= solver_tolerance * ||Phi^T T||.
     :param warm_start: start each fit's sweeps from the current Q (True) or from the initial Q (False, Ernst et al.).
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
-    ``learning_rate`` is not used. Other parameters (gamma, exploration_rate, policy_kwargs, ...) as in TileQAlgorithm.
+    :param learning_rate: not used: every fit solves its least-squares problem exactly.
     """
 
     def __init__(

@@ -10,11 +10,13 @@ from stable_baselines3.common.type_aliases import GymEnv
 from sb3_er.common import kernels
 from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary, weight_indices
 from sb3_er.common.checks import check_integer
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
 DEFAULT_MAX_FEATURES = 30_000
 
 
+@inherit_parameters
 class LSPI(FittedTileQAlgorithm):
     """LSPI: policy iteration whose evaluation step is LSTD-Q, solved in one step by least squares.
 
@@ -47,7 +49,7 @@ class LSPI(FittedTileQAlgorithm):
         0.01 left the policy oscillating between fits where 1 converged in 3-5 evaluations).
     :param max_features: the largest system (touched features) to factorise (default 30,000).
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
-    ``learning_rate`` is not used. Other parameters (gamma, exploration_rate, policy_kwargs, ...) as in TileQAlgorithm.
+    :param learning_rate: not used: every evaluation solves LSTD-Q's system exactly.
     """
 
     def __init__(

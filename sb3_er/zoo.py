@@ -2,7 +2,8 @@
 
 ``register_algorithms()`` adds ``sarsa_lambda``, ``er``, ``er_sigma``, ``residual_er`` and ``residual_er_sigma`` to
 ``rl_zoo3.ALGOS`` and to its optuna sampler and converter tables. The commands then run rl_zoo3's own ``train`` and
-``enjoy`` with our defaults filled in: the thesis's hyperparameters from ``zoo_configs/<algo>.yml``, the environment
+``enjoy`` with our defaults filled in: the thesis's hyperparameters from ``zoo_configs/<algo>.yml`` (package data of
+``sb3_er.zoo_configs``, installed with the wheel as rl_zoo3 installs its ``hyperparams/``), the environment
 package ``sb3_er_envs`` and TensorBoard logs under ``<log folder>/tensorboard``. Every other rl_zoo3 option passes
 through unchanged. ``python -m sb3_er.zoo train ...`` is the same as ``sb3-er train ...``.
 """
@@ -10,6 +11,9 @@ through unchanged. ``python -m sb3_er.zoo train ...`` is the same as ``sb3-er tr
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
+import importlib.resources
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -24,7 +28,8 @@ ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er
 # experiments (their zoo configs hold our settings, not the thesis's).
 FRAMEWORK_ALGORITHM_NAMES = ("dyna", "fqi", "lspi")
 ALL_ALGORITHM_NAMES = ALGORITHM_NAMES + FRAMEWORK_ALGORITHM_NAMES
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "zoo_configs"
+# The repository's top-level zoo_configs/, mapped into the package in pyproject.toml.
+CONFIG_PACKAGE = "sb3_er.zoo_configs"
 ENV_PACKAGE = "sb3_er_envs"
 SIGMA_DEFINITIONS = tuple(name for name in SIGMAS if name is not None)  # Appendix B, numbered 1-5 in this order
 # rl_zoo3 keys that configure the run rather than the algorithm's constructor.
@@ -47,16 +52,29 @@ def algorithm_classes() -> dict[str, type]:
     }
 
 
+_EXTRACTED = contextlib.ExitStack()  # config files extracted from a zipped install, removed at exit
+atexit.register(_EXTRACTED.close)
+
+
 def config_path(algo: str) -> Path:
-    """The rl-zoo YAML file holding the thesis's hyperparameters of `algo`."""
+    """The rl-zoo YAML file holding the thesis's hyperparameters of `algo` (``zoo_configs/<algo>.yml``), read through
+    ``importlib.resources`` from the installed package, so that an installed wheel finds it as a checkout does.
+
+    Raises ValueError for an algorithm sb3-er does not have and FileNotFoundError when the installation lacks the file
+    (a broken install: reinstall sb3-er, or pass ``--conf-file`` explicitly).
+    """
     if algo not in ALL_ALGORITHM_NAMES:
         raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALL_ALGORITHM_NAMES)}")
-    path = CONFIG_DIR / f"{algo}.yml"
-    if not path.is_file():
+    resource = importlib.resources.files(CONFIG_PACKAGE).joinpath(f"{algo}.yml")
+    if not resource.is_file():
         raise FileNotFoundError(
-            f"{path} not found: sb3-er's zoo_configs/ ships with the source tree; pass --conf-file explicitly"
+            f"{resource} not found: this installation of sb3-er lacks its package data {CONFIG_PACKAGE}/{algo}.yml "
+            "(reinstall sb3-er, or pass --conf-file explicitly)"
         )
-    return path
+    if isinstance(resource, Path):
+        return resource
+    # rl_zoo3 opens --conf-file by name: a zipped install's file is extracted for the life of the process.
+    return _EXTRACTED.enter_context(importlib.resources.as_file(resource))
 
 
 def load_hyperparameters(algo: str, env_id: str) -> dict[str, Any]:

@@ -17,7 +17,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import SubprocVecEnv
 
 from sb3_er import ER, ERSigma, SarsaLambda, zoo
-from sb3_er.common.base_class import (
+from sb3_er.common.tile_coding import (
     default_tile_widths,
     default_tiles_per_dimension,
     package_tilings,

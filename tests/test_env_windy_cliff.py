@@ -1,4 +1,4 @@
-"""Windy cliff grid world (thesis 5.1, DESIGN.md 7) against hand-enumerated transitions and wind statistics."""
+"""Windy cliff grid world (thesis 5.1, our reading) against hand-enumerated transitions and wind statistics."""
 
 import warnings
 

@@ -7,7 +7,7 @@ import pytest
 from chain_mdp import ChainEnv
 
 from sb3_er import ER, FQI, Dyna, SarsaLambda
-from sb3_er.cli import _analysis_options, _reproduce_parser
+from sb3_er.cli import _analysis_options, reproduce_parser
 from sb3_er.experiments.framework import (
     METHODS,
     PROBLEMS,
@@ -77,7 +77,7 @@ def test_value_updates_by_hand():
 
 
 def test_command_line_options():
-    parser = _reproduce_parser()
+    parser = reproduce_parser()
     args = parser.parse_args(["framework", "--seeds", "2", "--problems", "pendulum", "--methods", "er", "lspi"])
     assert _analysis_options(parser, args) == {"problems": ["pendulum"], "methods": ["er", "lspi"]}
     with pytest.raises(SystemExit):

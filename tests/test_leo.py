@@ -1,4 +1,4 @@
-"""LEO in MuJoCo (thesis 4.2.3) against the original robot model (leo_reference.md) and Erik's task.
+"""LEO in MuJoCo (thesis 4.2.3) against the original robot model (GRL's leoconfig.xml) and Erik's task.
 
 Expected values are computed here from the reference's quoted constants, not read back from the model.
 """

@@ -75,7 +75,7 @@ def test_record_holds_version_commit_and_resolved_configuration(tmp_path):
     else:  # an installed wheel: no commit to record
         assert record["git_commit"] is None and record["git_dirty"] is None
 
-    entry = yaml.safe_load((zoo.CONFIG_DIR / "er.yml").read_text())["sb3_er/PendulumSwingup-v0"]
+    entry = yaml.safe_load(zoo.config_path("er").read_text())["sb3_er/PendulumSwingup-v0"]
     config = record["config"]
     assert config["algorithm_kwargs"] == {
         "policy": "TileQ", "seed": 3, **{key: value for key, value in entry.items() if key not in RUN_LEVEL_KEYS}

@@ -3,7 +3,7 @@
 GRL (github wcaarls/grl, cfg/compass_walker/sarsa_walk.yaml): Sarsa(lambda), alpha 0.4 on Q, gamma 0.99, lambda 0.92,
 epsilon 0.05, replacing traces, 16 tilings, weights drawn from U[0, 1] and averaged over the 16 active tiles (so Q
 starts in [0, 1]); a greedy test episode of 1001 steps from Garcia's fixed point. Measured with GRL: after 50 learning
-episodes the greedy test walks without a fall in 15 of 15 runs (walker_readings.md).
+episodes the greedy test walks without a fall in 15 of 15 runs (the simplest-walker docs page).
 
 Also the gait figure and animation tools (sb3_er.experiments.gait) on tiny models.
 """

@@ -1,5 +1,6 @@
 """rl-zoo integration: registration, the thesis hyperparameters in zoo_configs, train -> enjoy, and an optuna study."""
 
+import importlib.resources
 import subprocess
 import sys
 
@@ -153,7 +154,7 @@ def test_plain_rl_zoo_trains_its_own_dqn_on_our_environments(tmp_path, monkeypat
     monkeypatch.setattr(
         "sys.argv",
         ["rl_zoo3.train", "--algo", "dqn", "--env", "sb3_er/SimplestWalker-v0", "--gym-packages", "sb3_er_envs",
-         "-conf", str(zoo.CONFIG_DIR / "dqn.yml"), "-n", "300", "-f", str(tmp_path), "--eval-freq", "-1",
+         "-conf", str(importlib.resources.files(zoo.CONFIG_PACKAGE) / "dqn.yml"), "-n", "300", "-f", str(tmp_path), "--eval-freq", "-1",
          "--seed", "0", "--verbose", "0"],
     )
     zoo_train()

@@ -1,4 +1,5 @@
-"""Erik Schuitema's hand-made LEO gait: the "observing" controller his agent watched before learning (reference 4.5).
+"""Erik Schuitema's hand-made LEO gait: the "observing" controller his agent watched before learning
+(GRL's LeoBhWalkSym.cpp, ``autoActuateHips2`` and the knee controller).
 
 The hips follow ``autoActuateHips2``: a spring on the angle between the legs (target 0.680 rad) drives the swing hip,
 and the stance hip gets a fifth of it in reverse plus, while the stance foot is on the floor, a torso-pitch controller
@@ -30,6 +31,10 @@ class ObservingGait:
 
     Call :meth:`reset` at the start of an episode and :meth:`voltages` (or :meth:`action` for ``LeoEnv``'s voltage
     levels) every control step with the observation and the ``info`` of the step that produced it.
+
+    :param explore_rate: the fraction of control steps that take uniformly random voltages instead (a probability;
+        default 0, the pure gait).
+    :param seed: seed of those random choices; None (default) for fresh entropy.
     """
 
     def __init__(self, explore_rate: float = 0.0, seed: int | None = None):

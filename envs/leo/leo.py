@@ -1,7 +1,8 @@
 """LEO, the Delft biped of thesis section 4.2.3, as a dm_control domain (modelled on the suite's ``walker``).
 
-The MJCF model ``leo.xml`` rebuilds Erik Schuitema's ODE model (facts and figures: ``leo_reference.md``); this module adds
-the walking task of the thesis (Eq. 4.6-4.7, Table 4.3) with Erik's task logic:
+The MJCF model ``leo.xml`` rebuilds Erik Schuitema's ODE model as the GRL framework keeps it
+(``addons/leosim/cfg/leoconfig.xml``); this module adds the walking task of the thesis (Eq. 4.6-4.7, Table 4.3) with
+Erik's task logic:
 
 * 30 Hz control, voltages held over an exact number of physics substeps;
 * the 10-D stance/swing observation of Eq. 4.6 with Butterworth-filtered joint rates;
@@ -80,7 +81,8 @@ MAX_STANCE_LEG_ANGLE = 0.36 * math.pi
 #: Butterworth cut-off of the joint-rate filters [Hz] (Erik's first-order filter at the 30 Hz sample rate).
 RATE_FILTER_CUTOFF = 10.0
 
-#: Erik's start pose (reference section 2, Eq. 4.7 with the torso in the task's sign): left leg stance and vertical.
+#: Erik's start pose (GRL's leoconfig.xml initial state, Eq. 4.7 with the torso in the task's sign): left leg stance
+#: and vertical.
 START_POSE = {
     "torso": -0.10,
     "hip_left": 0.10,
@@ -290,7 +292,7 @@ class Physics(mujoco.Physics):
 
 
 class LeoWalk(base.Task):
-    """Erik Schuitema's walking task on LEO (thesis 4.2.3; reference sections 4.2-4.8).
+    """Erik Schuitema's walking task on LEO (thesis 4.2.3; GRL's LeoBhWalkSym.cpp).
 
     Action: the voltages [V] of the stance hip, the swing hip and the swing knee, clipped to +-MAX_VOLTAGE.
     Observation ``state`` (Eq. 4.6): torso angle and rate, then angle and rate of the stance hip, swing hip, stance knee
@@ -377,8 +379,8 @@ class LeoWalk(base.Task):
         # which here would count a control step at the reset.
 
     def auto_voltages(self) -> dict[str, float]:
-        """Erik's controllers for the joints the agent does not drive (reference 4.5), from the current state [V],
-        before clipping."""
+        """Erik's controllers for the joints the agent does not drive (GRL's ``autoActuate*``), from the current state
+        [V], before clipping."""
         voltages = self._auto_voltage_list()
         stance, swing = self.stance, 1 - self.stance
         auto = (0, _KNEE[stance] - 1, _ANKLE[stance] - 1, _ANKLE[swing] - 1)
@@ -477,7 +479,8 @@ class LeoWalk(base.Task):
         return energy
 
     def _update_stance(self, left_contact: bool, right_contact: bool) -> None:
-        """Stance leg from the foot contacts; a change of stance leg is a footstep (reference 4.3)."""
+        """Stance leg from the foot contacts; a change of stance leg is a footstep (GRL's
+        ``updateDerivedStateVars``)."""
         previous = self.stance
         if left_contact and right_contact:
             self.stance = LEFT if self._ankle_x(LEFT) > self._ankle_x(RIGHT) else RIGHT

@@ -1,7 +1,5 @@
 """Shared SB3 machinery of the tile-coded algorithms: spaces, the learn loop, online Sarsa(lambda), logging."""
 
-import functools
-import importlib.resources
 import inspect
 import io
 import math
@@ -16,7 +14,6 @@ from typing import Any, ClassVar, Optional, TypeVar, Union
 
 import numpy as np
 import gymnasium as gym
-import yaml
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
@@ -38,6 +35,13 @@ from sb3_er.common.serialization import (
     read_zip_data,
     resolve_zip_path,
 )
+from sb3_er.common.tile_coding import (
+    DEFAULT_CELL_BUDGET,
+    default_tile_widths,
+    default_tiles_per_dimension,
+    package_tilings,
+    varying_dimensions,
+)
 from sb3_er.common.value_bounds import (
     TOLERANCE,
     VALUE_BOUND_ACTIONS,
@@ -48,19 +52,6 @@ from sb3_er.common.value_bounds import (
 )
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
-#: The generic rule: at most this many tiles per bounded dimension (the rule of sb3-er before budgets), at least 2.
-DEFAULT_TILES_PER_DIMENSION = 10
-MIN_DEFAULT_TILES_PER_DIMENSION = 2
-#: The generic rule's cells per tiling, spread over the non-constant dimensions; 2^14 gives Acrobot's 6 dimensions 5
-#: tiles each and MountainCar's 2 the cap of 10. Measured on these bounded tasks (README, "Classic control and peers";
-#: 16 tilings, 100,000 steps, seeds 0-4): with 5 tiles per dimension ER-sigma's median greedy returns on Acrobot were
-#: -130 to -145, where 10 (1e6 cells per tiling) never reached the goal; MountainCar learned with 8 and with 10.
-DEFAULT_CELL_BUDGET = 2**14
-#: sb3-er's tilings for known env ids (package data, shipped in the wheel).
-PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
-#: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
-PLACEHOLDER_BOUND = 1e30
-
 ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
 
 SelfTileQAlgorithm = TypeVar("SelfTileQAlgorithm", bound="TileQAlgorithm")
@@ -81,79 +72,6 @@ def is_fall(info: dict[str, Any], terminated: bool) -> bool:
     return bool(info["fell"]) if "fell" in info else terminated
 
 
-def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUDGET) -> int:
-    """Tiles per dimension of the generic rule: min(10, floor(cell_budget^(1/n_dims))), at least 2.
-
-    A cell budget per tiling spread evenly over the dimensions keeps a tiling's cell count near ``cell_budget``
-    whatever the dimension, where a fixed 10 per dimension gives 10^D cells (Acrobot's 6 dimensions: 10^6 cells per
-    tiling, which 100,000 steps cannot fill). The root is taken in integers, so 5^6 = 15,625 cells give exactly 5.
-    """
-    if int(n_dims) != n_dims or n_dims < 0:
-        raise ValueError(f"n_dims must be a non-negative integer, got {n_dims!r}")
-    if int(cell_budget) != cell_budget or cell_budget < 1:
-        raise ValueError(f"cell_budget must be a positive integer, got {cell_budget!r}")
-    if n_dims == 0:
-        return DEFAULT_TILES_PER_DIMENSION
-    k = math.floor(cell_budget ** (1.0 / n_dims))
-    while (k + 1) ** n_dims <= cell_budget:  # floating-point roots can fall short of an exact integer root
-        k += 1
-    while k > 1 and k**n_dims > cell_budget:
-        k -= 1
-    return max(MIN_DEFAULT_TILES_PER_DIMENSION, min(DEFAULT_TILES_PER_DIMENSION, k))
-
-
-def varying_dimensions(observation_space: spaces.Box) -> int:
-    """The number of observation dimensions whose bounds differ (the generic rule's D; a constant needs no tiles)."""
-    return int(np.count_nonzero(observation_space.high.astype(np.float64) > observation_space.low.astype(np.float64)))
-
-
-def default_tile_widths(
-    observation_space: spaces.Box, tiles_per_dimension: int | None = None, cell_budget: int = DEFAULT_CELL_BUDGET
-) -> list[float]:
-    """Tile widths splitting each bounded observation dimension into equal tiles.
-
-    ``tiles_per_dimension`` tiles per dimension if given; otherwise the generic rule,
-    ``default_tiles_per_dimension(D, cell_budget)`` with D the number of non-constant dimensions (at most 10, at
-    least 2 tiles each, ``cell_budget`` cells per tiling). Bounds that are infinite, or placeholders for infinity
-    (magnitude >= 1e30, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
-    ValueError names them. A dimension whose bounds coincide (a constant) gets width 1, one tile for its only value.
-    """
-    if tiles_per_dimension is not None and (
-        isinstance(tiles_per_dimension, bool) or int(tiles_per_dimension) != tiles_per_dimension
-        or tiles_per_dimension < 1
-    ):
-        raise ValueError(f"tiles_per_dimension must be a positive integer, got {tiles_per_dimension!r}")
-    low, high = observation_space.low.astype(np.float64), observation_space.high.astype(np.float64)
-    bounded = np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
-    unbounded = np.flatnonzero(~bounded)
-    if unbounded.size:
-        raise ValueError(
-            f"Observation dimensions {unbounded.tolist()} are unbounded (bounds {low[unbounded].tolist()} to "
-            f"{high[unbounded].tolist()}; magnitudes of 1e30 or more, such as +-float32 max, count as unbounded) and "
-            "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
-            "attribute"
-        )
-    if tiles_per_dimension is None:
-        tiles_per_dimension = default_tiles_per_dimension(varying_dimensions(observation_space), cell_budget)
-    widths = (high - low).reshape(-1) / tiles_per_dimension
-    return np.where(widths > 0.0, widths, 1.0).tolist()
-
-
-@functools.lru_cache(maxsize=1)
-def package_tilings() -> dict[str, dict[str, Any]]:
-    """sb3-er's tilings for known env ids, from the package data file ``sb3_er/data/tilings.yml`` (each entry:
-    ``observation_shape``, ``source`` and TileQ settings such as ``n_tilings`` and ``tile_widths``)."""
-    package, path = PACKAGE_TILINGS
-    with importlib.resources.files(package).joinpath(path).open("r", encoding="utf-8") as stream:
-        entries = yaml.safe_load(stream)
-    for env_id, entry in entries.items():
-        missing = {"observation_shape", "source", "tile_widths"} - set(entry)
-        if missing or len(entry["tile_widths"]) != int(np.prod(entry["observation_shape"])):
-            raise ValueError(f"{path}: the entry of {env_id} needs observation_shape, source and one tile width per "
-                             f"observation dimension, got {entry}")
-    return entries
-
-
 class DivergenceError(ArithmeticError):
     """The Q-function's weights became non-finite."""
 
@@ -170,14 +88,14 @@ class TileQAlgorithm(BaseAlgorithm):
     sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1), else
     finite observation bounds split into tiles by the generic rule (``default_tile_widths``).
 
-    :param policy: "TileQ" or a TileQPolicy subclass.
+    :param policy: "TileQ" (default) or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
     :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
-        schedule of the remaining progress.
-    :param gamma: discount factor.
-    :param exploration_rate: epsilon of epsilon-greedy acting.
-    :param trace_lambda: lambda of online Sarsa(lambda) learning; None acts without learning online.
-    :param trace_cutoff: traces below this value are dropped.
+        schedule of the remaining progress (default 0.2, the thesis's alpha for every experiment but LEO's).
+    :param gamma: discount factor per control step (default 0.99, thesis sections 4.2 and 5.1).
+    :param exploration_rate: epsilon of epsilon-greedy acting (default 0.05, the thesis's).
+    :param trace_lambda: lambda of online Sarsa(lambda) learning; None (default) acts without learning online.
+    :param trace_cutoff: traces below this value are dropped (default 0.01).
     :param value_watch: watch every target and every Q(s_t, a_t) of the updates (the kernels fold them into an array,
         without allocating or drawing a random number, so results are the same with and without it) against the
         possible returns (:mod:`sb3_er.common.value_bounds`), logging ``train/q_min``, ``train/q_max``,
@@ -188,7 +106,14 @@ class TileQAlgorithm(BaseAlgorithm):
     :param value_bound_action: what a value beyond the bounds by more than 5 % of their width does: "warn" (once per
         run, a ValueBoundWarning naming the algorithm, the step, the value and the bound), "raise" (ValueBoundError)
         or "ignore" (only counted and logged). The first such value is kept in ``value_excursion``.
-    :param policy_kwargs: tile coding (see TileQPolicy), plus ``tiles_per_dimension`` for bounded observations.
+    :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, default 16; ``tile_widths``; ``wrap_periods``;
+        ``memory_size``, default 2**22; ``action_values``; ``action_tile_widths``; ``initial_value``, default 0), plus
+        ``tiles_per_dimension`` for bounded observations; default None: the env's attributes and sb3-er's rules.
+    :param stats_window_size: episodes averaged in ``rollout/ep_rew_mean`` and ``rollout/ep_len_mean`` (SB3's, 100).
+    :param tensorboard_log: folder of TensorBoard logs, or None for none (SB3's).
+    :param verbose: 0 silent, 1 the tiling in use and SB3's training messages, 2 debug (SB3's).
+    :param seed: seed of every random stream (exploration, trajectory picks, ``predict``, the env), or None.
+    :param device: "cpu": the weights live in NumPy arrays; no GPU is used (SB3's argument, kept for its API).
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"TileQ": TileQPolicy, "TileQPolicy": TileQPolicy}

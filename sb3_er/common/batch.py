@@ -20,6 +20,7 @@ from sb3_er.common import kernels
 from sb3_er.common.base_class import DivergenceError, TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryBufferIO, TrajectoryReplayBuffer
 from sb3_er.common.checks import check_integer, check_number
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.tile_coding import TileCoder
 
 try:
@@ -133,6 +134,7 @@ class TileFeatures:
         return matrix
 
 
+@inherit_parameters
 class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
     """A TileQAlgorithm that keeps every transition in a TrajectoryReplayBuffer (the database D of thesis 3.5.3).
 
@@ -141,7 +143,6 @@ class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
     :param buffer_size: transitions kept; the oldest whole trajectories are evicted beyond it.
     :param replay_buffer_kwargs: keyword arguments of the TrajectoryReplayBuffer, e.g. ``dict(prune="coverage")`` for
         the pruned database of thesis 3.5.3.
-    Other parameters as in TileQAlgorithm.
     """
 
     def __init__(self, policy, env, buffer_size: int = 1_000_000,
@@ -183,6 +184,7 @@ class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
         self.replay_buffer.record_fill(self.logger)
 
 
+@inherit_parameters
 class FittedTileQAlgorithm(BufferedTileQAlgorithm):
     """A projection method (thesis Alg. 6) run on the whole database every ``fit_every`` episodes (Alg. 3 line 7 with
     an event-based L). Between fits the agent acts epsilon-greedily on the current Q without learning.

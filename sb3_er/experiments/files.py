@@ -121,6 +121,8 @@ class FolderLock:
     files). On a platform without ``fcntl`` the folder is not locked.
 
     Use it as a context manager, or call :meth:`acquire` and :meth:`release`.
+
+    :param folder: the results folder to lock (``--out`` of ``sb3-er reproduce``).
     """
 
     def __init__(self, folder: str | Path) -> None:

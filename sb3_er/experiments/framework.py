@@ -54,7 +54,17 @@ WINDOW = 10
 @dataclass(frozen=True)
 class Problem:
     """One problem of the framework experiment: env, default run length in episodes, the stated level of the mean
-    return of the last ``WINDOW`` episodes, and whether the methods' settings come from the zoo configs."""
+    return of the last ``WINDOW`` episodes, and whether the methods' settings come from the zoo configs.
+
+    :param name: the problem's name in ``--problems``, e.g. "pendulum".
+    :param env_id: the Gymnasium id of its env.
+    :param title: its name in tables and figures.
+    :param episodes: default run length in learning episodes.
+    :param level: the mean return of the last ``WINDOW`` episodes that counts as learned (the samples-to-level
+        column), in the env's reward units.
+    :param zoo_configs: True (default): the methods' settings come from ``zoo_configs/<algo>.yml``; False: from
+        MOUNTAIN_CAR_SETTINGS.
+    """
 
     name: str
     env_id: str
@@ -77,7 +87,14 @@ upper part); the pendulum's -10,000 lies between the thesis's end performances o
 @dataclass(frozen=True)
 class Method:
     """A row of the measured table: the algorithm (its zoo name), settings on top of the problem's, and the row of
-    thesis Table 3.1 it belongs to."""
+    thesis Table 3.1 it belongs to.
+
+    :param algo: the algorithm's rl-zoo name, e.g. "er".
+    :param label: the row's name in the measured table, e.g. "ER, prioritized sweeping".
+    :param thesis_row: the row of thesis Table 3.1 (a key of TABLE_3_1), e.g. "ER-sarsa".
+    :param overrides: constructor arguments on top of the problem's settings, as sorted ``(name, value)`` pairs
+        (default none).
+    """
 
     algo: str
     label: str
@@ -147,7 +164,12 @@ COLUMNS = ("episode", "timesteps", "return", "length", "updates", "cpu_time_s", 
 
 class FrameworkProtocol(EpisodeReturnProtocol):
     """The pendulum protocol (every learning episode's return), plus per episode the model's cumulative
-    value-function updates (:func:`value_updates`) and the process's CPU seconds since learning began."""
+    value-function updates (:func:`value_updates`) and the process's CPU seconds since learning began.
+
+    :param n_episodes: learning episodes after which learning stops (a positive integer).
+    :param progress: called with the fraction of the run done, for a progress bar; None (default) for none.
+    :param verbose: SB3's callback verbosity (default 0).
+    """
 
     COLUMNS = (*EpisodeReturnProtocol.COLUMNS, "updates", "cpu_time_s")
 

@@ -27,12 +27,15 @@ from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT
 
 @dataclass(frozen=True)
 class GaitTrace:
-    """Signals of one greedy walk, sampled at the start and after every control step.
+    """Signals of one greedy walk, sampled at the start and after every control step (arrays of shape (n,)).
 
-    ``time`` in model time units (the thesis's seconds), ``stance_angle`` phi_st and ``hip_angle`` phi_h in rad
-    (phi_h wrapped into [-pi, pi)), ``swing_foot_height`` in leg lengths above the slope (negative while the foot
-    scuffs through it at mid-stance). ``fell`` tells whether the walk ended in a fall, ``distance`` is the walker's
-    progress (sum of its step lengths).
+    :param time: time in model time units (the thesis's seconds).
+    :param stance_angle: phi_st in rad.
+    :param hip_angle: phi_h in rad, wrapped into [-pi, pi).
+    :param swing_foot_height: in leg lengths above the slope (negative while the foot scuffs through it at
+        mid-stance).
+    :param fell: whether the walk ended in a fall.
+    :param distance: the walker's progress, the sum of its step lengths, in leg lengths.
     """
 
     time: np.ndarray

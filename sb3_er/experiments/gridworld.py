@@ -39,6 +39,8 @@ class StopAtFirstGoal(BaseCallback):
     A goal entered at the southern cell pays 0 and teaches nothing about the goal's reward, so it does not count.
     Stopping one step later lets the algorithm close and store the goal trajectory (and finish its end-of-episode
     replay) before learning ends.
+
+    :param max_episodes: learning stops after this many episodes even without a paying goal.
     """
 
     def __init__(self, max_episodes: int) -> None:

@@ -105,7 +105,17 @@ def relative_difference(value: float, reference: float) -> float:
 @dataclass(frozen=True)
 class CurveSummary:
     """Thesis-table figures of one algorithm: rise time, end performance (with its CI), final falls (with CI), and our
-    horizon-free settling time (:func:`settling_time`)."""
+    horizon-free settling time (:func:`settling_time`).
+
+    :param rise_time: first abscissa at which the mean curve covers ``fraction`` of its way to the end performance
+        (:func:`rise_time`), in the curve's x units (episodes or seconds of learning time).
+    :param end_performance: best value of the mean curve, NaN when it never reaches the success threshold.
+    :param end_performance_ci: half width of its confidence interval at that point.
+    :param falls: mean cumulative falls at the end of learning, None without falls.
+    :param falls_ci: half width of their confidence interval, None without falls.
+    :param n_seeds: runs (seeds) summarised.
+    :param settling_time: :func:`settling_time` of the mean curve, in x units (default NaN).
+    """
 
     rise_time: float
     end_performance: float

@@ -31,6 +31,10 @@ class EpisodeReturnProtocol(BaseCallback):
     This is the pendulum protocol (thesis 4.2.1, "every episode, the cumulative reward is recorded") and the learning
     curve of the grid world. Each record holds ``episode`` (1-based), ``timesteps``, ``return``, ``length``,
     ``cumulative_falls``, ``goal_reached``, ``wall_time_s`` and ``values_out_of_range`` (module docstring).
+
+    :param n_episodes: learning episodes after which learning stops (a positive integer).
+    :param progress: called with the fraction of the run done, for a progress bar; None (default) for none.
+    :param verbose: SB3's callback verbosity (default 0).
     """
 
     COLUMNS = ("episode", "timesteps", "return", "length", "cumulative_falls", "goal_reached", "wall_time_s",
@@ -90,6 +94,14 @@ class GreedyDistanceProtocol(BaseCallback):
     Each record holds ``learning_time_s``, ``timesteps``, ``distance`` (mean over runs), ``distance_std``,
     ``cumulative_falls`` (falls while learning), ``episodes``, ``wall_time_s`` and ``values_out_of_range`` (module
     docstring). Learning stops after ``learning_time`` seconds, with a final evaluation.
+
+    :param eval_envs: the evaluation environments, one per greedy run (at least one).
+    :param dt: the learning env's control step in seconds.
+    :param eval_interval: seconds of learning time between evaluations (walker 100, LEO 200).
+    :param learning_time: seconds of learning time after which learning stops.
+    :param eval_seed: seed of the evaluation runs' initial states (default 0).
+    :param progress: called with the fraction of the run done, for a progress bar; None (default) for none.
+    :param verbose: SB3's callback verbosity (default 0).
     """
 
     COLUMNS = (

@@ -4,8 +4,9 @@ Every finished run of ``sb3-er reproduce`` has a record ``runs/<algo>/seed_<n>.j
 made where the run ran (a worker process or a Ray worker on another machine) and holds:
 
 - ``sb3_er_version``: ``sb3_er.__version__``;
-- ``code_sha256``: a hash of the code itself, every source file of the packages ``sb3_er`` and ``sb3_er_envs`` as
-  imported (see :func:`code_hash`; works for a checkout and an installed wheel alike);
+- ``code_sha256``: a hash of the code itself, every source file of the packages ``sb3_er`` (with its hyperparameters
+  ``sb3_er.zoo_configs``) and ``sb3_er_envs`` as imported (see :func:`code_hash`; a checkout and the wheel built from
+  it give the same hash);
 - ``git_commit``, ``git_dirty`` and ``git_diff_sha256``: the commit of the checkout the package was imported from,
   whether the work tree differed from that commit, and a hash of the differences (see :func:`git_state`; all three
   None when the package is not a git checkout, e.g. an installed wheel, or git is missing);
@@ -104,26 +105,41 @@ def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
 
 
 CODE_SUFFIXES = (".py", ".xml", ".yml", ".yaml")
+# The packages whose source is the code of a run, by import name. sb3_er.zoo_configs (the thesis's hyperparameters)
+# lives in the checkout's top-level zoo_configs/ and inside sb3_er/ in an installed wheel: files are named by their
+# import path, so both give the same names.
+CODE_PACKAGES = ("sb3_er", "sb3_er.zoo_configs", "sb3_er_envs")
+
+
+def code_files() -> dict[str, Path]:
+    """The files :func:`code_hash` reads: ``{"<package path>/<relative path>": path}`` for every file with a suffix in
+    CODE_SUFFIXES under the directories of CODE_PACKAGES (caches excluded), e.g. ``"sb3_er/zoo_configs/er.yml"``."""
+    import importlib
+
+    files: dict[str, Path] = {}
+    for name in CODE_PACKAGES:
+        root = Path(importlib.import_module(name).__file__).resolve().parent
+        prefix = name.replace(".", "/")
+        for path in root.rglob("*"):
+            if path.suffix in CODE_SUFFIXES and "__pycache__" not in path.parts and path.is_file():
+                files[f"{prefix}/{path.relative_to(root).as_posix()}"] = path
+    return files
 
 
 @functools.lru_cache(maxsize=1)
 def code_hash() -> str:
-    """SHA-256 of the source of the imported packages ``sb3_er`` and ``sb3_er_envs``: every file with a suffix in
-    CODE_SUFFIXES under their directories (caches excluded), by relative path and content, in sorted order.
+    """SHA-256 of the source of the imported packages (CODE_PACKAGES: ``sb3_er``, its hyperparameters
+    ``sb3_er.zoo_configs`` and ``sb3_er_envs``): every file of :func:`code_files`, by name and content, in sorted
+    order. A checkout and the wheel built from it give the same hash.
 
     Read once per process, the first time it is asked for (``execute_run`` and the driver ask before any run): the
     code a process runs is the code it imported, not what is on disk later. Editing the checkout during a long
     reproduction therefore neither changes the records of the runs already under way nor refuses them.
     """
-    import sb3_er
-    import sb3_er_envs
-
     digest = hashlib.sha256()
-    for package in (sb3_er, sb3_er_envs):
-        root = Path(package.__file__).resolve().parent
-        for path in sorted(p for p in root.rglob("*") if p.suffix in CODE_SUFFIXES and "__pycache__" not in p.parts):
-            digest.update(f"\0{package.__name__}/{path.relative_to(root).as_posix()}\0".encode())
-            digest.update(path.read_bytes())
+    for name, path in sorted(code_files().items()):
+        digest.update(f"\0{name}\0".encode())
+        digest.update(path.read_bytes())
     return digest.hexdigest()
 
 
@@ -158,12 +174,12 @@ def normalized(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_config(job) -> dict[str, Any]:
-    """The configuration of `job` (a :class:`~sb3_er.experiments.runner.RunJob`) as the driver plans it.
+    """The configuration of `job` (a :class:`~sb3_er.experiments.jobs.RunJob`) as the driver plans it.
 
     Raises ValueError for an algorithm that has no class (the zoo lookup names the known ones) and KeyError when
     ``zoo_configs/<algo>.yml`` has no entry for the experiment's env.
     """
-    from sb3_er.experiments.runner import job_model_kwargs
+    from sb3_er.experiments.jobs import job_model_kwargs
     from sb3_er.zoo import algorithm_classes
 
     experiment = job.experiment

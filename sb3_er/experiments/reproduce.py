@@ -19,7 +19,16 @@ ALL_ALGORITHMS = tuple(ALGORITHM_LABELS)
 
 @dataclass
 class Reproduction:
-    """What a reproduction produced: the output files and the wall times."""
+    """What a reproduction produced: the output files and the wall times.
+
+    :param out_dir: the output folder.
+    :param table_markdown: ``summary.md``, the table beside the thesis's numbers.
+    :param table_csv: ``summary.csv``, the same table as CSV.
+    :param figures: the figures and animations written (default none).
+    :param runs_done: runs made by this call (default 0).
+    :param runs_skipped: runs already finished in ``out_dir`` and resumed (default 0).
+    :param wall_time_s: wall time of the call in seconds (default 0).
+    """
 
     out_dir: Path
     table_markdown: Path
@@ -104,6 +113,22 @@ def reproduce(
     One command writes a folder at a time: a second one raises FolderLockedError naming the holder and changes
     nothing. A finished run whose files do not match its record is moved aside and done again (DamagedRunWarning).
     ``settings.json`` is written once a run has finished.
+
+    :param experiment_name: "gridworld", "pendulum", "walker" or "leo".
+    :param n_seeds: seeds per algorithm (default 20, the thesis's).
+    :param algos: rl-zoo names of the algorithms (default all five of the thesis).
+    :param out_dir: output folder; None (default) is ``results/<experiment_name>``.
+    :param budget: run length in episodes (grid world, pendulum) or seconds of learning time (walker, LEO); None
+        (default) is the experiment's (100 episodes, 100 episodes, 5000 s, 12000 s).
+    :param n_workers: worker processes, or the CPUs of a local Ray instance; None (default): every CPU.
+    :param first_seed: the first seed (default 0); the seeds are ``first_seed .. first_seed + n_seeds - 1``.
+    :param show_progress: show one progress bar over all runs (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster, "auto" or "HOST:PORT"; None (default) starts a local instance.
+    :param allow_mixed_versions: resume next to runs of other code or settings with a warning (default False).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments of the reading to run; None (default) for the defaults.
+    :param algo_kwargs: constructor arguments over the zoo configs; None (default) for none.
+    :returns: a :class:`Reproduction` naming the files written and the wall time.
     """
     from sb3_er.experiments.plots import plot_mean_with_ci
 

@@ -30,7 +30,6 @@ import time
 import traceback
 import warnings
 from dataclasses import dataclass, field
-from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +37,15 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from sb3_er.experiments import files, lifetime, records
+# The job, its settings and its paths live in jobs.py (records.py uses them too); importable from here.
+from sb3_er.experiments.jobs import (  # noqa: F401
+    RUNNER_ARGUMENTS,
+    RunJob,
+    accepted_parameters,
+    check_algo_kwargs,
+    job_model_kwargs,
+    run_csv_path,
+)
 from sb3_er.experiments.specs import Experiment
 
 BACKENDS = ("local", "ray")
@@ -47,90 +55,18 @@ RAY_ENV_VARS = {"RAY_USAGE_STATS_ENABLED": "0", **THREAD_LIMITS}
 RAY_MISSING = "the Ray backend needs the ray package: pip install 'sb3-er[ray]'"
 
 
-@dataclass(frozen=True)
-class RunJob:
-    """One learning run: an algorithm on an experiment with one seed, for `budget` episodes or seconds.
-
-    `csv_path` is where the driver writes the run's CSV; the run itself never touches it. `env_kwargs` and
-    `algo_kwargs` (sorted ``(name, value)`` pairs) are a reading to run instead of the defaults: keyword arguments of
-    ``gymnasium.make`` and overrides of the zoo config's constructor arguments (see :func:`job_model_kwargs`).
-    `figure_run` asks the run for the data of its per-run figures (the walker's gait and animation).
-    `label` names the run in place of `algo` (its key ``<label>/seed_<seed>``), so that several runs of one algorithm
-    with different `algo_kwargs` (the sigma study's definitions) are told apart by the driver and in their records.
-    """
-
-    experiment: Experiment
-    algo: str
-    seed: int
-    budget: float
-    csv_path: Path
-    env_kwargs: tuple = ()
-    algo_kwargs: tuple = ()
-    figure_run: bool = False
-    label: str = ""
-
-    @property
-    def key(self) -> str:
-        return f"{self.label or self.algo}/seed_{self.seed}"
-
-
-def accepted_parameters(algorithm_class: type) -> set[str]:
-    """Constructor parameter names of `algorithm_class` and its sb3_er base classes (which receive ``**kwargs``)."""
-    import inspect
-
-    names: set[str] = set()
-    for cls in algorithm_class.__mro__:
-        if cls.__module__.startswith("sb3_er") and "__init__" in vars(cls):
-            names.update(name for name, parameter in inspect.signature(cls.__init__).parameters.items()
-                         if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY))
-    return names
-
-
-RUNNER_ARGUMENTS = {
-    "self": "a method's own object",
-    "policy": "the runner passes the policy, 'TileQ'",
-    "env": "the runner makes each run's env (give its arguments with --env-kwargs)",
-    "seed": "the runner passes each run's seed (choose them with --seeds and --first-seed)",
-    "_init_setup_model": "the runner needs the model set up",
-    "tensorboard_log": "the runner's workers keep no logs; train with `sb3-er train` for TensorBoard",
-    "verbose": "the runner's workers report through the progress bar",
-}
-"""Constructor arguments that the runner sets itself (or that are no setting of a run), with why: ``--algo-kwargs``
-refuses them (:func:`check_algo_kwargs`)."""
-
-
-def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, Any], who: str | None = None) -> None:
-    """ValueError naming the problem when `algo_kwargs` sets an argument the runner sets itself (RUNNER_ARGUMENTS)
-    or one that none of `algorithm_classes` has; `who` names the one algorithm in the message (default: "no chosen
-    algorithm")."""
-    reserved = [name for name in algo_kwargs if name in RUNNER_ARGUMENTS]
-    if reserved:
-        raise ValueError("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}"
-                                                                 for name in reserved))
-    accepted = set().union(*(accepted_parameters(cls) for cls in algorithm_classes)) - set(RUNNER_ARGUMENTS)
-    unknown = sorted(set(algo_kwargs) - accepted)
-    if unknown:
-        if who is None:
-            raise ValueError(f"no chosen algorithm has the parameters {unknown}; they take {sorted(accepted)}")
-        raise ValueError(f"{who} has no parameters {unknown}; it takes {sorted(accepted)}")
-
-
-def job_model_kwargs(job: RunJob) -> dict[str, Any]:
-    """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
-    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
-    from sb3_er.zoo import algorithm_classes, model_kwargs
-
-    kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
-    accepted = accepted_parameters(algorithm_classes()[job.algo])
-    kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS})
-    return kwargs
-
-
 @dataclass
 class RunResult:
     """What one run returns: the protocol's records (one row per measurement, plus ``diverged``), its version record
     (see :mod:`sb3_er.experiments.records`), its wall time in seconds, and the files of its per-run figures as bytes
-    (``artifacts``: a suffix such as ``"gait.csv"`` to content; written beside the CSV as ``seed_<n>_<suffix>``)."""
+    (``artifacts``: a suffix such as ``"gait.csv"`` to content; written beside the CSV as ``seed_<n>_<suffix>``).
+
+    :param key: the run's key, ``<label>/seed_<seed>``.
+    :param frame: the protocol's records, one row per measurement.
+    :param record: the run's version record.
+    :param wall_time_s: the run's wall time in seconds.
+    :param artifacts: file suffix to content of its per-run figures (default none).
+    """
 
     key: str
     frame: pd.DataFrame
@@ -155,7 +91,12 @@ experiment's env id and the job's env kwargs; ``report(fraction)`` feeds the pro
 class TaskOutput:
     """What a task returns to :func:`execute_run`: its records (one row per measurement, with a ``diverged``
     column), the model whose settings its version record holds (e.g. the model that collected the data), and the data
-    of its per-run figures (as ``RunResult.artifacts``)."""
+    of its per-run figures (as ``RunResult.artifacts``).
+
+    :param frame: the task's records, one row per measurement, with a ``diverged`` column.
+    :param model: the model whose settings the version record holds.
+    :param artifacts: file suffix to content of its per-run figures (default none).
+    """
 
     frame: pd.DataFrame
     model: Any
@@ -170,11 +111,6 @@ def task_function(task: str):
         raise ValueError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
     module, _, name = TASKS[task].partition(":")
     return getattr(importlib.import_module(module), name)
-
-
-def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
-    """Where the CSV of one run lives (its version record is beside it, ``.json``)."""
-    return Path(out_dir) / "runs" / algo / f"seed_{seed}.csv"
 
 
 def _limit_threads_of_children() -> None:

@@ -35,7 +35,16 @@ COLUMNS = ("phase", "timesteps", "episode", "updates", "sigma_shift", "sigma_rai
 @dataclass(frozen=True)
 class Reading:
     """One env and reading: its id, env keyword arguments, optimistic initial value (or None), run-length unit and
-    default length."""
+    default length.
+
+    :param env_id: the Gymnasium id of the env.
+    :param env_kwargs: ``gymnasium.make`` keyword arguments as sorted ``(name, value)`` pairs (default none).
+    :param initial_value: an optimistic initial Q (``policy_kwargs=dict(initial_value=...)``); None (default) keeps
+        the zero initial weights.
+    :param unit: the unit of the run length, "episodes" (default) or seconds of learning time.
+    :param budget: the default run length in that unit (default 100).
+    :param title: the reading's name in tables (default "").
+    """
 
     env_id: str
     env_kwargs: tuple = ()

@@ -1,9 +1,11 @@
-"""The four thesis experiments: environment, protocol, run length, axes and the thesis's table (DESIGN.md 5-6)."""
+"""The four thesis experiments: environment, protocol, run length, axes and the thesis's table (thesis sections 4.2,
+5.1 and 6.1)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.experiments import thesis
 
 
@@ -18,6 +20,25 @@ class Experiment:
     end performance (the thesis's "NA"). ``zoo_configs``: the algorithms' settings start from their
     ``zoo_configs/<algo>.yml`` entry for ``env_id`` (else from the class defaults, and the runs' ``algo_kwargs`` carry
     every setting: the framework experiment's MountainCar).
+
+    :param name: the experiment's name in ``sb3-er reproduce``, e.g. "walker".
+    :param env_id: the Gymnasium id of its env.
+    :param title: its name in tables and figures.
+    :param protocol: "episodes" or "walking" (see above); an analysis keeps its settings here too.
+    :param default_budget: default run length, in episodes or seconds of learning time.
+    :param x_column: the records' column of the learning curves' x axis, e.g. "learning_time_s".
+    :param x_label: its axis label.
+    :param performance_column: the records' column of the performance, e.g. "distance".
+    :param performance_label: its axis label.
+    :param rise_time_unit: the unit of the table's rise time, e.g. "min".
+    :param rise_time_scale: x units per rise-time unit (default 1; LEO's seconds to minutes: 60).
+    :param eval_interval: seconds of learning time between greedy evaluations ("walking" only; default 0).
+    :param eval_runs: greedy runs per evaluation ("walking" only; default 0).
+    :param success_threshold: the performance of a learned gait; None (default) for none.
+    :param has_falls: whether the env reports falls (a falls column and figure; default False).
+    :param thesis_table: the thesis's numbers of the table, by algorithm and metric (default none).
+    :param thesis_caption: the caption of the thesis's table (default "").
+    :param zoo_configs: whether the settings start from the zoo configs (default True).
     """
 
     name: str
@@ -116,6 +137,7 @@ EXPERIMENTS: dict[str, Experiment] = {
 }
 
 
+@inherit_parameters
 @dataclass(frozen=True)
 class Analysis(Experiment):
     """A thesis analysis that is no learning run under a protocol: `sb3-er reproduce replay-order` (Appendix A) and
@@ -126,6 +148,10 @@ class Analysis(Experiment):
     (sorted ``(name, value)`` pairs) holds the analysis's other settings. :meth:`with_settings` also writes them into
     ``protocol``, the protocol name that every run's version record keeps, so that a resume with other settings is
     refused like one with another configuration.
+
+    :param task: the key of the run's function in :data:`sb3_er.experiments.runner.TASKS`.
+    :param unit: the unit of the run length ``budget``.
+    :param settings: the analysis's other settings as sorted ``(name, value)`` pairs (default none).
     """
 
     task: str = ""

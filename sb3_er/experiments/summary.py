@@ -21,10 +21,18 @@ REFERENCE_ALGORITHM = "sarsa_lambda"
 class Curves:
     """Per-seed curves of one algorithm's complete runs, cut to the shortest (rows: seeds), and its diverged runs.
 
-    ``seeds`` are the runs whose values stayed within the possible returns (or were not watched), the ones averaged;
-    ``out_of_bounds_seeds`` the complete runs whose values left them (their curves are in ``all_performance`` and
-    ``all_cumulative_falls``, which stack every complete run); ``unwatched_seeds`` the runs made before the value
-    watch (their CSVs have no ``values_out_of_range`` column), averaged as before; None: no run was watched.
+    :param x: the common abscissa, shape (n,), in the experiment's x units.
+    :param performance: the performance curves of the averaged runs, shape (len(seeds), n).
+    :param cumulative_falls: their cumulative falls, shape (len(seeds), n).
+    :param seeds: the runs whose values stayed within the possible returns (or were not watched), the ones averaged.
+    :param diverged_seeds: the seeds of the runs whose Q-function diverged (left out of the curves).
+    :param wall_time_s: the runs' summed wall time in seconds.
+    :param out_of_bounds_seeds: the complete runs whose values left the possible returns (their curves are in
+        ``all_performance`` and ``all_cumulative_falls``); default none.
+    :param unwatched_seeds: the runs made before the value watch (their CSVs have no ``values_out_of_range`` column),
+        averaged as before; None (default): no run was watched.
+    :param all_performance: the performance curves of every complete run, shape (runs, n); default None.
+    :param all_cumulative_falls: their cumulative falls, shape (runs, n); default None.
     """
 
     x: np.ndarray
