@@ -328,8 +328,7 @@ def write_summary(out: Path, figure_lines: list[str], figures: list[Path], comma
                 "One stored transition whose s' shares 3 of the 4 tiles of s, replayed alone through `model.replay` "
                 "(the kernels); the closed form of `sb3_er.experiments.value_growth.closed_form` beside it.", "",
                 "<!-- figure-start -->", "", *figure_lines, "", "<!-- figure-end -->", "",
-                "![Figure 5.6](figure_5_6.png)", "",
-                "![Limit against shared tiles](limit_vs_shared_tiles.png)", ""]
+                "Figures: `figure_5_6.png`, `limit_vs_shared_tiles.png`.", ""]
     for problem in PROBLEMS:
         if not any(key[0] == problem for key in runs):
             continue
@@ -344,7 +343,7 @@ def write_summary(out: Path, figure_lines: list[str], figures: list[Path], comma
                      "the stored data, one phase as the run replays it; > 1: replay expands the values whatever the "
                      "rewards):", "", f"<!-- {problem}-gain-start -->", "", *gain_table(problem, runs), "",
                      f"<!-- {problem}-gain-end -->", "",
-                     f"![{problem}]({problem}_values.png)", ""]
+                     f"Figure: `{problem}_values.png`.", ""]
     all_records = [records.read_record(csv) for csv in sorted((out / "runs").glob("*/*/seed_*.csv"))]
     if all_records:
         sections += [records.code_versions_line(all_records), ""]
