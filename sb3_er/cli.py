@@ -242,6 +242,16 @@ def reproduce_command(argv: Sequence[str]) -> None:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     print(result.table_markdown.read_text())
+    findings = result.out_dir / "findings.json"
+    if findings.is_file():  # the thesis's findings of this table, judged by the rule (sb3_er.experiments.findings)
+        import json
+
+        data = json.loads(findings.read_text(encoding="utf-8"))
+        words = {True: "holds", False: "does not hold", None: "inconclusive"}
+        print(f"The findings of thesis {data['thesis']} on these runs ({data['rule']}):")
+        for finding in data["findings"]:
+            print(f"  {words[finding['holds']]:>14}: {finding['claim']}; {finding['evidence']}")
+        print()
     print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
     print(f"table:      {result.table_markdown}  and  {result.table_csv}")
     for figure in result.figures:

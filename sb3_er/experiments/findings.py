@@ -96,7 +96,8 @@ def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> 
     better = "" if sign == 0 else (
         " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
     printed = f"thesis: {thesis_entry[0]} against {reference_entry[0]}, {thesis_entry[1]}"
-    return f"{label}'s {METRICS[metric]} is {words}{better} than {reference}'s ({printed})"
+    verb = "are" if metric == "falls" else "is"
+    return f"{label}'s {METRICS[metric]} {verb} {words}{better} than {reference}'s ({printed})"
 
 
 def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0,

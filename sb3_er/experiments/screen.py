@@ -39,13 +39,18 @@ BOOTSTRAP_RESAMPLES = 1000
 
 @dataclass(frozen=True)
 class Candidate:
-    """One reading to screen: a name (its folder), the env keyword arguments and a line saying what it tests.
+    """One reading to screen.
 
-    ``printed``: the values the thesis prints that this candidate keeps (labels such as ``"fall: the hip touches the
-    ground"``), which the rule's first part weighs. ``check``: the row checks a printed value that the screen does not
-    vary (e.g. another tile width); it is reported beside the candidates and chooses nothing.
-    ``folder``: an existing `sb3-er reproduce` folder of this reading (e.g. a committed reproduction of the defaults)
-    to read instead of ``<screen>/<name>``; :func:`run_screen` leaves such a candidate alone.
+    :param name: the candidate's name, also its folder ``<screen>/<name>``.
+    :param env_kwargs: the reading, as ``gymnasium.make`` keyword arguments.
+    :param description: a line saying what the candidate tests.
+    :param printed: the values the thesis prints that this candidate keeps (labels such as ``"fall: the hip touches
+        the ground"``), which the rule's first part weighs (default: none).
+    :param check: True when the row checks a printed value that the screen does not vary (e.g. another tile width):
+        reported beside the candidates, it chooses nothing (default False).
+    :param folder: an existing `sb3-er reproduce` folder of this reading (e.g. a committed reproduction of the
+        defaults) to read instead of ``<screen>/<name>``; :func:`run_screen` leaves such a candidate alone (default
+        None).
     """
 
     name: str
@@ -197,8 +202,12 @@ def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int =
 
 @dataclass(frozen=True)
 class Decision:
-    """What the rule decides from a screen: which printed values stay (each label: a candidate with it within 50 %,
-    or None) and the default, the nearest candidate that keeps every printed value that stays."""
+    """What the rule decides from a screen.
+
+    :param kept: per printed value (its label), the nearest candidate with it within 50 % of every thesis figure, or
+        None when there is none (the printed value then does not bind).
+    :param winner: the default: the nearest candidate that keeps every printed value that stays, or None.
+    """
 
     kept: dict
     winner: str | None

@@ -59,9 +59,12 @@ FIGURE_ALPHA, FIGURE_GAMMA = 0.25, 0.98
 
 class ArtificialSamplesEnv(gym.Env):
     """A stand-in env that only gives a model its spaces (thesis 5.3.1: "artificial samples"): a 1-D state in
-    [-2, 2] tiled with width 1, and ``n_actions`` actions. It is never stepped: samples are written into the buffer.
-    ``reward_bounds`` are those of the rewards its samples will pay (``rewards``: (low, high), no termination), so
-    that the value watch knows the possible returns."""
+    [-2, 2] tiled with width 1. It is never stepped: samples are written into the buffer.
+
+    :param n_actions: the number of discrete actions (default 1).
+    :param rewards: (low, high) of the rewards its samples will pay, declared as ``reward_bounds`` (no termination) so
+        that the value watch knows the possible returns (default (0, 0)).
+    """
 
     metadata = {"render_modes": []}
     tile_widths = (1.0,)
@@ -80,7 +83,14 @@ class ArtificialSamplesEnv(gym.Env):
 
 @dataclass
 class SelfAffectingSample:
-    """A model holding Figure 5.6's single stored transition, and the sample: s, s', r, the shared tiles."""
+    """A model holding Figure 5.6's single stored transition, and the sample.
+
+    :param model: the ER-family model whose replay buffer holds the one transition.
+    :param state: s_k, shape (1,).
+    :param next_state: s_{k+1}, shape (1,), sharing ``shared`` tiles with s_k.
+    :param reward: r_{k+1}.
+    :param shared: how many of the model's tilings s_k and s_{k+1} share.
+    """
 
     model: object
     state: np.ndarray
