@@ -26,6 +26,7 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
+from sb3_er.common.action_levels import PLACEHOLDER_BOUND
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
 from sb3_er.common.serialization import (
@@ -58,8 +59,6 @@ MIN_DEFAULT_TILES_PER_DIMENSION = 2
 DEFAULT_CELL_BUDGET = 2**14
 #: sb3-er's tilings for known env ids (package data, shipped in the wheel).
 PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
-#: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
-PLACEHOLDER_BOUND = 1e30
 
 ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
 
@@ -171,7 +170,8 @@ class TileQAlgorithm(BaseAlgorithm):
     finite observation bounds split into tiles by the generic rule (``default_tile_widths``).
 
     :param policy: "TileQ" or a TileQPolicy subclass.
-    :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
+    :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
+        (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``).
     :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
         schedule of the remaining progress.
     :param gamma: discount factor.
@@ -277,7 +277,8 @@ class TileQAlgorithm(BaseAlgorithm):
 
     @staticmethod
     def _check_spaces(observation_space: spaces.Space, action_space: spaces.Space) -> None:
-        action_nvec(action_space)
+        if not isinstance(action_space, spaces.Box):  # a Box's levels are checked with the policy's settings
+            action_nvec(action_space)
         if isinstance(observation_space, spaces.Dict):
             raise ValueError("Dict observation spaces are not supported: tile coding needs a flat Box observation")
         if not isinstance(observation_space, spaces.Box):
@@ -309,7 +310,8 @@ class TileQAlgorithm(BaseAlgorithm):
         tiles_per_dimension = kwargs.pop("tiles_per_dimension", None)
         origins = {name: "policy_kwargs" for name, value in kwargs.items() if value is not None}
         for name in ENV_TILING_ATTRIBUTES:
-            if kwargs.get(name) is None and not (name == "tile_widths" and tiles_per_dimension is not None):
+            if kwargs.get(name) is None and not (name == "tile_widths" and tiles_per_dimension is not None) \
+                    and not (name == "action_values" and kwargs.get("action_bins") is not None):
                 kwargs[name] = self._env_attribute(name)
                 if kwargs[name] is not None:
                     origins[name] = f"the env's {name} attribute"
