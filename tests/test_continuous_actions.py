@@ -90,12 +90,26 @@ def test_default_three_dimensional_box_makes_leos_343_joint_actions():
         np.testing.assert_allclose(sorted(set(actions[:, j])), np.linspace(-1, 1, 7), atol=1e-7)
 
 
-def test_explicit_action_values_are_the_levels_the_env_receives():
-    space = spaces.Box(np.array([-np.inf, 0.0], dtype=np.float32), np.array([np.inf, 1.0], dtype=np.float32))
+@pytest.mark.parametrize("bound", [np.inf, np.finfo(np.float32).max])
+def test_explicit_action_values_are_the_levels_the_env_receives(bound):
+    space = spaces.Box(np.array([-bound, 0.0], dtype=np.float32), np.array([bound, 1.0], dtype=np.float32))
     policy = policy_for(space, action_values=[[-5.0, 0.0, 20.0], [0.25, 1.0]])
     actions = all_env_actions(policy)
     np.testing.assert_array_equal(actions, np.array([[-5, 0.25], [-5, 1], [0, 0.25], [0, 1], [20, 0.25], [20, 1]],
                                                     dtype=np.float32))
+
+
+def test_unbounded_actions_learn_with_action_values():
+    big = np.finfo(np.float32).max  # SB3 refuses infinite Box bounds; float32's maximum stands for unbounded
+    env = BoxActionEnv(spaces.Box(-big, big, (1,), dtype=np.float32))
+    model = SarsaLambda("TileQ", env, policy_kwargs=dict(n_tilings=4, **SMALL, action_values=[[-1.0, 0.0, 1.5]]))
+    model.learn(40)
+    assert {float(a[0]) for a in env.received} <= {-1.0, 0.0, 1.5}
+
+
+def test_unbounded_actions_without_levels_are_refused_by_the_policy():
+    with pytest.raises(ValueError, match=r"unbounded.*action_values"):
+        policy_for(spaces.Box(-np.inf, np.inf, (2,), dtype=np.float64))
 
 
 def test_a_two_by_two_box_keeps_its_shape():
@@ -193,7 +207,7 @@ def test_replay_buffer_stores_joint_action_indices(tmp_path):
 @pytest.mark.parametrize(
     "space, kwargs, message",
     [
-        (spaces.Box(-np.inf, np.inf, (1,), dtype=np.float32), {}, r"unbounded.*action_values"),
+        (spaces.Box(-np.inf, np.inf, (1,), dtype=np.float32), {}, r"infinite bounds.*action_values"),
         (spaces.Box(-np.float32(3.4e38), np.float32(3.4e38), (1,), dtype=np.float32), {}, r"unbounded.*action_values"),
         (spaces.Box(-1.0, 1.0, (4,), dtype=np.float32), {}, r"7\^4 = 2401 joint actions.*cap of 343.*action_bins"),
         (spaces.Box(-1.0, 1.0, (1,), dtype=np.float32), {"action_bins": 0}, "positive integers"),

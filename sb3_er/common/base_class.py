@@ -166,8 +166,9 @@ class TileQAlgorithm(BaseAlgorithm):
 
     Subclasses react to each transition through ``_after_transition``. Tile coding defaults come from the env: its
     ``tile_widths``, ``wrap_periods``, ``action_values``, ``action_tile_widths`` and ``memory_size`` attributes, else
-    sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1), else
-    finite observation bounds split into tiles by the generic rule (``default_tile_widths``).
+    sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1,
+    Pendulum-v1, MountainCarContinuous-v0), else finite observation bounds split into tiles by the generic rule
+    (``default_tile_widths``).
 
     :param policy: "TileQ" or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
@@ -215,18 +216,28 @@ class TileQAlgorithm(BaseAlgorithm):
         device: str = "cpu",
         _init_setup_model: bool = True,
     ):
-        super().__init__(
-            policy,
-            env,
-            learning_rate,
-            policy_kwargs=policy_kwargs,
-            stats_window_size=stats_window_size,
-            tensorboard_log=tensorboard_log,
-            verbose=verbose,
-            device=device,
-            support_multi_env=False,
-            seed=seed,
-        )
+        try:
+            super().__init__(
+                policy,
+                env,
+                learning_rate,
+                policy_kwargs=policy_kwargs,
+                stats_window_size=stats_window_size,
+                tensorboard_log=tensorboard_log,
+                verbose=verbose,
+                device=device,
+                support_multi_env=False,
+                seed=seed,
+            )
+        except AssertionError as error:  # SB3's check of Box action bounds, the only assert of its __init__ on spaces
+            if "finite lower and upper bound" not in str(error):
+                raise
+            raise ValueError(
+                f"The action space {self.action_space} has infinite bounds, which Stable-Baselines3 refuses for every "
+                "algorithm, and levels cannot be spaced between them. Give the env finite bounds (its actuators' "
+                "limits), or keep them unbounded with bounds of float32's maximum magnitude and give the levels: "
+                "policy_kwargs=dict(action_values=[[...], ...]), one list per action dimension"
+            ) from error
         self.gamma = gamma
         self.exploration_rate = exploration_rate
         self.trace_lambda = trace_lambda
