@@ -248,7 +248,7 @@ def test_npz_and_pickle_buffers_restore_the_same_buffer(saved_buffers, tmp_path)
         from_pickle.load_replay_buffer(tmp_path / "buffer.pkl", truncate_last_traj=False)
         for loaded in (from_npz, from_pickle):
             assert loaded.replay_buffer.__getstate__()["checksums"] == source.replay_buffer.__getstate__()["checksums"]
-        assert not list(tmp_path.glob("*.partial"))
+        assert not list(tmp_path.glob("*.partial*"))
 
 
 # --- loading runs no code from the file unless pickles are allowed ---------------------------------------------------
@@ -358,7 +358,7 @@ def test_a_failed_save_leaves_the_previous_file(tmp_path, monkeypatch):
     monkeypatch.setattr("stable_baselines3.common.base_class.save_to_zip_file", fail)
     with pytest.raises(OSError, match="disk full"):
         model.save(tmp_path / "model")
-    assert (tmp_path / "model.zip").read_bytes() == saved and not list(tmp_path.glob("*.partial"))
+    assert (tmp_path / "model.zip").read_bytes() == saved and not list(tmp_path.glob("*.partial*"))
     assert zipfile.ZipFile(tmp_path / "model.zip").testzip() is None
 
 

@@ -162,7 +162,7 @@ def test_a_copy_learns_saves_and_acts_on_one_weight_array(algo, how, tmp_path):
         assert not np.array_equal(copied.policy.q_values(PROBES), before)  # it learned on its own array
         if hasattr(model, "replay_buffer"):
             assert not np.shares_memory(copied.replay_buffer.visits, model.replay_buffer.visits)
-            assert copied.replay_buffer.tile_coder.config() == copied.policy.tile_coder.config()
+            assert copied.replay_buffer.tile_coder is copied.policy.tile_coder
             assert copied.replay_buffer.n_transitions > model.replay_buffer.n_transitions
     # set_parameters on the copy changes how it acts
     zeros = {"policy": {"theta": th.zeros(copied.policy.tile_coder.n_weights, dtype=th.float64)}}

@@ -45,6 +45,11 @@ def test_policy_save_and_load_round_trip(algo, allow_pickle, tmp_path):
     assert policy.tile_coder.config() == model.policy.tile_coder.config()
     assert (policy.observation_space, policy.action_space) == (model.observation_space, model.action_space)
     assert np.shares_memory(policy.theta_array, policy.theta.numpy())
+    stream = io.BytesIO()
+    model.policy.save(stream)
+    stream.seek(0)
+    np.testing.assert_array_equal(TileQPolicy.load(stream, allow_pickle=allow_pickle).q_values(PROBES),
+                                  model.policy.q_values(PROBES))
 
 
 def test_a_policy_file_in_sb3s_own_format_needs_pickle(tmp_path):

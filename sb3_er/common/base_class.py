@@ -590,6 +590,12 @@ class TileQAlgorithm(BaseAlgorithm):
         state["_custom_logger"] = False
         return state
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        buffer = getattr(self, "replay_buffer", None)
+        if buffer is not None and buffer.tile_coder.config() == self.policy.tile_coder.config():
+            buffer.tile_coder = self.policy.tile_coder  # the buffer restores its own copy: share the policy's again
+
     # --- files: SB3's save and load, written atomically, checked when read, and loadable without pickle ------------
 
     def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase], exclude: Optional[Iterable[str]] = None,

@@ -7,7 +7,6 @@ read back, before any kernel indexes with it: a corrupt or crafted file is a Val
 
 import io
 import json
-import os
 import pathlib
 import pickle
 import zlib
@@ -17,6 +16,7 @@ import numpy as np
 from stable_baselines3.common.save_util import save_to_pkl
 
 from sb3_er.common import kernels
+from sb3_er.common.atomic import write_atomically
 from sb3_er.common.checks import check_choice, check_number
 from sb3_er.common.tile_coding import TileCoder
 
@@ -542,12 +542,7 @@ def save_buffer(buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, i
         path = path.with_suffix(".pkl")
     path.parent.mkdir(parents=True, exist_ok=True)
     data = _npz_bytes(buffer.__getstate__()) if path.suffix == ".npz" else pickle.dumps(buffer, pickle.HIGHEST_PROTOCOL)
-    partial = path.with_name(path.name + ".partial")
-    with open(partial, "wb") as stream:
-        stream.write(data)
-        stream.flush()
-        os.fsync(stream.fileno())
-    os.replace(partial, path)
+    write_atomically(path, data)
 
 
 def load_buffer(path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: TileCoder,

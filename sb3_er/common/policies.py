@@ -1,5 +1,6 @@
 """TileQ: a tile-coded linear action-value function Q(s, a) = theta . phi(s, a) as an SB3 policy."""
 
+import io
 import pathlib
 import pickle
 from collections.abc import Sequence
@@ -222,15 +223,18 @@ class TileQPolicy(BasePolicy):
         """Write a 1D array of weights into theta in place (the inverse of ``parameters_to_vector``)."""
         self.load_state_dict({"theta": th.as_tensor(np.asarray(vector, dtype=np.float64))})
 
-    def save(self, path: Union[str, pathlib.Path]) -> None:
+    def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase]) -> None:
         """Save the weights and the constructor settings (SB3's policy file, ``TileQPolicy.load`` reads it back), the
         spaces in plain form, so that loading needs no pickle; written atomically."""
-        data = encode_plain(self._get_constructor_parameters())
+        saved = {"state_dict": self.state_dict(), "data": encode_plain(self._get_constructor_parameters())}
+        if not isinstance(path, (str, pathlib.Path)):  # a file object, as torch.save takes
+            th.save(saved, path)
+            return
         with atomic_path(path, ".pth") as partial:
-            th.save({"state_dict": self.state_dict(), "data": data}, partial)
+            th.save(saved, partial)
 
     @classmethod
-    def load(cls, path: Union[str, pathlib.Path], device: Union[th.device, str] = "auto",
+    def load(cls, path: Union[str, pathlib.Path, io.BufferedIOBase], device: Union[th.device, str] = "auto",
              allow_pickle: bool = True) -> "TileQPolicy":
         """Load a policy saved by ``save``. Its file is read with ``torch.load(weights_only=True)``: no pickle runs.
         A policy file in SB3's own format (spaces pickled) needs ``allow_pickle`` (the default, as in SB3), as
@@ -245,6 +249,8 @@ class TileQPolicy(BasePolicy):
             except pickle.UnpicklingError:
                 if not allow_pickle:
                     raise ValueError("a policy file with pickled settings, refused with allow_pickle=False") from None
+                if hasattr(path, "seek"):
+                    path.seek(0)
                 saved = th.load(path, map_location="cpu", weights_only=False)
                 plain = False
             if not (isinstance(saved, dict) and set(saved) == {"state_dict", "data"}):

@@ -10,7 +10,6 @@ the file's pickles are never read. The weights are read by SB3 with ``torch.load
 
 import io
 import json
-import os
 import pathlib
 import zipfile
 from collections import deque
@@ -22,6 +21,8 @@ import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.save_util import is_json_serializable
+
+from sb3_er.common.atomic import atomic_output
 
 #: The data entry holding the plain copies of the attributes SB3 pickles.
 PLAIN_STATE_KEY = "_plain_state"
@@ -238,14 +239,8 @@ def atomic_path(path: Union[str, pathlib.Path], suffix: str) -> Iterator[pathlib
     path = pathlib.Path(path)
     if not path.suffix:
         path = path.with_suffix(suffix)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".partial")
-    try:
+    with atomic_output(path) as partial:  # a unique partial name, fsynced before the rename
         yield partial
-        os.replace(partial, path)
-    finally:
-        if partial.exists():
-            partial.unlink()
 
 
 def check_rng_state(name: str, value: Any) -> None:

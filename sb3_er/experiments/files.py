@@ -1,8 +1,9 @@
 """Files of a results folder: atomic writes, reads that name the file, and one writer per folder.
 
 Every file a reproduction keeps (run CSVs and records, per-run artifacts, ``settings.json``, summaries, figures) is
-written by :func:`write_atomically` or inside :func:`atomic_output`: to a unique temporary name in the same folder
-(``.<stem>.<token>.partial<suffix>``), flushed and fsynced, then renamed over the final name, and the folder fsynced.
+written by :func:`write_atomically` or inside :func:`atomic_output` (from :mod:`sb3_er.common.atomic`): to a unique
+temporary name in the same folder (``.<stem>.<token>.partial<suffix>``), flushed and fsynced, then renamed over the
+final name, and the folder fsynced.
 A reader therefore sees the old file or the new one, never a torn one, and two writers never share a temporary file.
 Temporary files left by a killed writer are removed by :func:`remove_partial_files` when the next command takes the
 folder's lock.
@@ -20,16 +21,15 @@ import functools
 import io
 import json
 import os
-import secrets
 import socket
 import sys
 import threading
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from sb3_er.common.atomic import PARTIAL_MARK, atomic_output, write_atomically  # noqa: F401  (re-exported)
+
 LOCK_NAME = ".sb3-er.lock"
-PARTIAL_MARK = ".partial"
 
 
 class DamagedFileError(ValueError):
@@ -43,54 +43,6 @@ class DamagedFileWarning(UserWarning):
 
 class FolderLockedError(RuntimeError):
     """Another command holds the lock of a results folder; the message names its host and process."""
-
-
-def partial_path(path: Path) -> Path:
-    """A new, unique temporary name beside `path` that keeps its suffix (matplotlib and imageio read the format from
-    it): ``.<stem>.<token>.partial<suffix>``."""
-    path = Path(path)
-    return path.with_name(f".{path.stem}.{secrets.token_hex(6)}{PARTIAL_MARK}{path.suffix}")
-
-
-def _fsync_folder(folder: Path) -> None:
-    try:
-        descriptor = os.open(folder, os.O_RDONLY)
-    except OSError:  # a platform without directory descriptors
-        return
-    try:
-        os.fsync(descriptor)
-    except OSError:
-        pass
-    finally:
-        os.close(descriptor)
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside `path` to write to (by any library: ``savefig``, ``mimsave``, ...); when the
-    block ends without an error, the file is fsynced and renamed to `path`. On an error it is removed."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = partial_path(path)
-    try:
-        yield temporary
-        with open(temporary, "rb+") as written:
-            os.fsync(written.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-    _fsync_folder(path.parent)
-
-
-def write_atomically(path: str | Path, content: bytes | str) -> Path:
-    """Write `content` (str as UTF-8) to `path` atomically: unique temporary name, flush, fsync, rename."""
-    data = content.encode() if isinstance(content, str) else bytes(content)
-    with atomic_output(path) as temporary:
-        with open(temporary, "xb") as stream:
-            stream.write(data)
-            stream.flush()
-    return Path(path)
 
 
 def json_bytes(data: Any) -> bytes:
@@ -143,8 +95,9 @@ def read_csv(path: str | Path, remedy: str):
 
 
 def remove_partial_files(folder: str | Path) -> list[Path]:
-    """Remove the temporary files that killed writers left under `folder` (see :func:`partial_path`, and the
-    ``<name>.partial`` files of earlier versions); return them. Call it only while holding the folder's lock."""
+    """Remove the temporary files that killed writers left under `folder` (see
+    :func:`sb3_er.common.atomic.partial_path`, and the ``<name>.partial`` files of earlier versions); return them. Call
+    it only while holding the folder's lock."""
     folder = Path(folder)
     if not folder.is_dir():
         return []
