@@ -97,7 +97,7 @@ class TileQPolicy(BasePolicy):
     def __init__(
         self,
         observation_space: spaces.Box,
-        action_space: Union[spaces.Discrete, spaces.MultiDiscrete],
+        action_space: Union[spaces.Discrete, spaces.MultiDiscrete, spaces.Box],
         lr_schedule: Optional[Schedule] = None,
         tile_widths: Optional[Sequence[float]] = None,
         n_tilings: int = 16,
