@@ -1,17 +1,23 @@
 """sb3-er beside its peers on Gymnasium's classic control: SB3's DQN with rl-zoo's tuned hyperparameters, and
-MushroomRL's tile-coded SARSA(lambda) (issue 12).
+MushroomRL's tile-coded SARSA(lambda) (issue 12); on the continuous-action tasks, SB3's SAC with rl-zoo's tuned
+hyperparameters (issue 26).
 
     python benchmarks/peers.py                                   # 5 seeds of everything (MushroomRL venv built once)
     python benchmarks/peers.py --seeds 1 --budget 3000 --methods sarsa_lambda dqn --envs CartPole-v1   # tiny
     python benchmarks/peers.py --build-mushroom                  # only build MushroomRL's venv
     python benchmarks/peers.py --json peers.json                 # resumable: runs already in peers.json are skipped
+    python benchmarks/peers.py --envs Pendulum-v1 MountainCarContinuous-v0 --methods sarsa_lambda er_sigma sac
 
 Methods (``--methods``):
 - ``sarsa_lambda``, ``er_sigma``: sb3-er's ``SarsaLambda`` and ``ERSigma`` with their class defaults and sb3-er's
-  tilings for these ids (``sb3_er/data/tilings.yml``); 100,000 steps, ``learn()``'s default.
+  tilings for these ids (``sb3_er/data/tilings.yml``; on the continuous-action tasks 7 torque levels per action
+  dimension, both bounds included); 100,000 steps, ``learn()``'s default.
 - ``dqn``: Stable-Baselines3's DQN with rl-zoo's tuned hyperparameters, read from the installed rl_zoo3 package
   (``rl_zoo3/hyperparams/dqn.yml``); rl-zoo's ``n_timesteps`` (CartPole-v1 50,000, MountainCar-v0 120,000, Acrobot-v1
-  100,000). Torch uses one thread.
+  100,000). Torch uses one thread. Discrete-action tasks only.
+- ``sac``: Stable-Baselines3's SAC with rl-zoo's tuned hyperparameters (``rl_zoo3/hyperparams/sac.yml``) and its
+  ``n_timesteps`` (Pendulum-v1 20,000, MountainCarContinuous-v0 50,000); continuous-action tasks only. Torch uses one
+  thread.
 - ``mushroom``: MushroomRL 1.10.1's ``SARSALambdaContinuous`` on its ``Tiles.generate`` tilings with the same number of
   tilings and displacements (2d + 1)k / N (``uniform=False``, Miller et al.'s asymmetric offsets as ours), with the
   number of tiles per dimension whose width comes closest to ours over the observation range (CartPole's unbounded
@@ -21,13 +27,16 @@ Methods (``--methods``):
   are broken at random (ours: lowest index), and beyond the range a tiling contributes no feature. MushroomRL pins
   old releases and wraps the old ``gym``, so it runs in its own venv (``--mushroom-venv``, default
   ``~/.cache/sb3-er/mushroom-venv``, built on first use with CPU torch first and the pins of MUSHROOM_PINS), in a
-  subprocess, behind a small Gymnasium adapter (``_MushroomGymnasium``).
+  subprocess, behind a small Gymnasium adapter (``_MushroomGymnasium``). Discrete-action tasks only.
+
+A method is run only on the tasks of its kind (``--methods`` and ``--envs`` pair them up).
 
 Protocol. Every (method, env, seed) runs alone in a fresh subprocess, one after another, so that its CPU time and peak
 memory (the child's maximum resident set size, ``ru_maxrss``) are its own. Every ``--eval-freq`` environment steps the
 greedy policy plays ``--eval-episodes`` episodes on a separate env; *steps to threshold* is the first such point whose
-mean return reaches Gymnasium's ``reward_threshold`` (CartPole-v1 475, MountainCar-v0 -110, Acrobot-v1 -100), and
-*steps to target* the first to reach issue 12's target level (450, -140, -120). The *final return* is the mean over
+mean return reaches Gymnasium's ``reward_threshold`` (CartPole-v1 475, MountainCar-v0 -110, Acrobot-v1 -100,
+MountainCarContinuous-v0 90; Pendulum-v1 has none), and *steps to target* the first to reach the issues' target level
+(450, -140, -120; Pendulum-v1 -200, MountainCarContinuous-v0 90). The *final return* is the mean over
 ``--final-episodes`` (20) greedy episodes after learning (SB3's ``evaluate_policy(deterministic=True)``; for
 MushroomRL the same loop over Q's argmax) on an env reset with seed 1000 + seed. Wall and CPU seconds count learning
 only, without the evaluations; steps/s is steps per CPU second. Memory: the peak RSS of the run, and how far it rose
@@ -52,18 +61,28 @@ import sys
 import time
 from pathlib import Path
 
-ENVS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
-METHODS = ("sarsa_lambda", "er_sigma", "dqn", "mushroom")
+DISCRETE_ENVS = ("CartPole-v1", "MountainCar-v0", "Acrobot-v1")
+CONTINUOUS_ENVS = ("Pendulum-v1", "MountainCarContinuous-v0")
+ENVS = DISCRETE_ENVS + CONTINUOUS_ENVS
+METHODS = ("sarsa_lambda", "er_sigma", "dqn", "mushroom", "sac")
 METHOD_LABELS = {
     "sarsa_lambda": "sb3-er SarsaLambda",
     "er_sigma": "sb3-er ERSigma",
     "dqn": "SB3 DQN (rl-zoo tuned)",
     "mushroom": "MushroomRL SARSA(λ)",
+    "sac": "SB3 SAC (rl-zoo tuned)",
 }
-#: Gymnasium's reward_threshold of each env (checked against env.spec at run time).
-THRESHOLDS = {"CartPole-v1": 475.0, "MountainCar-v0": -110.0, "Acrobot-v1": -100.0}
-#: Issue 12's target levels for the greedy return after 100,000 steps.
-TARGETS = {"CartPole-v1": 450.0, "MountainCar-v0": -140.0, "Acrobot-v1": -120.0}
+#: The tasks each method runs on: the peers are for one kind of action space each.
+METHOD_ENVS = {"sarsa_lambda": ENVS, "er_sigma": ENVS, "dqn": DISCRETE_ENVS, "mushroom": DISCRETE_ENVS,
+               "sac": CONTINUOUS_ENVS}
+#: SB3's algorithm of each rl-zoo peer.
+RL_ZOO_PEERS = ("dqn", "sac")
+#: Gymnasium's reward_threshold of each env (checked against env.spec at run time; Pendulum-v1 has none).
+THRESHOLDS = {"CartPole-v1": 475.0, "MountainCar-v0": -110.0, "Acrobot-v1": -100.0, "Pendulum-v1": None,
+              "MountainCarContinuous-v0": 90.0}
+#: The issues' target levels for the greedy return after 100,000 steps (issue 12: discrete; issue 26: continuous).
+TARGETS = {"CartPole-v1": 450.0, "MountainCar-v0": -140.0, "Acrobot-v1": -120.0, "Pendulum-v1": -200.0,
+           "MountainCarContinuous-v0": 90.0}
 DEFAULT_BUDGET = 100_000
 #: MushroomRL's tiles need a finite range: CartPole's velocities get +-this (|velocities| of learning runs stay within).
 MUSHROOM_VELOCITY_RANGE = 4.0
@@ -107,7 +126,9 @@ class _Clock:
         return (time.perf_counter() - self.wall0 - self.eval_wall, time.process_time() - self.cpu0 - self.eval_cpu)
 
 
-def _first_reaching(evaluations: list[tuple[int, float]], level: float):
+def _first_reaching(evaluations: list[tuple[int, float]], level):
+    if level is None:
+        return None
     return next((step for step, value in evaluations if value >= level), None)
 
 
@@ -139,10 +160,16 @@ def _result(config: dict, evaluations, final_returns, learning: tuple[float, flo
 
 def rl_zoo_dqn_hyperparameters(env_id: str) -> tuple[int, dict]:
     """rl-zoo's tuned DQN settings for env_id from the installed rl_zoo3 package: (n_timesteps, DQN kwargs)."""
+    return rl_zoo_hyperparameters("dqn", env_id)
+
+
+def rl_zoo_hyperparameters(algo: str, env_id: str) -> tuple[int, dict]:
+    """rl-zoo's tuned settings of SB3's ``algo`` (dqn, sac) for env_id from the installed rl_zoo3 package:
+    (n_timesteps, the algorithm's kwargs)."""
     import rl_zoo3
     import yaml
 
-    with open(Path(rl_zoo3.__file__).parent / "hyperparams" / "dqn.yml") as stream:
+    with open(Path(rl_zoo3.__file__).parent / "hyperparams" / f"{algo}.yml") as stream:
         hyperparameters = dict(yaml.safe_load(stream)[env_id])
     n_timesteps = int(hyperparameters.pop("n_timesteps"))
     hyperparameters.pop("policy")
@@ -156,7 +183,7 @@ def _run_sb3(config: dict) -> dict:
 
     torch.set_num_threads(1)
     import gymnasium as gym
-    from stable_baselines3 import DQN
+    from stable_baselines3 import DQN, SAC
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.monitor import Monitor
@@ -169,9 +196,9 @@ def _run_sb3(config: dict) -> dict:
     eval_env.reset(seed=2000 + seed)
     final_env.reset(seed=1000 + seed)
     baseline = _rss_mb()
-    if method == "dqn":
-        _, kwargs = rl_zoo_dqn_hyperparameters(env_id)
-        model = DQN("MlpPolicy", train_env, seed=seed, device="cpu", **kwargs)
+    if method in RL_ZOO_PEERS:
+        _, kwargs = rl_zoo_hyperparameters(method, env_id)
+        model = {"dqn": DQN, "sac": SAC}[method]("MlpPolicy", train_env, seed=seed, device="cpu", **kwargs)
     else:  # imported only here, so that DQN's memory does not count sb3-er's imports
         from sb3_er import ERSigma, SarsaLambda
 
@@ -194,7 +221,7 @@ def _run_sb3(config: dict) -> dict:
     returns, _ = evaluate_policy(model, final_env, n_eval_episodes=config["final_episodes"], deterministic=True,
                                  return_episode_rewards=True)
     episodes = len(train_env.get_episode_rewards())
-    extra = {"tiling": model.policy_kwargs if method != "dqn" else None}
+    extra = {"tiling": model.policy_kwargs if method not in RL_ZOO_PEERS else None}
     return _result(config, evaluations, returns, learning, baseline, episodes, extra)
 
 
@@ -373,6 +400,8 @@ def _median(values):
 
 
 def _steps(results, key) -> str:
+    if key == "steps_to_threshold" and results[0]["threshold"] is None:
+        return "no threshold"
     reached = [r[key] for r in results if r[key] is not None]
     if not reached:
         return f"not reached (0/{len(results)})"
@@ -418,7 +447,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", type=int, default=5, help="seeds per (env, method) (default 5)")
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--budget", type=int, default=None,
-                        help="environment steps for every method (default: 100,000; rl-zoo's n_timesteps for DQN)")
+                        help="environment steps for every method (default: 100,000; rl-zoo's n_timesteps for DQN "
+                             "and SAC)")
     parser.add_argument("--eval-freq", type=int, default=5000, help="steps between greedy evaluations (default 5000)")
     parser.add_argument("--eval-episodes", type=int, default=10, help="episodes per periodic evaluation (default 10)")
     parser.add_argument("--final-episodes", type=int, default=20, help="episodes of the final evaluation (default 20)")
@@ -461,10 +491,12 @@ def main(argv=None) -> None:
     done = {(result["env"], result["method"], result["seed"], result["budget"]) for result in results}
     for env_id in args.envs:
         for method in methods:
+            if env_id not in METHOD_ENVS[method]:
+                continue
             if args.budget is not None:
                 budget = args.budget
-            elif method == "dqn":
-                budget = rl_zoo_dqn_hyperparameters(env_id)[0]
+            elif method in RL_ZOO_PEERS:
+                budget = rl_zoo_hyperparameters(method, env_id)[0]
             else:
                 budget = DEFAULT_BUDGET
             for seed in range(args.first_seed, args.first_seed + args.seeds):

@@ -85,3 +85,31 @@ def test_json_resume_skips_finished_runs_and_tables_cover_them(tmp_path):
     labels = [row.split("|")[2].strip() for row in table_rows(second.stdout, "CartPole-v1")]
     assert labels.count("sb3-er SarsaLambda") == 2 and labels.count("sb3-er ERSigma") == 2  # summary + per-seed rows
     assert [(r["method"], r["seed"]) for r in json.loads(results.read_text())] == [("sarsa_lambda", 0), ("er_sigma", 0)]
+
+
+def test_rl_zoo_sac_settings_are_read_from_the_installed_package():
+    peers = load_peers()
+    n_timesteps, kwargs = peers.rl_zoo_hyperparameters("sac", "Pendulum-v1")
+    assert n_timesteps == 20_000 and kwargs == {"learning_rate": 1e-3}  # rl-zoo's tuned Pendulum-v1 entry
+    n_timesteps, kwargs = peers.rl_zoo_hyperparameters("sac", "MountainCarContinuous-v0")
+    assert n_timesteps == 50_000 and kwargs["use_sde"] is True and kwargs["policy_kwargs"]["net_arch"] == [64, 64]
+
+
+def test_methods_run_only_on_tasks_of_their_kind():
+    peers = load_peers()
+    assert set(peers.METHOD_ENVS["sac"]) == {"Pendulum-v1", "MountainCarContinuous-v0"}
+    assert "Pendulum-v1" not in peers.METHOD_ENVS["dqn"] and "Pendulum-v1" not in peers.METHOD_ENVS["mushroom"]
+    assert set(peers.ENVS) <= set(peers.METHOD_ENVS["sarsa_lambda"]) and set(peers.TARGETS) == set(peers.ENVS)
+
+
+@pytest.mark.slow
+def test_tiny_continuous_benchmark_with_sac():
+    result = subprocess.run([sys.executable, str(SCRIPT), "--envs", "Pendulum-v1", "--seeds", "1", "--budget", "400",
+                             "--eval-freq", "200", "--eval-episodes", "1", "--final-episodes", "1",
+                             "--methods", "sarsa_lambda", "sac", "dqn"], check=False, capture_output=True, text=True,
+                            timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    rows = table_rows(result.stdout, "Pendulum-v1")
+    assert any("| SB3 SAC (rl-zoo tuned) | 400 | no threshold |" in row for row in rows)
+    assert any("| sb3-er SarsaLambda | 400 |" in row for row in rows)
+    assert not any("DQN" in row for row in rows)  # DQN takes no Box actions

@@ -144,6 +144,12 @@ class DictObsEnv(LineWalkEnv):
         self.action_space = spaces.Discrete(2)
 
 
+class TupleActionEnv(LineWalkEnv):
+    def __init__(self):
+        super().__init__()
+        self.action_space = spaces.Tuple((spaces.Discrete(2), spaces.Discrete(3)))
+
+
 class ImageObsEnv(LineWalkEnv):
     def __init__(self):
         super().__init__()
@@ -154,7 +160,7 @@ class ImageObsEnv(LineWalkEnv):
 @pytest.mark.parametrize(
     "make_env, message",
     [
-        (lambda: gym.make("Pendulum-v1"), "Discrete or MultiDiscrete action space"),
+        (TupleActionEnv, "Discrete, MultiDiscrete or Box action space"),
         (DictObsEnv, "Dict observation"),
         (ImageObsEnv, "image observations"),
         # made without its id: sb3-er's tiling for CartPole-v1 (sb3_er/data/tilings.yml) does not apply

@@ -23,6 +23,7 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
+from sb3_er.common.action_levels import PLACEHOLDER_BOUND
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
 from sb3_er.common.serialization import (
@@ -85,11 +86,13 @@ class TileQAlgorithm(BaseAlgorithm):
 
     Subclasses react to each transition through ``_after_transition``. Tile coding defaults come from the env: its
     ``tile_widths``, ``wrap_periods``, ``action_values``, ``action_tile_widths`` and ``memory_size`` attributes, else
-    sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1), else
-    finite observation bounds split into tiles by the generic rule (``default_tile_widths``).
+    sb3-er's tiling for the env id (``sb3_er/data/tilings.yml``: CartPole-v1, MountainCar-v0, Acrobot-v1,
+    Pendulum-v1, MountainCarContinuous-v0), else finite observation bounds split into tiles by the generic rule
+    (``default_tile_widths``).
 
     :param policy: "TileQ" (default) or a TileQPolicy subclass.
-    :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete or MultiDiscrete action space.
+    :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
+        (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``).
     :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
         schedule of the remaining progress (default 0.2, the thesis's alpha for every experiment but LEO's).
     :param gamma: discount factor per control step (default 0.99, thesis sections 4.2 and 5.1).
@@ -140,18 +143,28 @@ class TileQAlgorithm(BaseAlgorithm):
         device: str = "cpu",
         _init_setup_model: bool = True,
     ):
-        super().__init__(
-            policy,
-            env,
-            learning_rate,
-            policy_kwargs=policy_kwargs,
-            stats_window_size=stats_window_size,
-            tensorboard_log=tensorboard_log,
-            verbose=verbose,
-            device=device,
-            support_multi_env=False,
-            seed=seed,
-        )
+        try:
+            super().__init__(
+                policy,
+                env,
+                learning_rate,
+                policy_kwargs=policy_kwargs,
+                stats_window_size=stats_window_size,
+                tensorboard_log=tensorboard_log,
+                verbose=verbose,
+                device=device,
+                support_multi_env=False,
+                seed=seed,
+            )
+        except AssertionError as error:  # SB3's check of Box action bounds, the only assert of its __init__ on spaces
+            if "finite lower and upper bound" not in str(error):
+                raise
+            raise ValueError(
+                f"The action space {self.action_space} has infinite bounds, which Stable-Baselines3 refuses for every "
+                "algorithm, and levels cannot be spaced between them. Give the env finite bounds (its actuators' "
+                "limits), or keep them unbounded with bounds of float32's maximum magnitude and give the levels: "
+                "policy_kwargs=dict(action_values=[[...], ...]), one list per action dimension"
+            ) from error
         self.gamma = gamma
         self.exploration_rate = exploration_rate
         self.trace_lambda = trace_lambda
@@ -202,7 +215,8 @@ class TileQAlgorithm(BaseAlgorithm):
 
     @staticmethod
     def _check_spaces(observation_space: spaces.Space, action_space: spaces.Space) -> None:
-        action_nvec(action_space)
+        if not isinstance(action_space, spaces.Box):  # a Box's levels are checked with the policy's settings
+            action_nvec(action_space)
         if isinstance(observation_space, spaces.Dict):
             raise ValueError("Dict observation spaces are not supported: tile coding needs a flat Box observation")
         if not isinstance(observation_space, spaces.Box):
@@ -234,7 +248,8 @@ class TileQAlgorithm(BaseAlgorithm):
         tiles_per_dimension = kwargs.pop("tiles_per_dimension", None)
         origins = {name: "policy_kwargs" for name, value in kwargs.items() if value is not None}
         for name in ENV_TILING_ATTRIBUTES:
-            if kwargs.get(name) is None and not (name == "tile_widths" and tiles_per_dimension is not None):
+            if kwargs.get(name) is None and not (name == "tile_widths" and tiles_per_dimension is not None) \
+                    and not (name == "action_values" and kwargs.get("action_bins") is not None):
                 kwargs[name] = self._env_attribute(name)
                 if kwargs[name] is not None:
                     origins[name] = f"the env's {name} attribute"

@@ -14,6 +14,7 @@ from stable_baselines3.common.type_aliases import Schedule
 from stable_baselines3.common.utils import is_vectorized_observation
 
 from sb3_er.common import kernels
+from sb3_er.common.action_levels import box_action_levels
 from sb3_er.common.serialization import atomic_path, decode_plain, encode_plain
 from sb3_er.common.tile_coding import TileCoder
 
@@ -32,8 +33,7 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
             raise ValueError(f"Only flat MultiDiscrete action spaces are supported, got nvec of shape {action_space.nvec.shape}")
         return [int(n) for n in action_space.nvec]
     raise ValueError(
-        f"Tile-coded Q-learning needs a Discrete or MultiDiscrete action space, got {action_space}. "
-        "Discretise a Box action space first (e.g. a wrapper mapping a Discrete index to torque levels)."
+        f"Tile-coded Q-learning needs a Discrete, MultiDiscrete or Box action space, got {action_space}"
     )
 
 
@@ -66,16 +66,23 @@ class TileQPolicy(BasePolicy):
     The weights theta are a float64 CPU tensor registered as a buffer, so SB3's save/load and get/set_parameters work
     unchanged; the numba kernels update its NumPy view in place. MultiDiscrete actions are flattened in C order.
     Exploration belongs to the algorithm: ``predict`` here is always greedy. Internally actions are flat indices
-    0..A-1; the env sees them shifted by the space's ``start`` (``Discrete(3, start=-1)`` receives -1, 0, 1).
+    0..A-1; the env sees them shifted by the space's ``start`` (``Discrete(3, start=-1)`` receives -1, 0, 1). A Box
+    action space is discretised (:mod:`sb3_er.common.action_levels`): each dimension gets levels spaced evenly from its
+    lower to its upper bound, both included (7 by default, at most 7^3 joint actions so), the joint actions are
+    flattened in C order like a MultiDiscrete space's, and the env receives the levels in the Box's shape and dtype.
 
     :param observation_space: a flat Box.
-    :param action_space: Discrete or MultiDiscrete.
+    :param action_space: Discrete, MultiDiscrete or a Box of a floating-point dtype.
     :param lr_schedule: unused (SB3 interface); the algorithm applies the learning rate.
     :param tile_widths: tile width per observation dimension.
     :param n_tilings: number of tilings N.
     :param memory_size: upper bound on the number of weights.
     :param wrap_periods: per observation dimension a period or None.
-    :param action_values: per action dimension the value of each choice (for action tiling).
+    :param action_values: per action dimension the value of each choice (for action tiling); for a Box action space
+        the levels the env receives, each inside the bounds (needed where a bound is infinite).
+    :param action_bins: Box action spaces only: levels per dimension (an int or one per dimension), spaced evenly
+        from the lower to the upper bound, both included; default 7 per dimension while that makes at most 343 joint
+        actions. Give this or ``action_values``, not both.
     :param action_tile_widths: per action dimension a tile width over action_values; None keeps actions apart.
     :param initial_value: where Q starts. A number c sets every weight to c / N, so that Q(s, a) = c everywhere; a pair
         (low, high) draws each weight from U(low / N, high / N), so that Q starts in [low, high] (GRL's walker draws
@@ -90,7 +97,7 @@ class TileQPolicy(BasePolicy):
     def __init__(
         self,
         observation_space: spaces.Box,
-        action_space: Union[spaces.Discrete, spaces.MultiDiscrete],
+        action_space: Union[spaces.Discrete, spaces.MultiDiscrete, spaces.Box],
         lr_schedule: Optional[Schedule] = None,
         tile_widths: Optional[Sequence[float]] = None,
         n_tilings: int = 16,
@@ -100,13 +107,20 @@ class TileQPolicy(BasePolicy):
         action_tile_widths: Optional[Sequence[float]] = None,
         initial_value: Union[float, Sequence[float]] = 0.0,
         initial_value_seed: Optional[int] = None,
+        action_bins: Optional[Union[int, Sequence[int]]] = None,
     ):
         super().__init__(observation_space, action_space)
         if tile_widths is None:
             raise ValueError("TileQPolicy needs tile_widths (one per observation dimension)")
+        continuous = isinstance(action_space, spaces.Box)
+        if continuous:
+            levels = box_action_levels(action_space, action_bins, action_values)
+            action_values = levels
+        elif action_bins is not None:
+            raise ValueError(f"action_bins discretises a Box action space; this one is {action_space}")
         self.tile_coder = TileCoder(
             tile_widths,
-            action_nvec(action_space),
+            [len(v) for v in levels] if continuous else action_nvec(action_space),
             n_tilings=n_tilings,
             memory_size=memory_size,
             wrap_periods=wrap_periods,
@@ -130,9 +144,12 @@ class TileQPolicy(BasePolicy):
         self._share_theta()
         if low != 0.0 or high != 0.0:
             kernels.fill_initial_weights(self.theta_array, *self.initial_arguments)
-        self.action_table = np.stack(
-            np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1
-        ) + action_start(action_space)
+        choices = np.stack(np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1)
+        if continuous:  # the level of each dimension of each joint action, in the Box's dtype
+            self.action_table = np.stack([levels[j][choices[:, j]] for j in range(len(levels))], axis=1).astype(
+                action_space.dtype)
+        else:
+            self.action_table = choices + action_start(action_space)
         self._actions_are_indices = isinstance(action_space, spaces.Discrete) and int(action_space.start) == 0
         self._slots_scratch = np.zeros(self.tile_coder.n_tilings, dtype=np.int64)
         self._q_scratch = np.zeros(self.tile_coder.n_actions, dtype=np.float64)
@@ -285,10 +302,12 @@ class TileQPolicy(BasePolicy):
 
     def to_env_actions(self, flat_actions: np.ndarray) -> np.ndarray:
         """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete,
-        shifted by the space's ``start``."""
+        shifted by the space's ``start``; (B, *shape) levels in the Box's dtype for a Box."""
         if self._actions_are_indices:
             return flat_actions
         table = self.action_table[flat_actions]
+        if isinstance(self.action_space, spaces.Box):
+            return table.reshape((-1, *self.action_space.shape))
         return table[:, 0] if isinstance(self.action_space, spaces.Discrete) else table
 
     def q_values(self, observations: np.ndarray) -> np.ndarray:
