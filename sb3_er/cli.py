@@ -270,12 +270,24 @@ def main(argv: Sequence[str] | None = None) -> None:
             raise SystemExit(f"sb3-er: unknown command {arguments[0]!r}")
         raise SystemExit(0 if arguments else 2)
     command, rest = arguments[0], arguments[1:]
-    if command == "reproduce":
-        reproduce_command(rest)
-    else:
-        from sb3_er import zoo
+    try:
+        if command == "reproduce":
+            reproduce_command(rest)
+        else:
+            from sb3_er import zoo
 
-        zoo.COMMANDS[command](rest)
+            zoo.COMMANDS[command](rest)
+    except ModuleNotFoundError as error:
+        extra = EXTRAS.get((error.name or "").partition(".")[0])
+        if extra is None:
+            raise
+        raise SystemExit(f"sb3-er {command} needs {error.name}, which the {extra} extra installs: "
+                         f"pip install 'sb3-er[{extra}]' (or 'sb3-er[all]')") from error
+
+
+#: The optional packages the commands import, and the extra of pyproject.toml that installs each.
+EXTRAS = {"rl_zoo3": "zoo", "optuna": "zoo", "pandas": "plots", "matplotlib": "plots", "ray": "ray",
+          "dm_control": "dmc", "mujoco": "dmc", "imageio": "dmc"}
 
 
 if __name__ == "__main__":

@@ -550,7 +550,8 @@ def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
             parts.append(f"unknown version (no record) ({len(members)} runs)")
             continue
         commits = list(dict.fromkeys(describe_code(record).split(", ", 1)[1] for record in members))
-        shown = ", ".join(c.removeprefix("commit ")[:7] + (" (dirty)" if c.endswith("(dirty)") else "")
+        shown = ", ".join("none (not a git checkout)" if c == "no git commit" else
+                          c.removeprefix("commit ")[:7] + (" (dirty)" if c.endswith("(dirty)") else "")
                           for c in commits[:4]) + (", ..." if len(commits) > 4 else "")
         parts.append(f"sb3-er {members[0].get('sb3_er_version')}, {key} ({len(members)} runs; "
                      f"{'commit' if len(commits) == 1 else 'commits'} {shown})")
