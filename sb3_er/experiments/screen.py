@@ -127,6 +127,25 @@ def _checked_candidates(candidates) -> list[Candidate]:
     return candidates
 
 
+def screen_command(experiment_name: str, candidates, out_dir: Path, title: str, notes: str,
+                   argv: list[str] | None = None) -> pd.DataFrame:
+    """The command line of a screen script: ``[--only NAME ...] [--seeds N] [--summary-only]``. Runs (or resumes) the
+    candidates, seals their records and writes ``summary.md``; prints and returns the ranked table."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=title)
+    parser.add_argument("--only", nargs="+", help="screen only these candidates")
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--summary-only", action="store_true", help="write summary.md from the finished runs")
+    arguments = parser.parse_args(argv)
+    if not arguments.summary_only:
+        run_screen(experiment_name, candidates, out_dir, n_seeds=arguments.seeds, only=arguments.only)
+    seal_finished_runs(experiment_name, candidates, out_dir, n_seeds=arguments.seeds)
+    table = write_screen_summary(experiment_name, candidates, out_dir, title, notes=notes, n_seeds=arguments.seeds)
+    print(table.to_string(index=False))
+    return table
+
+
 def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10, budget: float | None = None,
                n_workers: int = 1, only: list[str] | None = None) -> None:
     """Run (or resume) Sarsa(lambda) on every candidate in ``out_dir/<candidate>`` with `sb3-er reproduce`."""

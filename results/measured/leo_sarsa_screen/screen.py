@@ -10,10 +10,9 @@ code (the default) holds each ankle joint at 3.72 degrees to its shank instead. 
 open rate filter (``filter_rates=False``) and the start variation (``start_noise``) were not screened.
 """
 
-import argparse
 from pathlib import Path
 
-from sb3_er.experiments.screen import Candidate, run_screen, seal_finished_runs, write_screen_summary
+from sb3_er.experiments.screen import Candidate, screen_command
 
 HERE = Path(__file__).resolve().parent
 CANDIDATES = [
@@ -24,19 +23,8 @@ CANDIDATES = [
 ]
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", nargs="+", help="screen only these candidates")
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--summary-only", action="store_true", help="write summary.md from the finished runs")
-    arguments = parser.parse_args()
-    if not arguments.summary_only:
-        run_screen("leo", [c for c in CANDIDATES if c.folder is None], HERE, n_seeds=arguments.seeds,
-                   only=arguments.only)
-    seal_finished_runs("leo", CANDIDATES, HERE, n_seeds=arguments.seeds)
-    table = write_screen_summary(
+    screen_command(
         "leo", CANDIDATES, HERE, "LEO: Sarsa(λ) screen (thesis Table 6.3)",
         notes=__doc__.split("\n\n", 1)[0] + " 12000 s of learning time per run; every 200 s, one greedy 25 s run. "
         "The printed feet's screen is unfinished (about 5-15 CPU minutes per run on this shared machine): a candidate "
-        "with fewer than 10 seeds decides nothing, so the default stays Erik's ankles until it has them.",
-        n_seeds=arguments.seeds)
-    print(table.to_string(index=False))
+        "with fewer than 10 seeds decides nothing, so the default stays Erik's ankles until it has them.")

@@ -13,10 +13,9 @@ which had the goal 0.1 rad & 1 rad/s; the screen made 0.2 rad & 2 rad/s today's 
 passes ``goal_angle=0.1, goal_velocity=1.0`` to repeat these readings.
 """
 
-import argparse
 from pathlib import Path
 
-from sb3_er.experiments.screen import Candidate, run_screen, seal_finished_runs, write_screen_summary
+from sb3_er.experiments.screen import Candidate, screen_command
 
 HERE = Path(__file__).resolve().parent
 PRINTED = {"velocity_tile_width": 0.33}
@@ -54,16 +53,6 @@ WIDTH_CHECKS = [
 CANDIDATES += WIDTH_CHECKS
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", nargs="+", help="screen only these candidates")
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--summary-only", action="store_true", help="write summary.md from the finished runs")
-    arguments = parser.parse_args()
-    if not arguments.summary_only:
-        run_screen("pendulum", CANDIDATES, HERE, n_seeds=arguments.seeds, only=arguments.only)
-    seal_finished_runs("pendulum", CANDIDATES, HERE, n_seeds=arguments.seeds)
-    table = write_screen_summary(
+    screen_command(
         "pendulum", CANDIDATES, HERE, "Pendulum: Sarsa(λ) screen at the printed tile widths (thesis Table 6.1)",
-        notes=__doc__.split("\n\n", 1)[0] + " 100 learning episodes per run (the experiment's run length).",
-        n_seeds=arguments.seeds)
-    print(table.to_string(index=False))
+        notes=__doc__.split("\n\n", 1)[0] + " 100 learning episodes per run (the experiment's run length).")

@@ -13,10 +13,9 @@ start on the impact manifold ("impact") and from GRL's start redrawn until a zer
 rule against the thesis's Table 6.2 Sarsa(lambda) row.
 """
 
-import argparse
 from pathlib import Path
 
-from sb3_er.experiments.screen import Candidate, run_screen, seal_finished_runs, write_screen_summary
+from sb3_er.experiments.screen import Candidate, screen_command
 
 HERE = Path(__file__).resolve().parent
 LITERAL = {"reward": "literal"}
@@ -81,16 +80,6 @@ def _candidates():
 CANDIDATES = _candidates()
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", nargs="+", help="screen only these candidates")
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--summary-only", action="store_true", help="write summary.md from the finished runs")
-    arguments = parser.parse_args()
-    if not arguments.summary_only:
-        run_screen("walker", CANDIDATES, HERE, n_seeds=arguments.seeds, only=arguments.only)
-    seal_finished_runs("walker", CANDIDATES, HERE, n_seeds=arguments.seeds)
-    table = write_screen_summary(
+    screen_command(
         "walker", CANDIDATES, HERE, "Simplest walker: Sarsa(λ) screen (thesis Table 6.2)",
-        notes=__doc__.split("\n\n", 1)[0] + " 5000 s of learning time per run; every 100 s, 10 greedy 100 s runs.",
-        n_seeds=arguments.seeds)
-    print(table.to_string(index=False))
+        notes=__doc__.split("\n\n", 1)[0] + " 5000 s of learning time per run; every 100 s, 10 greedy 100 s runs.")
