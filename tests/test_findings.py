@@ -64,3 +64,20 @@ def test_the_findings_file_is_what_the_docs_read(tmp_path):
     assert data["thesis"] == "Table 6.1" and data["sigma_regime"].startswith("sigma lowers")
     assert all(set(f) >= {"claim", "holds", "evidence"} for f in data["findings"])
     assert data["findings"][0]["claim"].startswith("vanilla-ER's")
+
+
+def test_a_metric_undefined_in_most_resamples_states_no_interval(tmp_path):
+    """An algorithm that learns no gait has no end performance: the finding is inconclusive, its evidence says why
+    instead of printing a NaN interval, and findings.json stays strict JSON."""
+    walker = EXPERIMENTS["walker"]
+    x = np.linspace(200.0, 5000.0, 25)
+    walking = np.tile(np.linspace(0.0, 40.0, x.size), (5, 1))
+    curves = {"sarsa_lambda": Curves(x, walking, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ()),
+              "er_sigma": Curves(x, np.zeros_like(walking), np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())}
+    found = {f["metric"]: f for f in table_findings(walker, curves, budget=5000.0, n_resamples=200)
+             if f.get("algorithm") == "er_sigma"}
+    end = found["end_performance"]
+    assert end["holds"] is None and end["ci95"] == [None, None]
+    assert "no interval" in end["evidence"] and "200 bootstrap resamples" in end["evidence"]
+    path = write_findings(tmp_path, "Table 6.2", list(found.values()))
+    json.loads(path.read_text(), parse_constant=lambda name: (_ for _ in ()).throw(ValueError(name)))

@@ -65,8 +65,21 @@ def _resampled(curves: Curves, rows: np.ndarray) -> Curves:
 
 
 def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves, metric: str, run_end: float,
-                         rng: np.random.Generator, n_resamples: int = N_RESAMPLES) -> tuple[float, float, float]:
-    """(difference ours - reference on all seeds, its 2.5 and 97.5 bootstrap percentiles)."""
+                         rng: np.random.Generator, n_resamples: int = N_RESAMPLES) -> tuple[float, float, float, int]:
+    """(difference ours - reference on all seeds, its 2.5 and 97.5 bootstrap percentiles, the number of resamples in
+    which the metric is undefined).
+
+    The percentiles are NaN when the metric is undefined (an algorithm learns no gait on the resampled mean curve) in
+    more than 5 % of the resamples: no interval is then stated, and the finding is inconclusive.
+
+    :param experiment: the table's experiment (its metrics and units).
+    :param ours: the curves of the algorithm judged.
+    :param reference: Sarsa(λ)'s curves.
+    :param metric: "rise_time", "end_performance" or "falls".
+    :param run_end: the run's end in the table's rise-time unit (a rise time never reached counts as it).
+    :param rng: the generator of the resamples.
+    :param n_resamples: the number of bootstrap resamples (default :data:`N_RESAMPLES`).
+    """
     difference = (metric_value(experiment, ours, metric, run_end)
                   - metric_value(experiment, reference, metric, run_end))
     samples = np.empty(n_resamples)
@@ -75,11 +88,12 @@ def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves
         b = rng.integers(0, len(reference.seeds), len(reference.seeds))
         samples[i] = (metric_value(experiment, _resampled(ours, a), metric, run_end)
                       - metric_value(experiment, _resampled(reference, b), metric, run_end))
+    undefined = int(np.count_nonzero(~np.isfinite(samples)))
     samples = samples[np.isfinite(samples)]
     if samples.size < 0.95 * n_resamples:  # the metric is undefined in too many resamples (no gait learned)
-        return difference, math.nan, math.nan
+        return difference, math.nan, math.nan, undefined
     low, high = np.percentile(samples, [2.5, 97.5])
-    return difference, float(low), float(high)
+    return difference, float(low), float(high), undefined
 
 
 def judge(sign: int, low: float, high: float) -> bool | None:
@@ -98,6 +112,11 @@ def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> 
     printed = f"thesis: {thesis_entry[0]} against {reference_entry[0]}, {thesis_entry[1]}"
     verb = "are" if metric == "falls" else "is"
     return f"{label}'s {METRICS[metric]} {verb} {words}{better} than {reference}'s ({printed})"
+
+
+def _finite(value: float) -> float | None:
+    """`value`, or None for NaN (findings.json is strict JSON: no NaN)."""
+    return None if math.isnan(value) else float(value)
 
 
 def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0,
@@ -120,14 +139,20 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
                 findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]), "holds": None,
                                  "evidence": "no complete run of one of the two algorithms"})
                 continue
-            difference, low, high = bootstrap_difference(experiment, ours, reference, metric, run_end, rng,
-                                                         n_resamples)
+            difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
+                                                                    rng, n_resamples)
             unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
-            evidence = (f"ours {difference:+.3g}{unit}, 95 % bootstrap CI [{low:+.3g}, {high:+.3g}] over "
-                        f"{len(ours.seeds)} and {len(reference.seeds)} seeds")
+            seeds = f"over {len(ours.seeds)} and {len(reference.seeds)} seeds"
+            if math.isnan(low):
+                interval = (f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
+                            f"{n_resamples} bootstrap resamples {seeds}")
+            else:
+                interval = f"95 % bootstrap CI [{low:+.3g}, {high:+.3g}] {seeds}"
+            evidence = f"ours {difference:+.3g}{unit}, {interval}"
             findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
                              "holds": judge(sign, low, high), "evidence": evidence, "algorithm": algo,
-                             "metric": metric, "thesis_sign": sign, "difference": difference, "ci95": [low, high]})
+                             "metric": metric, "thesis_sign": sign, "difference": _finite(difference),
+                             "ci95": [_finite(low), _finite(high)]})
     return findings
 
 
