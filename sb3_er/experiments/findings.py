@@ -112,7 +112,8 @@ def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> 
         " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
     printed = f"thesis: {thesis_entry[0]} against {reference_entry[0]}, {thesis_entry[1]}"
     verb = "are" if metric == "falls" else "is"
-    return f"{label}'s {METRICS[metric]} {verb} {words}{better} than {reference}'s ({printed})"
+    than = "as" if sign == 0 else "than"
+    return f"{label}'s {METRICS[metric]} {verb} {words}{better} {than} {reference}'s ({printed})"
 
 
 def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng: np.random.Generator,
