@@ -181,7 +181,9 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
                             f"{n_resamples} bootstrap resamples {seeds}")
             else:
                 interval = f"95 % bootstrap CI [{low:+.3g}, {high:+.3g}] {seeds}"
-            evidence = f"ours {difference:+.3g}{unit}, {interval}"
+            ours_text = "undefined (no gait on the mean curve of all seeds)" if math.isnan(difference) else (
+                f"{difference:+.3g}{unit}")
+            evidence = f"ours {ours_text}, {interval}"
             findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
                              "holds": judge(sign, low, high), "evidence": evidence, "algorithm": algo,
                              "metric": metric, "thesis_sign": sign, "difference": _finite(difference),
