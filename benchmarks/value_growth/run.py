@@ -272,13 +272,12 @@ def load_runs(out: Path) -> dict[tuple[str, str], dict[int, pd.DataFrame]]:
 def values_figure(out: Path, problem: str, runs) -> Path:
     greedy = bool(PROBLEMS[problem].get("eval_episodes"))
     figure, axes = plt.subplots(1, 3 if greedy else 2, figsize=(16.0 if greedy else 11.0, 4.2))
-    for variant in VARIANTS:
-        seeds = runs.get((problem, variant))
-        if not seeds:
-            continue
+    present = [variant for variant in VARIANTS if runs.get((problem, variant))]
+    for variant in present:
+        seeds = runs[(problem, variant)]
         for i, frame in enumerate(seeds.values()):
             kwargs = {"label": variant} if i == 0 else {}
-            color = f"C{list(VARIANTS).index(variant)}"
+            color = f"C{present.index(variant) % 10}"
             axes[0].plot(frame["timesteps"], frame["max_q_sa"], color=color, alpha=0.8, **kwargs)
             axes[1].plot(frame["timesteps"], frame["mean_excess_sigma_relative"] * 100, color=color, alpha=0.8)
             if greedy:
