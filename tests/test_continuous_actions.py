@@ -202,6 +202,51 @@ def test_replay_buffer_stores_joint_action_indices(tmp_path):
     np.testing.assert_array_equal(loaded.replay_buffer.actions[: buffer.n_transitions], actions)
 
 
+
+class LastObservations(gym.Wrapper):
+    """Records the observation each episode ends on (before the reset that follows)."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.final = []
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if terminated or truncated:
+            self.final.append((np.array(obs, dtype=np.float64), terminated))
+        return obs, reward, terminated, truncated, info
+
+
+def test_pendulum_time_limit_is_stored_as_a_truncation_that_bootstraps_from_the_last_real_state():
+    """Pendulum-v1 never terminates; its TimeLimit cuts every episode at 200 steps. Each stored trajectory must be one
+    whole episode, not terminated (replay bootstraps at its end), bootstrapping from the tiles of the state the
+    episode ended on, not the next episode's first state."""
+    env = LastObservations(gym.make("Pendulum-v1"))
+    model = ER("TileQ", env, seed=0, n_replays=1, policy_kwargs=SMALL).learn(1000)
+    buffer, coder = model.replay_buffer, model.policy.tile_coder
+    assert buffer.n_trajectories == len(env.final) == 5
+    for j, (final_obs, terminated) in enumerate(env.final):
+        assert not terminated and int(buffer.trajectory_length[j]) == 200
+        assert not bool(buffer.trajectory_terminated[j])
+        np.testing.assert_array_equal(buffer.trajectory_next_slots[j], coder.slots(final_obs))
+
+
+@pytest.mark.parametrize("env_id, low, high", [
+    # Pendulum-v1: -(theta^2 + 0.1 theta_dot^2 + 0.001 u^2) in [-(pi^2 + 6.4 + 0.004), 0], no termination: with gamma
+    # 0.99 every return lies in [-100 * 16.2736, 0].
+    ("Pendulum-v1", -100.0 * (np.pi**2 + 6.4 + 0.004), 0.0),
+    # MountainCarContinuous-v0: -0.1 a^2 in [-0.1, 0] a step, the goal's transition 100 - 0.1 a^2 and terminal:
+    # returns in [-0.1 / 0.01, 100]; Q starting at 10 lies inside.
+    ("MountainCarContinuous-v0", -10.0, 100.0),
+])
+def test_the_value_watch_bounds_of_the_continuous_tasks_lie_within_the_possible_returns(env_id, low, high):
+    """The watch learns these bounds from the rewards it observes: after any run they lie within the hand-computed
+    returns, so a value it flags above them is above every return the task can pay."""
+    model = SarsaLambda("TileQ", env_id, seed=0, policy_kwargs=SMALL).learn(3000)
+    bound_low, bound_high = model._watch.bounds
+    assert low - 1e-9 <= bound_low <= bound_high <= high + 1e-9
+
+
 # --- refusals ------------------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize(

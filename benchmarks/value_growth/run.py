@@ -3,6 +3,8 @@
     python benchmarks/value_growth/run.py                      # everything, 2 seeds (resumable: finished runs stay)
     python benchmarks/value_growth/run.py --parts figure       # Figure 5.6 and the closed form only (seconds)
     python benchmarks/value_growth/run.py --parts walker --seeds 3 --variants er er_sigma
+    python benchmarks/value_growth/run.py --parts pendulum_v1 --seeds 5 --out results/measured/continuous_values \
+        --variants er er_sigma er_sigma_volume residual_er_sigma residual_er_sigma_next er_sigma_rate_005
 
 Parts:
 - ``figure``: Figure 5.6's self-affecting sample replayed by ER, ER-sigma, residual ER and residual ER-sigma through
@@ -14,7 +16,11 @@ Parts:
   (``target_comparison``: the vanilla and the ER-sigma target on the same weights and visits) and at GAIN_AT the
   replay operator's gain with every reward 0 is measured for vanilla ER and each sigma definition (``replay_gain``).
   One CSV of checkpoint rows and one version record (JSON) per run under ``runs/<problem>/<variant>/``.
-Then ``summary.md`` and the figures are written from every run on disk.
+- ``pendulum_v1``: Gymnasium's Pendulum-v1 with nothing but the env id (sb3-er's tiling for it, 7 torques; 100,000
+  steps, instrumented every 10,000), the same instruments plus the median greedy return of 10 episodes at every
+  checkpoint (env reset with seed 1000 + seed). Meant for its own folder (``--out``), without the figure part.
+Then ``summary.md`` and the figures are written from every run on disk (Figure 5.6's part only where it was computed:
+``--parts figure``, or its figure already in the folder).
 """
 
 from __future__ import annotations
@@ -36,6 +42,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from stable_baselines3.common.callbacks import BaseCallback  # noqa: E402
+from stable_baselines3.common.evaluation import evaluate_policy  # noqa: E402
+from stable_baselines3.common.monitor import Monitor  # noqa: E402
 
 import sb3_er_envs  # noqa: E402,F401  (registers the env ids)
 from sb3_er import DivergenceError  # noqa: E402
@@ -46,10 +54,17 @@ from sb3_er.zoo import algorithm_classes, model_kwargs  # noqa: E402
 OUT = Path("results/measured/value_mechanism")
 PROBLEMS = {
     "walker": {"env_id": "sb3_er/SimplestWalker-v0", "steps": 25_000, "checkpoint": 2_500, "gain_at": (5_000, 10_000),
-               "reward_max": 30.0, "reward_min": -50.0},
+               "reward_max": 30.0, "reward_min": -50.0, "gamma": 0.99},
     "pendulum": {"env_id": "sb3_er/PendulumSwingup-v0", "steps": 60_000, "checkpoint": 6_000,
-                 "gain_at": (12_000, 24_000), "reward_max": 0.0, "reward_min": None},
+                 "gain_at": (12_000, 24_000), "reward_max": 0.0, "reward_min": None, "gamma": 0.98},
+    # Gymnasium's swing-up: the class defaults on the env id alone (gamma 0.99); every reward <= 0, 200 steps an
+    # episode, truncated (replay bootstraps there); "eval_episodes": greedy episodes at every checkpoint.
+    "pendulum_v1": {"env_id": "Pendulum-v1", "steps": 100_000, "checkpoint": 10_000, "gain_at": (10_000, 30_000),
+                    "reward_max": 0.0, "reward_min": None, "gamma": 0.99, "eval_episodes": 10,
+                    "class_defaults": True, "level": -200.0, "reading": "nothing but the env id"},
 }
+#: The problems run when --parts is not given (pendulum_v1 has its own folder).
+DEFAULT_PARTS = ("figure", "walker", "pendulum")
 # name: (algorithm, constructor overrides, env overrides, what it tests); overrides keyed by problem apply to those
 # problems only, and a variant with neither for a problem is not run there.
 VARIANTS = {
@@ -58,8 +73,10 @@ VARIANTS = {
     "er_sigma_memory": ("er_sigma", {"policy_kwargs": {"memory_size": 2**25}}, {},
                         "hash collisions: 8x the weight memory"),
     "er_sigma_volume": ("er_sigma", {"walker": {"replay_unit": "segment"},
-                                     "pendulum": {"replays_per_stored_trajectory": 1.0}}, {},
-                        "replay volume: walker footstep segments, pendulum 1 replay per stored trajectory"),
+                                     "pendulum": {"replays_per_stored_trajectory": 1.0},
+                                     "pendulum_v1": {"n_replays": 10}}, {},
+                        "replay volume: walker footstep segments, pendulum 1 replay per stored trajectory, "
+                        "Pendulum-v1 10 episodes per phase instead of 100"),
     "er_sigma_worst": ("er_sigma", {"sigma": "worst"}, {}, "σ's definition: the worst case instead of definition 4"),
     "er_sigma_q_learning": ("er_sigma", {"target": "q_learning"}, {}, "greedy a' (no exploratory a')"),
     "residual_er_sigma": ("residual_er_sigma", {}, {}, "residual ER-σ (ζ = 1, the residual term on a_t)"),
@@ -69,6 +86,8 @@ VARIANTS = {
                           "pendulum: the printed velocity tile width 0.33 rad/s"),
     "er_width033": ("er", {}, {"pendulum": {"velocity_tile_width": 0.33}},
                     "pendulum: vanilla ER at velocity tile width 0.33 rad/s"),
+    "er_sigma_rate_005": ("er_sigma", {"pendulum_v1": {"learning_rate": 0.05}}, {},
+                          "Pendulum-v1: ER-σ at α 0.05 instead of 0.2 (evidence for users, not a default)"),
 }
 #: The runs whose checkpoints at GAIN_AT also measure the replay operator's gain per sigma definition.
 GAIN_VARIANTS = ("er", "er_sigma", "er_sigma_volume")
@@ -91,8 +110,11 @@ def applies(problem: str, variant: str) -> bool:
 def variant_kwargs(problem: str, variant: str) -> tuple[str, dict, dict]:
     algo, overrides, env_overrides, _ = VARIANTS[variant]
     overrides = _per_problem(overrides, problem) or {}
-    kwargs = model_kwargs(algo, PROBLEMS[problem]["env_id"])
-    kwargs.pop("policy", None)
+    if PROBLEMS[problem].get("class_defaults"):  # nothing but the env id, as a new user writes it
+        kwargs = {}
+    else:
+        kwargs = model_kwargs(algo, PROBLEMS[problem]["env_id"])
+        kwargs.pop("policy", None)
     policy_kwargs = {**kwargs.pop("policy_kwargs", {}), **overrides.pop("policy_kwargs", {})}
     kwargs.update(overrides, policy_kwargs=policy_kwargs)
     return algo, kwargs, _per_problem(env_overrides, problem) or {}
@@ -102,9 +124,11 @@ class Checkpoints(BaseCallback):
     """Every `interval` steps: the target comparison and the value range over the stored transitions; at `gain_at`
     the replay operator's gain per sigma definition."""
 
-    def __init__(self, interval: int, gain_at: tuple[int, ...], last: int):
+    def __init__(self, interval: int, gain_at: tuple[int, ...], last: int, env_id: str | None = None,
+                 eval_episodes: int = 0, seed: int = 0):
         super().__init__()
         self.interval, self.gain_at, self.last, self.rows = interval, gain_at, last, []
+        self.env_id, self.eval_episodes, self.seed = env_id, eval_episodes, seed
 
     def _on_step(self) -> bool:
         if self.num_timesteps % self.interval:
@@ -124,6 +148,14 @@ class Checkpoints(BaseCallback):
         if self.num_timesteps in self.gain_at:
             for sigma in SIGMAS_FOR_GAIN:
                 row[gain_column(sigma)] = vg.replay_gain(model, sigma=sigma)
+        row["values_out_of_range"] = model.values_out_of_range
+        if self.eval_episodes:
+            env = Monitor(gym.make(self.env_id))
+            env.reset(seed=1000 + self.seed)
+            returns, _ = evaluate_policy(model, env, n_eval_episodes=self.eval_episodes, deterministic=True,
+                                         return_episode_rewards=True)
+            env.close()
+            row["greedy_median"] = float(np.median(returns))
         self.rows.append(row)
         return True
 
@@ -139,7 +171,7 @@ def run(problem: str, variant: str, seed: int, out: Path) -> Path:
     env = gym.make(settings["env_id"], **env_kwargs)
     model = algorithm_classes()[algo]("TileQ", env, seed=seed, **kwargs)
     callback = Checkpoints(settings["checkpoint"], settings["gain_at"] if variant in GAIN_VARIANTS else (),
-                           settings["steps"])
+                           settings["steps"], settings["env_id"], settings.get("eval_episodes", 0), seed)
     diverged = False
     try:
         model.learn(settings["steps"], callback=callback)
@@ -238,18 +270,24 @@ def load_runs(out: Path) -> dict[tuple[str, str], dict[int, pd.DataFrame]]:
 
 
 def values_figure(out: Path, problem: str, runs) -> Path:
-    figure, axes = plt.subplots(1, 2, figsize=(11.0, 4.2))
-    for variant in VARIANTS:
-        seeds = runs.get((problem, variant))
-        if not seeds:
-            continue
+    greedy = bool(PROBLEMS[problem].get("eval_episodes"))
+    figure, axes = plt.subplots(1, 3 if greedy else 2, figsize=(16.0 if greedy else 11.0, 4.2))
+    present = [variant for variant in VARIANTS if runs.get((problem, variant))]
+    for variant in present:
+        seeds = runs[(problem, variant)]
         for i, frame in enumerate(seeds.values()):
             kwargs = {"label": variant} if i == 0 else {}
-            color = f"C{list(VARIANTS).index(variant)}"
+            color = f"C{present.index(variant) % 10}"
             axes[0].plot(frame["timesteps"], frame["max_q_sa"], color=color, alpha=0.8, **kwargs)
             axes[1].plot(frame["timesteps"], frame["mean_excess_sigma_relative"] * 100, color=color, alpha=0.8)
+            if greedy:
+                axes[2].plot(frame["timesteps"], frame["greedy_median"], color=color, alpha=0.8)
+    if greedy:
+        axes[2].axhline(PROBLEMS[problem]["level"], color="black", linestyle="--", linewidth=0.8, label="target")
+        axes[2].set_ylabel("median greedy return")
+        axes[2].legend(fontsize="x-small")
     bound = PROBLEMS[problem]["reward_max"]
-    gamma = 0.99 if problem == "walker" else 0.98
+    gamma = PROBLEMS[problem]["gamma"]
     axes[0].axhline(max(bound / (1 - gamma), 0.0), color="black", linestyle="--", linewidth=0.8,
                     label="largest possible return")
     axes[0].set_yscale("symlog", linthresh=10.0)
@@ -304,6 +342,30 @@ def run_table(problem: str, runs) -> list[str]:
     return lines
 
 
+def greedy_table(problem: str, runs) -> list[str]:
+    """One row per variant of a problem with greedy checkpoints: the greedy medians over learning and at the end, the
+    seeds at the problem's level, the largest stored Q at the end and the values the watch saw outside the returns."""
+    settings = PROBLEMS[problem]
+    level = settings["level"]
+    lines = [f"| Variant (what it changes) | greedy median at {settings['steps']:,} steps, per seed | seeds at "
+             f"{level:g} | worst greedy median after {2 * settings['checkpoint']:,} steps, per seed | largest Q(s,a) "
+             "at the end, per seed | first checkpoint with a stored Q(s,a) > 0, per seed | values outside the "
+             "possible returns (watch), per seed |", "|---|---|---:|---|---|---|---|"]
+    for variant, (_, _, _, what) in VARIANTS.items():
+        seeds = runs.get((problem, variant))
+        if not seeds:
+            continue
+        frames = [seeds[seed] for seed in sorted(seeds)]
+        final = [frame["greedy_median"].iloc[-1] for frame in frames]
+        worst = [frame.loc[frame["timesteps"] >= 2 * settings["checkpoint"], "greedy_median"].min() for frame in frames]
+        positive = [frame.loc[frame["max_q_sa"] > 0, "timesteps"] for frame in frames]
+        first = ", ".join(f"{int(p.iloc[0]):,}" if len(p) else "never" for p in positive)
+        lines.append(f"| {variant} ({what}) | {_per_seed(final, '.1f')} | {sum(f >= level for f in final)}/"
+                     f"{len(final)} | {_per_seed(worst, '.1f')} | {_per_seed([f['max_q_sa'].iloc[-1] for f in frames], '.3g')} "
+                     f"| {first} | {_per_seed([int(f['values_out_of_range'].iloc[-1]) for f in frames], ',d')} |")
+    return lines
+
+
 def gain_column(sigma) -> str:
     return f"gain_{sigma or 'vanilla'}"
 
@@ -323,19 +385,25 @@ def write_summary(out: Path, figure_lines: list[str], figures: list[Path], comma
     runs = load_runs(out)
     sections = ["# The value-growth mechanism, measured", "",
                 f"Regenerate: `{command}` (resumable; the figure part takes seconds). The page explaining these "
-                "figures is `docs/value_growth.md`.", "",
-                "## Figure 5.6: one self-affecting sample", "",
-                "One stored transition whose s' shares 3 of the 4 tiles of s, replayed alone through `model.replay` "
-                "(the kernels); the closed form of `sb3_er.experiments.value_growth.closed_form` beside it.", "",
-                "<!-- figure-start -->", "", *figure_lines, "", "<!-- figure-end -->", "",
-                "Figures: `figure_5_6.png`, `limit_vs_shared_tiles.png`.", ""]
+                "figures is `docs/value_growth.md`.", ""]
+    if figure_lines:
+        sections += ["## Figure 5.6: one self-affecting sample", "",
+                     "One stored transition whose s' shares 3 of the 4 tiles of s, replayed alone through "
+                     "`model.replay` (the kernels); the closed form of `sb3_er.experiments.value_growth.closed_form` "
+                     "beside it.", "", "<!-- figure-start -->", "", *figure_lines, "", "<!-- figure-end -->", "",
+                     "Figures: `figure_5_6.png`, `limit_vs_shared_tiles.png`.", ""]
     for problem in PROBLEMS:
         if not any(key[0] == problem for key in runs):
             continue
         figures.append(values_figure(out, problem, runs))
         settings = PROBLEMS[problem]
-        sections += [f"## {problem} ({settings['env_id']}, {settings['steps']:,} steps per run, the env's default "
-                     "reading)", "",
+        sections += [f"## {problem} ({settings['env_id']}, {settings['steps']:,} steps per run, "
+                     f"{settings.get('reading', 'the env' + chr(39) + 's default reading')})", "",
+                     *(["Greedy policy (median of "
+                        f"{settings['eval_episodes']} greedy episodes at each checkpoint, env reset with seed "
+                        "1000 + seed) beside the values:", "", f"<!-- {problem}-greedy-start -->", "",
+                        *greedy_table(problem, runs), "", f"<!-- {problem}-greedy-end -->", ""]
+                      if settings.get("eval_episodes") else []),
                      f"Instrumented every {settings['checkpoint']:,} steps on the stored transitions; the last "
                      "checkpoint per run, one figure per seed:", "", f"<!-- {problem}-runs-start -->", "",
                      *run_table(problem, runs), "", f"<!-- {problem}-runs-end -->", "",
@@ -356,7 +424,7 @@ def write_summary(out: Path, figure_lines: list[str], figures: list[Path], comma
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--parts", nargs="*", default=["figure", *PROBLEMS], choices=["figure", *PROBLEMS])
+    parser.add_argument("--parts", nargs="*", default=list(DEFAULT_PARTS), choices=["figure", *PROBLEMS])
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
     parser.add_argument("--out", default=str(OUT))
@@ -366,7 +434,8 @@ def main(argv=None) -> None:
     import torch
 
     torch.set_num_threads(1)
-    figures, figure_lines = figure_5_6(out)
+    figures, figure_lines = figure_5_6(out) if "figure" in args.parts or (out / "figure_5_6.png").is_file() \
+        else ([], [])
     for problem in PROBLEMS:
         if problem in args.parts:
             for seed in range(args.seeds):
