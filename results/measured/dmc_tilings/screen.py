@@ -43,6 +43,8 @@ CANDIDATES = {
         "tiles_8": tiles("dm_control/pendulum-swingup-v0", 8),
         "tiles_8_init_10": tiles("dm_control/pendulum-swingup-v0", 8, initial_value=10.0),
         "tiles_12_init_10": tiles("dm_control/pendulum-swingup-v0", 12, initial_value=10.0),
+        # 100 = 1 / (1 - gamma): the largest discounted return of rewards in [0, 1]
+        "tiles_8_init_100": tiles("dm_control/pendulum-swingup-v0", 8, initial_value=100.0),
     },
     "dm_control/cartpole-swingup-v0": {
         "tiles_6": tiles("dm_control/cartpole-swingup-v0", 6),
