@@ -15,7 +15,7 @@ Resumable per chunk: after every chunk the model (and ERSigma's replay buffer) i
 ``<out>/checkpoints/`` (not committed) and the run's JSON under ``<out>/runs/<task>/<algo>/seed_<n>.json`` holds the
 curve so far; a rerun skips finished runs and continues an unfinished one from its last chunk (the env then starts a
 new episode from a fresh reset, which the JSON records as ``resumed_at``). The JSON holds the code version of every
-chunk. ``--summarize`` writes summary.md, findings.json and the curves (curves.png) from the runs. Runs go one after
+chunk. ``--summarize`` writes summary.md, runs.json (the table's figures) and the curves (curves.png) from the runs. Runs go one after
 another in this process, seeds outermost, so the first seeds of every task and algorithm finish first.
 """
 
@@ -71,6 +71,38 @@ def greedy_returns(model, task: str, seed: int, episodes: int) -> list[float]:
     returns, _ = evaluate_policy(model, env, n_eval_episodes=episodes, deterministic=True, return_episode_rewards=True)
     env.close()
     return [float(r) for r in returns]
+
+
+def random_baseline(task: str, out: Path, episodes: int = FINAL_EPISODES) -> dict[str, Any]:
+    """Returns of a uniformly random choice among the 7 default torque levels on the evaluation's starts (a fresh env
+    reset with seed 1000, then ``episodes`` episodes), written once to ``<out>/runs/<task>/random.json``."""
+    import gymnasium as gym
+    import numpy as np
+
+    from sb3_er.common.atomic import write_atomically
+    from sb3_er.common.dict_observations import register_dm_control_envs
+
+    path = out / "runs" / task.split("/")[1] / "random.json"
+    if path.is_file():
+        return json.loads(path.read_text())
+    register_dm_control_envs()
+    env = gym.make(task)
+    env.reset(seed=1000)
+    rng = np.random.default_rng(0)
+    levels = np.linspace(-1.0, 1.0, 7)
+    returns = []
+    for _ in range(episodes):
+        env.reset()
+        done, total = False, 0.0
+        while not done:
+            _, reward, terminated, truncated, _ = env.step(rng.choice(levels, size=(1,)))
+            total += float(reward)
+            done = terminated or truncated
+        returns.append(total)
+    record = {"task": task, "returns": returns, "mean_return": statistics.fmean(returns)}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomically(path, json.dumps(record, indent=1))
+    return record
 
 
 def steps_to_reach(curve: list[dict[str, Any]], reached: float) -> Optional[int]:
@@ -144,7 +176,7 @@ def records(out: Path) -> list[dict[str, Any]]:
 
 
 def summarize(out: Path) -> None:
-    """summary.md, findings.json and curves.png from the runs under ``out``."""
+    """summary.md, runs.json and curves.png from the runs under ``out``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,6 +212,13 @@ def summarize(out: Path) -> None:
     versions = sorted({c["code_sha256"][:10] for r in runs for c in r["chunks"]})
     lines += ["", f"Code versions (code_sha256, first 10 hex digits) of these runs: {', '.join(versions)}.", "",
               "![Learning curves](curves.png)"]
+    baselines = {t: json.loads(p.read_text()) for t in TASKS
+                 if (p := out / "runs" / t.split("/")[1] / "random.json").is_file()}
+    if baselines:
+        lines[-1:-1] = ["A random choice among the 7 torque levels, mean of "
+                        f"{FINAL_EPISODES} episodes on the same starts: "
+                        + ", ".join(f"{t.split('/')[1]} {b['mean_return']:.1f}" for t, b in baselines.items()) + ".",
+                        ""]
     tasks = [t for t in TASKS if any(r["task"] == t for r in runs)]
     if tasks:
         figure, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
@@ -189,6 +228,9 @@ def summarize(out: Path) -> None:
                     ax.plot([p["steps"] for p in r["curve"]], [p["mean_return"] for p in r["curve"]], color=colour,
                             alpha=0.8, marker=".", label=f"{algo}" if r["seed"] == min(
                                 x["seed"] for x in runs if x["task"] == task and x["algo"] == algo) else None)
+            if task in baselines:
+                ax.axhline(baselines[task]["mean_return"], color="grey", linestyle="--", linewidth=1,
+                           label="random torques" if task == tasks[0] else None)
             ax.set_title(task.split("/")[1])
             ax.set_xlabel("steps")
             ax.set_ylim(0, 1000)
@@ -198,7 +240,7 @@ def summarize(out: Path) -> None:
         figure.tight_layout()
         figure.savefig(out / "curves.png", dpi=110)
     write_atomically(out / "summary.md", "\n".join(lines) + "\n")
-    write_atomically(out / "findings.json", json.dumps({"runs": findings, "published": PUBLISHED}, indent=1) + "\n")
+    write_atomically(out / "runs.json", json.dumps({"runs": findings, "published": PUBLISHED}, indent=1) + "\n")
     print("\n".join(lines))
 
 
@@ -217,6 +259,8 @@ def main(argv=None) -> None:
         return
     if args.every % 1000:
         raise SystemExit("--every must be a multiple of the tasks' 1,000-step episodes")
+    for task in args.tasks:
+        random_baseline(task, args.out)
     for seed in args.seeds:
         for task in args.tasks:
             for algo in args.algos:

@@ -144,3 +144,32 @@ def test_sb3_er_train_on_a_dm_control_id(tmp_path):
     model = SarsaLambda.load(run / "dm_control-pendulum-swingup-v0.zip")
     assert model.num_timesteps == 1000
     np.testing.assert_allclose(model.policy.tile_coder.tile_widths, package_tilings()[IDS[1]]["tile_widths"])
+
+
+def _random_returns(env, episodes: int) -> list[float]:
+    rng = np.random.default_rng(0)
+    returns = []
+    for _ in range(episodes):
+        env.reset()
+        done, total = False, 0.0
+        while not done:
+            _, reward, terminated, truncated, _ = env.step(rng.choice(np.linspace(-1.0, 1.0, 7), size=(1,)))
+            total += reward
+            done = terminated or truncated
+        returns.append(total)
+    return returns
+
+
+@pytest.mark.slow
+def test_sarsa_lambda_swings_the_pendulum_up_where_random_torques_do_not():
+    """The reward is 1 only within 30 degrees of upright: random torques score about 0 (one start near upright gives
+    a few steps). With the defaults Sarsa(lambda) starts swinging up between 100,000 and 150,000 steps (seed 0 of
+    results/measured/dmc_targets: greedy 3.7 at 100,000, 118 at 150,000)."""
+    register_dm_control_envs()
+    env = Monitor(gym.wrappers.FlattenObservation(gym.make(IDS[1])))
+    env.reset(seed=1000)
+    random_mean = float(np.mean(_random_returns(env, 3)))
+    model = SarsaLambda("TileQ", IDS[1], seed=0).learn(150_000)
+    env.reset(seed=1000)
+    greedy, _ = evaluate_policy(model, env, n_eval_episodes=3, deterministic=True)
+    assert random_mean < 10 and greedy > random_mean + 50, (greedy, random_mean)
