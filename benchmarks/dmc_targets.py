@@ -211,7 +211,7 @@ def summarize(out: Path) -> None:
             lines.append(f"| {task.split('/')[1]} | {method} | {value} | {at} | {source} |")
     versions = sorted({c["code_sha256"][:10] for r in runs for c in r["chunks"]})
     lines += ["", f"Code versions (code_sha256, first 10 hex digits) of these runs: {', '.join(versions)}.", "",
-              "![Learning curves](curves.png)"]
+              "Figure: `curves.png` (the learning curves, every run; the dashed line is the random policy)."]
     baselines = {t: json.loads(p.read_text()) for t in TASKS
                  if (p := out / "runs" / t.split("/")[1] / "random.json").is_file()}
     if baselines:
