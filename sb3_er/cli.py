@@ -287,7 +287,7 @@ def main(argv: Sequence[str] | None = None) -> None:
 
 #: The optional packages the commands import, and the extra of pyproject.toml that installs each.
 EXTRAS = {"rl_zoo3": "zoo", "optuna": "zoo", "pandas": "plots", "matplotlib": "plots", "ray": "ray",
-          "dm_control": "dmc", "mujoco": "dmc", "imageio": "dmc"}
+          "dm_control": "dmc", "mujoco": "dmc", "imageio": "dmc", "shimmy": "dmc"}
 
 
 if __name__ == "__main__":

@@ -4,7 +4,8 @@
 ``rl_zoo3.ALGOS`` and to its optuna sampler and converter tables. The commands then run rl_zoo3's own ``train`` and
 ``enjoy`` with our defaults filled in: the thesis's hyperparameters from ``zoo_configs/<algo>.yml`` (package data of
 ``sb3_er.zoo_configs``, installed with the wheel as rl_zoo3 installs its ``hyperparams/``), the environment
-package ``sb3_er_envs`` and TensorBoard logs under ``<log folder>/tensorboard``. Every other rl_zoo3 option passes
+package ``sb3_er_envs`` (and shimmy's ids for a ``dm_control/`` env, registered before rl_zoo3 makes it) and
+TensorBoard logs under ``<log folder>/tensorboard``. Every other rl_zoo3 option passes
 through unchanged. ``python -m sb3_er.zoo train ...`` is the same as ``sb3-er train ...``.
 """
 
@@ -21,6 +22,7 @@ from typing import Any
 
 import yaml
 
+from sb3_er.common.dict_observations import register_if_dm_control_id
 from sb3_er.er import REPLAY_ORDERS, SIGMAS
 
 ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma")
@@ -211,6 +213,10 @@ def _with_defaults(argv: Sequence[str], training: bool) -> list[str]:
 
 def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str]) -> None:
     register_algorithms()
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--env", default=None)
+    known, _ = parser.parse_known_args(argv)
+    register_if_dm_control_id(known.env)  # shimmy's dm_control/ ids, in this process, before rl_zoo3 makes the env
     saved = sys.argv
     sys.argv = [program, *argv]
     try:

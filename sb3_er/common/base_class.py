@@ -25,6 +25,13 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, 
 from sb3_er.common import kernels
 from sb3_er.common.action_levels import PLACEHOLDER_BOUND
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
+from sb3_er.common.dict_observations import (
+    dict_vec_env_message,
+    flatten_dict_observation,
+    flattened_dict_space,
+    observation_keys,
+    register_if_dm_control_id,
+)
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
 from sb3_er.common.serialization import (
     PLAIN_STATE_KEY,
@@ -92,7 +99,10 @@ class TileQAlgorithm(BaseAlgorithm):
 
     :param policy: "TileQ" (default) or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
-        (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``).
+        (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``). A single env with a Dict
+        observation of Box arrays (dm_control's suite) is flattened with Gymnasium's ``FlattenObservation``; the
+        ``dm_control/<domain>-<task>-v0`` ids register themselves (shimmy, the ``dmc`` extra; see
+        :mod:`sb3_er.common.dict_observations`).
     :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
         schedule of the remaining progress (default 0.2, the thesis's alpha for every experiment but LEO's).
     :param gamma: discount factor per control step (default 0.99, thesis sections 4.2 and 5.1).
@@ -143,6 +153,7 @@ class TileQAlgorithm(BaseAlgorithm):
         device: str = "cpu",
         _init_setup_model: bool = True,
     ):
+        register_if_dm_control_id(env)  # shimmy's ids exist once it is imported: only when one is used
         try:
             super().__init__(
                 policy,
@@ -196,6 +207,17 @@ class TileQAlgorithm(BaseAlgorithm):
         check_choice("value_bound_action", self.value_bound_action, VALUE_BOUND_ACTIONS)
 
     @staticmethod
+    def _wrap_env(env: Union[GymEnv, str], verbose: int = 0, monitor_wrapper: bool = True) -> VecEnv:
+        """SB3's wrapping into a VecEnv, after flattening a single env's Dict observation (Gymnasium's
+        ``FlattenObservation``; pixels refused). An env id is made first (``load(path, env="dm_control/...")``)."""
+        if isinstance(env, str):
+            register_if_dm_control_id(env)
+            env = gym.make(env)
+        if not isinstance(env, VecEnv):
+            env = flatten_dict_observation(env)
+        return BaseAlgorithm._wrap_env(env, verbose, monitor_wrapper)
+
+    @staticmethod
     def _check_env_wrappers(env: VecEnv) -> None:
         """Refuse wrappers that rescale observations: tile widths are in the env's raw observation units."""
         normalize = unwrap_vec_wrapper(env, VecNormalize)
@@ -218,7 +240,7 @@ class TileQAlgorithm(BaseAlgorithm):
         if not isinstance(action_space, spaces.Box):  # a Box's levels are checked with the policy's settings
             action_nvec(action_space)
         if isinstance(observation_space, spaces.Dict):
-            raise ValueError("Dict observation spaces are not supported: tile coding needs a flat Box observation")
+            raise ValueError(dict_vec_env_message(observation_space))
         if not isinstance(observation_space, spaces.Box):
             raise ValueError(f"Tile coding needs a flat Box observation space, got {observation_space}")
         if len(observation_space.shape) != 1:
@@ -263,8 +285,9 @@ class TileQAlgorithm(BaseAlgorithm):
                 notes.append(f"sb3-er's tiling for {env_id} is for observations of shape "
                              f"{tuple(entry['observation_shape'])}, not {shape}: not used")
             elif entry is not None:
+                notes.extend(self._check_observation_keys(env_id, entry))
                 for name, value in entry.items():
-                    if name not in ("observation_shape", "source") and kwargs.get(name) is None:
+                    if name not in ("observation_shape", "observation_keys", "source") and kwargs.get(name) is None:
                         kwargs[name] = value
                         origins[name] = f"sb3-er's tiling for {env_id} ({entry['source']})"
         if kwargs.get("tile_widths") is None:
@@ -279,6 +302,27 @@ class TileQAlgorithm(BaseAlgorithm):
         if self.verbose >= 1:
             self._print_tiling(resolved, origins, notes)
         return resolved
+
+    def _check_observation_keys(self, env_id: str, entry: dict[str, Any]) -> list[str]:
+        """Compare the key order and sizes sb3-er's tiling for ``env_id`` assumes (``observation_keys``) with the Dict
+        the env's ``FlattenObservation`` flattens: a ValueError when they differ (its tile widths would fall on the
+        wrong arrays). Returns a note when the env's Dict cannot be seen (a VecEnv other than DummyVecEnv)."""
+        expected = entry.get("observation_keys")
+        if expected is None:
+            return []
+        envs = getattr(self.env, "envs", None)
+        space = flattened_dict_space(envs[0]) if envs else None
+        if space is None:
+            return [f"the key order of {env_id}'s Dict observation is not checked against sb3-er's tiling "
+                    f"{expected}: the env's FlattenObservation is out of reach"]
+        actual = observation_keys(space)
+        if actual != [list(pair) for pair in expected]:
+            raise ValueError(
+                f"sb3-er's tiling for {env_id} assumes the Dict observation {expected} ([key, size] in flattening "
+                f"order), but the env flattens {actual}: its tile widths would fall on the wrong arrays. Give "
+                "policy_kwargs=dict(tile_widths=[...]) for this env"
+            )
+        return []
 
     def _print_tiling(self, resolved: dict[str, Any], origins: dict[str, str], notes: list[str]) -> None:
         """Print the tiling in use and where each setting came from (verbose >= 1), e.g.

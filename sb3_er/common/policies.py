@@ -323,7 +323,9 @@ class TileQPolicy(BasePolicy):
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = False):
         """Greedy actions for one observation or a batch, computed in float64 (no float32 round trip)."""
         if isinstance(observation, dict):
-            raise ValueError("TileQPolicy needs a flat Box observation, got a dict")
+            raise ValueError("TileQPolicy needs a flat Box observation, got a dict: flatten it as the model's env "
+                             "does (gymnasium.wrappers.FlattenObservation around the env, or "
+                             "gymnasium.spaces.flatten(env.observation_space, observation))")
         if isinstance(observation, tuple):
             # SB3's own predict, whose checks catch a Gymnasium (obs, info) pair passed for a VecEnv observation;
             # any other tuple is an observation and comes back through _predict.

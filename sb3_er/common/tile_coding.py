@@ -297,7 +297,8 @@ def default_tile_widths(
 @functools.lru_cache(maxsize=1)
 def package_tilings() -> dict[str, dict[str, Any]]:
     """sb3-er's tilings for known env ids, from the package data file ``sb3_er/data/tilings.yml`` (each entry:
-    ``observation_shape``, ``source`` and TileQ settings such as ``n_tilings`` and ``tile_widths``)."""
+    ``observation_shape``, ``source`` and TileQ settings such as ``n_tilings`` and ``tile_widths``; for a Dict
+    observation, ``observation_keys``: ``[key, size]`` pairs in the order ``FlattenObservation`` lays them out)."""
     package, path = PACKAGE_TILINGS
     with importlib.resources.files(package).joinpath(path).open("r", encoding="utf-8") as stream:
         entries = yaml.safe_load(stream)
@@ -306,4 +307,8 @@ def package_tilings() -> dict[str, dict[str, Any]]:
         if missing or len(entry["tile_widths"]) != int(np.prod(entry["observation_shape"])):
             raise ValueError(f"{path}: the entry of {env_id} needs observation_shape, source and one tile width per "
                              f"observation dimension, got {entry}")
+        keys = entry.get("observation_keys")
+        if keys is not None and sum(size for _, size in keys) != int(np.prod(entry["observation_shape"])):
+            raise ValueError(f"{path}: the observation_keys of {env_id} ({keys}: [key, size] in flattening order) do "
+                             f"not add up to its observation_shape {entry['observation_shape']}")
     return entries

@@ -1,0 +1,132 @@
+"""dm_control's suite through Gymnasium (Farama's shimmy bindings), and Dict observations made flat for tile coding.
+
+shimmy exposes every task of the dm_control suite as ``dm_control/<domain>-<task>-v0``. Its ids exist once shimmy is
+imported (importing it imports dm_control and MuJoCo, a few seconds), so sb3-er imports it only when such an id is
+used: a model built from the id (``SarsaLambda("TileQ", "dm_control/cartpole-swingup-v0")``), ``sb3-er train --env
+dm_control/...``, or :func:`register_dm_control_envs` called by the user before ``gymnasium.make``. ``import sb3_er``
+imports neither shimmy nor dm_control.
+
+The suite observes a Dict of named arrays (cart-pole: ``position`` (3) and ``velocity`` (2)). A model given a single
+env with a Dict observation flattens it with Gymnasium's ``FlattenObservation`` (the arrays one after another, in the
+Dict space's key order); a VecEnv of Dict observations is refused with the wrapper to use. sb3-er's tilings for the
+suite (``sb3_er/data/tilings.yml``) record the key order and sizes their tile widths assume (``observation_keys``), and
+a model checks them against the env. Pixel observations (an image in the Dict, e.g. ``pixels`` of shape (84, 84, 3))
+are refused: tile coding needs the low-dimensional state.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional
+
+import gymnasium as gym
+from gymnasium import spaces
+
+#: The namespace of shimmy's dm_control ids.
+DM_CONTROL_NAMESPACE = "dm_control"
+
+
+def is_dm_control_id(env_id: Any) -> bool:
+    """Whether ``env_id`` is a Gymnasium id in shimmy's ``dm_control`` namespace (a ``module:`` prefix allowed).
+
+    :param env_id: anything given where an env or env id is expected.
+    """
+    if not isinstance(env_id, str):
+        return False
+    name = env_id.rpartition(":")[2]
+    return name.startswith(DM_CONTROL_NAMESPACE + "/")
+
+
+def register_dm_control_envs() -> None:
+    """Register shimmy's ``dm_control/<domain>-<task>-v0`` ids with Gymnasium (by importing shimmy), once.
+
+    Raises ModuleNotFoundError naming the ``dmc`` extra when shimmy or dm_control is missing.
+    """
+    if "dm_control/cartpole-swingup-v0" in gym.registry:
+        return
+    try:
+        import dm_control  # noqa: F401  (shimmy registers its suite only when dm_control imports)
+        import shimmy  # noqa: F401  (importing shimmy registers the ids)
+    except ModuleNotFoundError as error:
+        raise ModuleNotFoundError(
+            f"The dm_control/<domain>-<task>-v0 ids need shimmy and dm-control ({error.name} is missing), which the "
+            "dmc extra installs: pip install 'sb3-er[dmc]'",
+            name=error.name,
+        ) from error
+    if "dm_control/cartpole-swingup-v0" not in gym.registry:
+        raise RuntimeError("shimmy was imported but registered no dm_control/ ids: its dm_control bindings failed "
+                           "to load (import shimmy.dm_control_compatibility to see why)")
+
+
+def register_if_dm_control_id(env_id: Any) -> None:
+    """:func:`register_dm_control_envs` when ``env_id`` is a ``dm_control/`` id, else nothing.
+
+    :param env_id: an env id, an env or None.
+    """
+    if is_dm_control_id(env_id):
+        register_dm_control_envs()
+
+
+def observation_keys(space: spaces.Dict) -> list[list[Any]]:
+    """``[[key, size], ...]`` of a Dict space in the order ``FlattenObservation`` lays its arrays out.
+
+    :param space: a Dict observation space.
+    """
+    return [[key, int(spaces.flatdim(subspace))] for key, subspace in space.spaces.items()]
+
+
+def check_flat_dict(space: spaces.Dict) -> None:
+    """Refuse a Dict observation whose flattening tile coding cannot use: pixels (or any image or array of two or
+    more dimensions), nested Dicts and non-Box entries; a ValueError naming the key.
+
+    :param space: a Dict observation space.
+    """
+    for key, subspace in space.spaces.items():
+        if not isinstance(subspace, spaces.Box):
+            raise ValueError(f"The observation's key {key!r} is a {type(subspace).__name__} space ({subspace}): "
+                             "sb3-er flattens Dict observations of Box arrays only")
+        if len(subspace.shape) >= 2:
+            kind = "pixels (an image)" if len(subspace.shape) == 3 else "an array"
+            raise ValueError(
+                f"The observation's key {key!r} holds {kind} of shape {subspace.shape} ({subspace.dtype}): tile coding "
+                "needs low-dimensional state observations, and flattening it would make one tiled dimension per "
+                f"{'pixel' if len(subspace.shape) == 3 else 'entry'}. Use the task's state observations (dm_control's "
+                "suite without a pixels wrapper, shimmy's default) or extract low-dimensional features first"
+            )
+
+
+def flatten_dict_observation(env: gym.Env) -> gym.Env:
+    """``env`` with its Dict observation flattened by Gymnasium's ``FlattenObservation``; other envs unchanged.
+
+    :param env: a Gymnasium env.
+    Raises ValueError for pixel observations (:func:`check_flat_dict`).
+    """
+    if not isinstance(env.observation_space, spaces.Dict):
+        return env
+    check_flat_dict(env.observation_space)
+    return gym.wrappers.FlattenObservation(env)
+
+
+def flattened_dict_space(env: gym.Env) -> Optional[spaces.Dict]:
+    """The Dict space the outermost ``FlattenObservation`` among ``env``'s wrappers flattens, or None.
+
+    :param env: a Gymnasium env (wrapped or not).
+    """
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, gym.wrappers.FlattenObservation) and isinstance(env.env.observation_space, spaces.Dict):
+            return env.env.observation_space
+        env = env.env
+    return None
+
+
+def dict_vec_env_message(space: spaces.Dict) -> str:
+    """The refusal of a VecEnv of Dict observations, naming the wrapper to use.
+
+    :param space: the VecEnv's Dict observation space.
+    """
+    check_flat_dict(space)  # pixels get their own message
+    return (
+        f"Tile coding needs a flat Box observation, and this VecEnv observes a Dict {observation_keys(space)} "
+        "([key, size] pairs). A single env is flattened for you; for a VecEnv, flatten each env with "
+        "gymnasium.wrappers.FlattenObservation (make_vec_env(..., wrapper_class=FlattenObservation), rl-zoo's "
+        "`env_wrapper: gymnasium.wrappers.FlattenObservation`)"
+    )
