@@ -16,6 +16,8 @@ are refused: tile coding needs the low-dimensional state.
 
 from __future__ import annotations
 
+import os
+import sys
 from typing import Any, Optional
 
 import gymnasium as gym
@@ -44,6 +46,17 @@ def register_dm_control_envs() -> None:
     if "dm_control/cartpole-swingup-v0" in gym.registry:
         return
     try:
+        if "dm_control" not in sys.modules:
+            # dm_control picks its OpenGL backend once, at import: choose it as LEO does (envs/leo/_gl.py), so that a
+            # suite env imported first does not leave a backend (GLFW without a display) that aborts LEO's rendering.
+            from envs.leo import _gl
+
+            user_choice = os.environ.get("MUJOCO_GL")
+            _gl.prepare_backend()
+            import dm_control._render  # noqa: F401  (the backend is chosen here)
+
+            if user_choice is None:
+                os.environ.pop("MUJOCO_GL", None)
         import dm_control  # noqa: F401  (shimmy registers its suite only when dm_control imports)
         import shimmy  # noqa: F401  (importing shimmy registers the ids)
     except ModuleNotFoundError as error:
