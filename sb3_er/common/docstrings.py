@@ -51,7 +51,16 @@ def documented_parameters(docstring: str | None) -> set[str]:
 def accepted_parameters(cls: type) -> list[str]:
     """The keyword arguments `cls(...)` accepts, in order: the named parameters of its ``__init__`` and, while an
     ``__init__`` takes ``**kwargs``, those of the next class up the MRO that defines one (within sb3_er), less the
-    names a class passes on itself (its ``hidden_parameters``). Private names (``_init_setup_model``) are left out."""
+    names a class passes on itself (its ``hidden_parameters``: ``ER`` passes ``trace_lambda=online_lambda``, so
+    ``ER(trace_lambda=...)`` is no call it takes). Private names (``_init_setup_model``) are left out.
+
+    The one source of what an algorithm accepts: the API pages list these parameters, and the runner passes a zoo
+    config's and ``--algo-kwargs``' settings through to a model only when they are among them
+    (:func:`sb3_er.experiments.jobs.job_model_kwargs`).
+
+    :param cls: the class, e.g. ``ERSigma``.
+    :return: the parameter names, in the order the constructors declare them.
+    """
     hidden: set[str] = set()
     for klass in cls.__mro__:
         hidden.update(vars(klass).get("hidden_parameters", ()))

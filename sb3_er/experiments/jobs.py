@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sb3_er.common.docstrings import accepted_parameters
 from sb3_er.experiments.specs import Experiment
 
 
@@ -50,18 +51,6 @@ class RunJob:
         return f"{self.label or self.algo}/seed_{self.seed}"
 
 
-def accepted_parameters(algorithm_class: type) -> set[str]:
-    """Constructor parameter names of `algorithm_class` and its sb3_er base classes (which receive ``**kwargs``)."""
-    import inspect
-
-    names: set[str] = set()
-    for cls in algorithm_class.__mro__:
-        if cls.__module__.startswith("sb3_er") and "__init__" in vars(cls):
-            names.update(name for name, parameter in inspect.signature(cls.__init__).parameters.items()
-                         if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY))
-    return names
-
-
 RUNNER_ARGUMENTS = {
     "self": "a method's own object",
     "policy": "the runner passes the policy, 'TileQ'",
@@ -83,7 +72,7 @@ def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, 
     if reserved:
         raise ValueError("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}"
                                                                  for name in reserved))
-    accepted = set().union(*(accepted_parameters(cls) for cls in algorithm_classes)) - set(RUNNER_ARGUMENTS)
+    accepted = set().union(*map(accepted_parameters, algorithm_classes)) - set(RUNNER_ARGUMENTS)
     unknown = sorted(set(algo_kwargs) - accepted)
     if unknown:
         if who is None:
@@ -97,7 +86,7 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
     kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
-    accepted = accepted_parameters(algorithm_classes()[job.algo])
+    accepted = set(accepted_parameters(algorithm_classes()[job.algo]))
     kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS})
     return kwargs
 
