@@ -17,7 +17,10 @@ _NAMED = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONL
 
 
 def parameter_fields(docstring: str | None) -> dict[str, str]:
-    """The ``:param name:`` fields of `docstring`, each with its indented continuation lines, by parameter name."""
+    """The ``:param name:`` fields of `docstring`, each with its indented continuation lines, by parameter name.
+
+    :param docstring: the docstring (None reads as empty).
+    """
     fields: dict[str, list[str]] = {}
     name = None
     for line in inspect.cleandoc(docstring or "").splitlines():
@@ -34,7 +37,10 @@ def parameter_fields(docstring: str | None) -> dict[str, str]:
 
 def documented_parameters(docstring: str | None) -> set[str]:
     """Every parameter name `docstring` documents: its ``:param name:`` fields, and the entries of a NumPy-style
-    ``Parameters`` section (``name:`` or ``name, other:`` lines followed by an indented description)."""
+    ``Parameters`` section (``name:`` or ``name, other:`` lines followed by an indented description).
+
+    :param docstring: the docstring (None reads as empty).
+    """
     names = set(parameter_fields(docstring))
     lines = inspect.cleandoc(docstring or "").splitlines()
     for index, line in enumerate(lines[:-1]):
