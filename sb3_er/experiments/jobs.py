@@ -67,7 +67,12 @@ refuses them (:func:`check_algo_kwargs`)."""
 def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, Any], who: str | None = None) -> None:
     """ValueError naming the problem when `algo_kwargs` sets an argument the runner sets itself (RUNNER_ARGUMENTS)
     or one that none of `algorithm_classes` has; `who` names the one algorithm in the message (default: "no chosen
-    algorithm")."""
+    algorithm").
+
+    :param algorithm_classes: the classes of the chosen algorithms.
+    :param algo_kwargs: the settings by parameter name.
+    :param who: the one algorithm's name for the message (default None: several).
+    """
     reserved = [name for name in algo_kwargs if name in RUNNER_ARGUMENTS]
     if reserved:
         raise ValueError("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}"
@@ -82,7 +87,10 @@ def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, 
 
 def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
-    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
+    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda)).
+
+    :param job: the run.
+    """
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
     kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
@@ -92,5 +100,10 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
 
 
 def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
-    """Where the CSV of one run lives (its version record is beside it, ``.json``)."""
+    """Where the CSV of one run lives (its version record is beside it, ``.json``).
+
+    :param out_dir: the results folder.
+    :param algo: the run's name (its algorithm, or its label).
+    :param seed: the run's seed.
+    """
     return Path(out_dir) / "runs" / algo / f"seed_{seed}.csv"
