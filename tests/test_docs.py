@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import html
 import importlib.util
+import inspect
 import json
 import re
 import subprocess
@@ -95,6 +96,50 @@ def test_algorithm_pages_list_every_parameter(built):
         assert section in text
     for name in accepted_parameters(ERSigma):
         assert re.search(rf"\b{name}\b", text), name
+
+
+def inventory_objects(objects_inv: Path, roles: tuple[str, ...]) -> list[str]:
+    """The names of the objects of `roles` (e.g. ``"py:function"``) in a Sphinx ``objects.inv`` (version 2: four
+    header lines, then zlib-compressed lines ``name domain:role priority uri display-name``)."""
+    import zlib
+
+    data = objects_inv.read_bytes()
+    header_end = 0
+    for _ in range(4):
+        header_end = data.index(b"\n", header_end) + 1
+    lines = zlib.decompress(data[header_end:]).decode("utf-8").splitlines()
+    return [line.split(" ", 2)[0] for line in lines if len(line.split(" ", 2)) == 3 and line.split(" ", 2)[1] in roles]
+
+
+def resolve(name: str):
+    """The object of a dotted name such as ``sb3_er.common.tile_coding.TileCoder.slots`` (the longest importable
+    module prefix, then attributes); a numba kernel as its Python function, a method as its function."""
+    import importlib
+
+    parts = name.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:cut]))
+            break
+        except ImportError:
+            continue
+    for part in parts[cut:]:
+        obj = inspect.getattr_static(obj, part) if inspect.isclass(obj) else getattr(obj, part)
+    obj = obj.__func__ if isinstance(obj, (staticmethod, classmethod)) else obj
+    return getattr(obj, "py_func", obj)
+
+
+@pytest.mark.slow
+def test_every_function_the_site_shows_lists_its_parameters(built):
+    """What autodoc put on the site (the build's inventory, private members included) documents every parameter: a
+    page never shows a function whose parameters are described in prose only."""
+    from sb3_er.common.docstrings import undocumented_parameters
+
+    shown = inventory_objects(built / "objects.inv", ("py:function", "py:method", "py:classmethod", "py:staticmethod"))
+    assert {"sb3_er.common.tile_coding.default_tile_widths", "sb3_er.TileQPolicy.q_values"} <= set(shown)
+    for name in shown:
+        obj = resolve(name)
+        assert not undocumented_parameters(obj), f"{name} does not document {undocumented_parameters(obj)}"
 
 
 def test_verdicts_say_not_judged_yet_without_findings_and_read_them_when_present(tmp_path):

@@ -12,7 +12,13 @@ import pytest
 
 import sb3_er
 import sb3_er_envs
-from sb3_er.common.docstrings import accepted_parameters, documented_parameters, inherit_parameters, parameter_fields
+from sb3_er.common.docstrings import (
+    accepted_parameters,
+    documented_parameters,
+    inherit_parameters,
+    parameter_fields,
+    undocumented_parameters,
+)
 
 
 def public_modules() -> list:
@@ -61,15 +67,6 @@ def public_functions() -> dict[str, object]:
                 continue
             functions[f"{cls.__module__}.{cls.__qualname__}.{key}"] = member
     return dict(sorted(functions.items()))
-
-
-def undocumented_parameters(function) -> list[str]:
-    """The named parameters of `function` (not self, cls or private ones) that its docstring does not document."""
-    names = [parameter.name for parameter in inspect.signature(function).parameters.values()
-             if parameter.kind in (parameter.POSITIONAL_ONLY, parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY)
-             and parameter.name not in ("self", "cls") and not parameter.name.startswith("_")]
-    documented = documented_parameters(function.__doc__)
-    return [name for name in names if name not in documented]
 
 
 FUNCTIONS = public_functions()

@@ -54,6 +54,20 @@ def documented_parameters(docstring: str | None) -> set[str]:
     return names
 
 
+def undocumented_parameters(function) -> list[str]:
+    """The named parameters of `function` (not ``self``, ``cls`` or private ones) that its docstring does not document
+    (:func:`documented_parameters`), in signature order: a parameter described only in prose counts as undocumented.
+
+    :param function: a function or method (a numba kernel by its ``py_func``).
+    :return: the names, empty when every parameter has its field.
+    """
+    names = [parameter.name for parameter in inspect.signature(function).parameters.values()
+             if parameter.kind in (inspect.Parameter.POSITIONAL_ONLY, *_NAMED)
+             and parameter.name not in ("self", "cls") and not parameter.name.startswith("_")]
+    documented = documented_parameters(function.__doc__)
+    return [name for name in names if name not in documented]
+
+
 def accepted_parameters(cls: type) -> list[str]:
     """The keyword arguments `cls(...)` accepts, in order: the named parameters of its ``__init__`` and, while an
     ``__init__`` takes ``**kwargs``, those of the next class up the MRO that defines one (within sb3_er), less the
