@@ -30,15 +30,24 @@ except ImportError:  # optional: without it, BLAS keeps its own thread count
 
 
 class Transitions(NamedTuple):
-    """The sample database D, oldest transition first (n rows; D observation dimensions, N tilings)."""
+    """The sample database D, oldest transition first (n rows; D observation dimensions, N tilings).
 
-    observations: np.ndarray  # (n, D) float64, s_d
-    slots: np.ndarray  # (n, N) int64, state tiles of s_d
-    actions: np.ndarray  # (n,) int64, flat a_d
-    rewards: np.ndarray  # (n,) float64, r_d
-    next_observations: np.ndarray  # (n, D) float64, s'_d
-    next_slots: np.ndarray  # (n, N) int64, state tiles of s'_d
-    terminal: np.ndarray  # (n,) bool: s'_d ended the episode by termination (target r_d)
+    :param observations: the states s_d, float64 (n, D).
+    :param slots: the state tiles of s_d, int64 (n, N).
+    :param actions: the flat actions a_d, int64 (n,).
+    :param rewards: the rewards r_d, float64 (n,).
+    :param next_observations: the next states s'_d, float64 (n, D).
+    :param next_slots: the state tiles of s'_d, int64 (n, N).
+    :param terminal: whether s'_d ended the episode by termination (the target is then r_d), bool (n,).
+    """
+
+    observations: np.ndarray
+    slots: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    next_observations: np.ndarray
+    next_slots: np.ndarray
+    terminal: np.ndarray
 
     def __len__(self) -> int:
         return self.actions.shape[0]

@@ -54,17 +54,19 @@ def documented_parameters(docstring: str | None) -> set[str]:
     return names
 
 
-def undocumented_parameters(function) -> list[str]:
+def undocumented_parameters(function, docstring: str | None = None) -> list[str]:
     """The named parameters of `function` (not ``self``, ``cls`` or private ones) that its docstring does not document
     (:func:`documented_parameters`), in signature order: a parameter described only in prose counts as undocumented.
 
     :param function: a function or method (a numba kernel by its ``py_func``).
+    :param docstring: the docstring to read instead of the function's own (a class's, for its ``__init__``); default
+        None: the function's.
     :return: the names, empty when every parameter has its field.
     """
     names = [parameter.name for parameter in inspect.signature(function).parameters.values()
              if parameter.kind in (inspect.Parameter.POSITIONAL_ONLY, *_NAMED)
              and parameter.name not in ("self", "cls") and not parameter.name.startswith("_")]
-    documented = documented_parameters(function.__doc__)
+    documented = documented_parameters(function.__doc__ if docstring is None else docstring)
     return [name for name in names if name not in documented]
 
 
