@@ -188,6 +188,124 @@ def test_the_readme_verdict_table_is_generated_and_current():
     assert generator.update_readme(check=True), "run: python docs/_ext/sb3er_docs.py readme"
 
 
+# --- measured figures come from the committed results files, never by hand ---
+
+NUMBER = r"[-−+]?\d[\d,]*(?:\.\d+)?"
+# A figure with one of these units, a decimal number or one of 4 or more digits looks measured.
+UNIT = r"(?:%|×|s\b|ms\b|µs\b|min\b|h\b|m\b|MB\b|steps/s|updates/s)"
+# What a number after these words is: a reference, a version or a year, not a figure.
+REFERENCE = re.compile(r"(?:Tables?|Figures?|Fig\.|Eqs?\.|Alg\.|Algorithms?|Appendix|[Ss]ections?|[Cc]hapter|"
+                       r"Python|Ray|version|v)\s*[-–\d.,]*$")
+# Numbers of the prose that are no measurement and appear in no file: each with what it is.
+NOT_MEASURED = {
+    "docs/continuous_actions.md": {"-1.33": "a torque level, 2 * (k / 3 - 1)", "-0.67": "a torque level"},
+    "docs/envs/leo.md": {"0.167": "the RX-28 motor's torque constant", "0.320": "its back-EMF constant"},
+    "docs/guide/install.md": {"3.11": "the Python version tested"},
+    "docs/guide/distributed.md": {"2.59": "a Ray release", "2.61": "a Ray release"},
+    "docs/guide/zoo.md": {"5432": "PostgreSQL's port in an example URL"},
+    "docs/readings.md": {"162000": "5 * 180^2, a cost in degrees", "8.04": "m l^2 of Table 4.1, computed"},
+    "docs/value_growth.md": {"0.265": "a closed-form factor", "0.60": "a closed-form overlap"},
+    "docs/value_watch.md": {"-209.7": "a reward bound, computed", "-0.96": "a reward bound, computed",
+                            "-10485": "a return bound, computed", "65900": "a return bound, computed"},
+}
+
+
+def _plain(number: str) -> str:
+    return number.rstrip(",").replace(",", "").replace("−", "-").lstrip("+")
+
+
+def measured_looking_numbers(text: str) -> list[str]:
+    """The figures of Markdown `text` that look measured (a decimal, 4 or more digits, or a unit such as s, %, ×),
+    outside code (fenced blocks and inline code, where commands and their options live), link targets, references
+    ("Table 6.2", "Eq. 5.7"), versions and years; each as a plain number ("-17400", "1.2")."""
+    text = re.sub(r"```.*?```", "", text, flags=re.DOTALL)
+    text = re.sub(r"`[^`]*`", "", text)
+    text = re.sub(r"\]\([^)]*\)", "]", text)
+    found = []
+    for match in re.finditer(rf"(?<![\w.^]){NUMBER}(?:\s?{UNIT})?", text):
+        number = _plain(re.match(NUMBER, match.group(0)).group(0))
+        unit = match.group(0)[len(re.match(NUMBER, match.group(0)).group(0)):].strip()
+        if REFERENCE.search(text[max(0, match.start() - 14):match.start()]):
+            continue
+        digits = number.lstrip("-")
+        if re.fullmatch(r"(19|20)\d\d", digits) and not unit:
+            continue
+        if "." in digits or len(digits.split(".")[0]) >= 4 or unit:
+            found.append(number)
+    return found
+
+
+def source_numbers() -> list[float]:
+    """Every number of the results files the pages show, and of the package's code and configuration (parameters,
+    the thesis's printed figures in sb3_er/experiments/thesis.py), sorted."""
+    paths = generator.shown_results_files() + [path for folder in ("sb3_er", "envs", "zoo_configs")
+                                               for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
+    numbers = set()
+    for path in paths:
+        numbers.update(re.findall(r"[-−]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", path.read_text(encoding="utf-8")))
+    return sorted({float(_plain(number)) for number in numbers})
+
+
+def appears_in(number: str, sources: list[float]) -> bool:
+    """Whether a figure as printed is one of `sources` at its printed precision (-17,400 stands for -1.74e+04 and
+    -17,396; 12.0 for 12.04; 1,200,000 for 1.2e+06), so that a figure rounded from an included file is accepted."""
+    import bisect
+
+    digits = number.lstrip("-")
+    if "." in digits:
+        step = 10.0 ** -len(digits.split(".")[1])
+    else:
+        significant = digits.rstrip("0") or "0"
+        step = 10.0 ** (len(digits) - len(significant))
+    value = float(number)
+    index = bisect.bisect_left(sources, value - step / 2)
+    return index < len(sources) and sources[index] <= value + step / 2
+
+
+def test_appears_in_accepts_a_rounded_figure_and_refuses_another():
+    sources = sorted([-17396.2, 1133961.0, 12.04, 0.39])
+    assert appears_in("-17400", sources) and appears_in("1100000", sources) and appears_in("12.0", sources)
+    assert not appears_in("-17500", sources) and not appears_in("1200000", sources) and not appears_in("12.1", sources)
+    assert not appears_in("0.40", sources) and appears_in("0.4", sources)
+    assert measured_looking_numbers("Sarsa rises in 1,000 s (Table 6.2, Eq. 5.7): 12.0 m, +45 % and 20 seeds; "
+                                    "`--budget 2500` [x](a/1.5.md) Python 3.11, 2013") == ["1000", "12.0", "45"]
+
+
+def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file():
+    sources = source_numbers()
+    for path in [ROOT / "README.md", *hand_written_pages()]:
+        name = path.relative_to(ROOT).as_posix()
+        allowed = NOT_MEASURED.get(name, {})
+        figures = [number for number in measured_looking_numbers(path.read_text(encoding="utf-8"))
+                   if number not in allowed and not appears_in(number, sources)]
+        assert not figures, (f"{name} quotes figures that no results file the docs show holds: {figures[:12]}; "
+                             "include the results file (or generate the table from it) instead of copying")
+    for name, numbers in NOT_MEASURED.items():  # the exceptions stay true to the pages
+        text = (ROOT / name).read_text(encoding="utf-8")
+        assert all(number in map(_plain, re.findall(NUMBER, text)) for number in numbers), name
+
+
+def table_rows(text: str) -> list[tuple[str, ...]]:
+    """The rows of the Markdown tables of `text` with two or more numeric cells, each as its stripped cells."""
+    rows = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith("|") and line.endswith("|") and not re.fullmatch(r"[|\s:-]+", line):
+            cells = tuple(cell.strip().replace("`", "") for cell in line.strip("|").split("|"))
+            if sum(bool(re.search(r"\d", cell)) for cell in cells) >= 2:
+                rows.append(cells)
+    return rows
+
+
+def test_no_page_copies_a_table_of_a_results_file():
+    results = {row: path for path in generator.shown_results_files() if path.suffix == ".md"
+               for row in table_rows(path.read_text(encoding="utf-8"))}
+    for path in [ROOT / "README.md", *hand_written_pages()]:
+        copied = [row for row in table_rows(path.read_text(encoding="utf-8")) if row in results]
+        assert not copied, (f"{path.relative_to(ROOT)} copies rows of {results[copied[0]].relative_to(ROOT)} "
+                            f"(e.g. {' | '.join(copied[0][:4])}): include the file instead")
+
+
 def test_no_commit_hashes_or_history_in_the_prose_a_user_reads():
     for path in [ROOT / "README.md", *hand_written_pages()]:
         text = path.read_text(encoding="utf-8")
