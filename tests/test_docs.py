@@ -221,6 +221,7 @@ def measured_looking_numbers(text: str) -> list[str]:
     text = re.sub(r"```.*?```", "", text, flags=re.DOTALL)
     text = re.sub(r"`[^`]*`", "", text)
     text = re.sub(r"\]\([^)]*\)", "]", text)
+    text = re.sub(r"\b\d+\.\d+\.\d+\b", "", text)  # a release such as 1.10.1
     found = []
     for match in re.finditer(rf"(?<![\w.^]){NUMBER}(?:\s?{UNIT})?", text):
         number = _plain(re.match(NUMBER, match.group(0)).group(0))
@@ -231,15 +232,18 @@ def measured_looking_numbers(text: str) -> list[str]:
         if re.fullmatch(r"(19|20)\d\d", digits) and not unit:
             continue
         if "." in digits or len(digits.split(".")[0]) >= 4 or unit:
-            found.append(number)
+            found.append(number + ("%" if unit == "%" else ""))
     return found
 
 
-def source_numbers() -> list[float]:
-    """Every number of the results files the pages show, and of the package's code and configuration (parameters,
-    the thesis's printed figures in sb3_er/experiments/thesis.py), sorted."""
-    paths = generator.shown_results_files() + [path for folder in ("sb3_er", "envs", "zoo_configs")
-                                               for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
+def source_numbers(folders: set[str] | None = None) -> list[float]:
+    """Every number of the results files the pages show (of `folders` of results/measured only, when given), and of
+    the package's code and configuration (parameters, the thesis's printed figures in sb3_er/experiments/thesis.py),
+    sorted."""
+    shown = [path for path in generator.shown_results_files()
+             if folders is None or path.relative_to(generator.MEASURED).parts[0] in folders]
+    paths = shown + [path for folder in ("sb3_er", "envs", "zoo_configs")
+                     for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
     numbers = set()
     for path in paths:
         numbers.update(re.findall(r"[-−]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", path.read_text(encoding="utf-8")))
@@ -248,9 +252,16 @@ def source_numbers() -> list[float]:
 
 def appears_in(number: str, sources: list[float]) -> bool:
     """Whether a figure as printed is one of `sources` at its printed precision (-17,400 stands for -1.74e+04 and
-    -17,396; 12.0 for 12.04; 1,200,000 for 1.2e+06), so that a figure rounded from an included file is accepted."""
+    -17,396; 12.0 for 12.04; 1,200,000 for 1.2e+06), so that a figure rounded from an included file is accepted; a
+    percentage may also be a share (84 % for 0.844)."""
     import bisect
 
+    if number.endswith("%"):
+        share = number[:-1]
+        digits = share.lstrip("-")
+        places = len(digits.split(".")[1]) if "." in digits else 0
+        as_share = f"{float(share) / 100:.{places + 2}f}"
+        return appears_in(share, sources) or appears_in(as_share, sources)
     digits = number.lstrip("-")
     if "." in digits:
         step = 10.0 ** -len(digits.split(".")[1])
@@ -268,16 +279,30 @@ def test_appears_in_accepts_a_rounded_figure_and_refuses_another():
     assert not appears_in("-17500", sources) and not appears_in("1200000", sources) and not appears_in("12.1", sources)
     assert not appears_in("0.40", sources) and appears_in("0.4", sources)
     assert measured_looking_numbers("Sarsa rises in 1,000 s (Table 6.2, Eq. 5.7): 12.0 m, +45 % and 20 seeds; "
-                                    "`--budget 2500` [x](a/1.5.md) Python 3.11, 2013") == ["1000", "12.0", "45"]
+                                    "`--budget 2500` [x](a/1.5.md) Python 3.11, 2013, MushroomRL 1.10.1") == ["1000", "12.0", "45%"]
+    assert appears_in("84%", sorted([0.844])) and not appears_in("85%", sorted([0.844]))
+
+
+def named_folders(text: str) -> set[str]:
+    """The results folders a page names: ``results/measured/<dir>`` and links to a results page ``<dir>.md``."""
+    names = set(re.findall(r"results/measured/(\w+)", text)) | set(re.findall(r"\]\((?:\.\./results/)?(\w+)\.md", text))
+    return names & set(generator.result_dirs())
 
 
 def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file():
+    """A figure of a page must be in a results file the docs show; a folder's analysis (shown on the folder's page)
+    must take its figures from that folder's files or from the folders it names, so that a figure left over from
+    an earlier run does not pass by matching some other file."""
     sources = source_numbers()
     for path in [ROOT / "README.md", *hand_written_pages()]:
         name = path.relative_to(ROOT).as_posix()
         allowed = NOT_MEASURED.get(name, {})
-        figures = [number for number in measured_looking_numbers(path.read_text(encoding="utf-8"))
-                   if number not in allowed and not appears_in(number, sources)]
+        text = path.read_text(encoding="utf-8")
+        own = sources
+        if path.parent == DOCS / "_notes" and path.stem.startswith("results_"):
+            own = source_numbers({path.stem.removeprefix("results_")} | named_folders(text))
+        figures = [number for number in measured_looking_numbers(text)
+                   if number not in allowed and not appears_in(number, own)]
         assert not figures, (f"{name} quotes figures that no results file the docs show holds: {figures[:12]}; "
                              "include the results file (or generate the table from it) instead of copying")
     for name, numbers in NOT_MEASURED.items():  # the exceptions stay true to the pages
@@ -295,6 +320,16 @@ def table_rows(text: str) -> list[tuple[str, ...]]:
             if sum(bool(re.search(r"\d", cell)) for cell in cells) >= 2:
                 rows.append(cells)
     return rows
+
+
+def test_the_analyses_of_the_results_pages_hold_no_tables_of_figures():
+    """A results folder's analysis (docs/_notes/results_<dir>.md) is shown beneath the folder's own summary: a table
+    of measured figures in it is a copy, or a compilation that belongs in a results file."""
+    for path in sorted((DOCS / "_notes").glob("results_*.md")):
+        text = re.sub(r"```.*?```", "", path.read_text(encoding="utf-8"), flags=re.DOTALL)
+        rows = [line for line in text.splitlines() if line.strip().startswith("|")
+                and measured_looking_numbers(line.replace("|", " "))]
+        assert not rows, f"{path.relative_to(ROOT)} holds a table of figures: {rows[0][:100]}"
 
 
 def test_no_page_copies_a_table_of_a_results_file():
