@@ -17,7 +17,11 @@ from gymnasium.envs.registration import register, registry
 
 
 def discrete_action_index(action, n_actions: int) -> int:
-    """``action`` as a Python int in ``[0, n_actions)``; a ValueError naming the action for anything else."""
+    """``action`` as a Python int in ``[0, n_actions)``; a ValueError naming the action for anything else.
+
+    :param action: the action as given (a Python or NumPy integer, or a one-element array).
+    :param n_actions: the number of actions.
+    """
     try:
         index = int(action)
     except (TypeError, ValueError):

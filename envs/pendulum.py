@@ -116,6 +116,15 @@ def pendulum_rk4_step(theta, velocity, torque, gravity_torque, damping, inertia,
 
     ``gravity_torque`` is m * g * l and ``inertia`` the inertia about the pivot, so the equation integrated is
     J_pivot * theta'' = m g l sin(theta) - b theta' + u.
+
+    :param theta: the angle [rad], 0 upright.
+    :param velocity: the angular rate [rad/s].
+    :param torque: the applied torque u [N m], constant over the step.
+    :param gravity_torque: m g l [N m].
+    :param damping: the viscous friction b [N m s/rad].
+    :param inertia: the inertia about the pivot J [kg m^2].
+    :param dt: the step's duration [s].
+    :param substeps: the number of integration steps within it.
     """
     h = dt / substeps
     for _ in range(substeps):
@@ -142,6 +151,15 @@ def pendulum_euler_step(theta, velocity, torque, gravity_torque, damping, inerti
 
     Each step of length h first updates the rate, theta' += h * theta'', then the angle with the new rate, theta += h *
     theta': the first-order scheme of ODE's ``dWorldStep``, in which MatODE simulated the thesis's pendulum (4.2.1).
+
+    :param theta: the angle [rad], 0 upright.
+    :param velocity: the angular rate [rad/s].
+    :param torque: the applied torque u [N m], constant over the step.
+    :param gravity_torque: m g l [N m].
+    :param damping: the viscous friction b [N m s/rad].
+    :param inertia: the inertia about the pivot J [kg m^2].
+    :param dt: the step's duration [s].
+    :param substeps: the number of integration steps within it.
     """
     h = dt / substeps
     for _ in range(substeps):
@@ -151,7 +169,10 @@ def pendulum_euler_step(theta, velocity, torque, gravity_torque, damping, inerti
 
 
 def wrap_angle(theta: float) -> float:
-    """``theta`` wrapped into ``[-pi, pi)``."""
+    """``theta`` wrapped into ``[-pi, pi)``.
+
+    :param theta: an angle [rad].
+    """
     return (theta + math.pi) % (2.0 * math.pi) - math.pi
 
 
@@ -368,12 +389,20 @@ class PendulumSwingupEnv(gym.Env):
         """Joint torque in N m of the action ``action_value`` (N m, or V) at angular rate ``velocity``, damping aside.
 
         A torque is itself; a voltage u gives (K / R) * (u - K * theta'), the back-EMF included.
+
+        :param action_value: the action in its unit (N m, or V).
+        :param velocity: the angular rate [rad/s].
         """
         return self.torque_per_unit * action_value - (self.total_damping - self.damping) * velocity
 
     def reward(self, theta: float, velocity: float, action_value: float) -> float:
         """Thesis Eq. 4.1: r = -5 theta^2 - 0.1 theta'^2 - a^2, ``a`` the action in its unit (N m, or V), theta and
-        theta' in rad and rad/s, or in degrees and degrees/s with ``reward_units="degrees"``."""
+        theta' in rad and rad/s, or in degrees and degrees/s with ``reward_units="degrees"``.
+
+        :param theta: the angle [rad], 0 upright.
+        :param velocity: the angular rate [rad/s].
+        :param action_value: the action in its unit (N m, or V).
+        """
         theta, velocity = self._reward_scale * theta, self._reward_scale * velocity
         return -5.0 * theta * theta - 0.1 * velocity * velocity - action_value * action_value
 
@@ -389,7 +418,11 @@ class PendulumSwingupEnv(gym.Env):
         return {"step": (step_low, 0.0), "terminal": terminal}
 
     def set_state(self, theta: float, velocity: float) -> None:
-        """Place the pendulum at angle ``theta`` (wrapped) with angular rate ``velocity`` (within the bound)."""
+        """Place the pendulum at angle ``theta`` (wrapped) with angular rate ``velocity`` (within the bound).
+
+        :param theta: the angle [rad].
+        :param velocity: the angular rate [rad/s].
+        """
         if not (math.isfinite(theta) and abs(velocity) <= self.max_velocity):
             raise ValueError(
                 f"theta must be finite and |velocity| <= max_velocity = {self.max_velocity}, got ({theta}, {velocity})"

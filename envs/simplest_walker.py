@@ -230,6 +230,13 @@ def simulate_control_step(state, hip_acceleration, slope, duration, substeps, ou
     ``outcome`` (float64[8]): the number of heel strikes, their summed step lengths ``2 sin(-phi_st-)``, 1.0 if the
     walker fell (else 0.0), the time of the first heel strike (NaN without one) and, in slots 4-7, the state right
     after the last heel strike (left untouched without one). ``phi_h`` leaves wrapped into [-pi, pi).
+
+    :param state: (phi_st, phi_st', phi_h, phi_h') float64[4], changed in place.
+    :param hip_acceleration: the hip's acceleration, constant over the step.
+    :param slope: the slope [rad].
+    :param duration: the control step's duration, in the model's time unit.
+    :param substeps: the number of RK4 steps.
+    :param outcome: float64[8] written as above.
     """
     stance, hip, stance_rate, hip_rate = state[0], state[1], state[2], state[3]
     outcome[FOOTSTEPS] = 0.0
@@ -306,6 +313,10 @@ def impact_manifold_state(stance_angle: float, energy: float, slope: float = 0.0
 
     Legs symmetric (``phi_h = 2 phi_st``), the stance leg rotating forward with ``phi_st'^2 / 2 + cos(phi_st - mu) =
     energy`` and the swing rate Eq. 4.4 leaves, ``phi_h' = (1 - cos(2 phi_st)) phi_st'``.
+
+    :param stance_angle: the stance angle phi_st [rad], > 0.
+    :param energy: the stance leg's energy.
+    :param slope: the slope [rad] (default 0.004, the thesis's).
     """
     kinetic = energy - math.cos(stance_angle - slope)
     if not 0.0 < stance_angle < _HALF_PI or not kinetic > 0.0:
@@ -361,7 +372,11 @@ def _choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
 
 def swing_foot_height(stance: float, hip: float) -> float:
     """Height of the swing foot above the slope for unit legs: hip height ``cos(phi_st)`` minus the swing leg's reach
-    ``cos(phi_st - phi_h)`` (0 at heel strike and at mid-stance with the legs together)."""
+    ``cos(phi_st - phi_h)`` (0 at heel strike and at mid-stance with the legs together).
+
+    :param stance: the stance angle phi_st [rad].
+    :param hip: the hip angle phi_h [rad].
+    """
     return math.cos(stance) - math.cos(stance - hip)
 
 
@@ -568,7 +583,10 @@ class SimplestWalkerEnv(gym.Env):
     def sample_start_state(self, rng: np.random.Generator) -> np.ndarray:
         """A random start (module docstring). ``"grl"``: Garcia's four values each times U[1 - v, 1 + v], redrawn until
         the stance leg's kinetic energy lifts the hip over phi_st = 0. ``"impact"``: a post-impact state with stance
-        angle 0.1534 (1 +- v) and energy 1 + [0.4, 1.6] e*."""
+        angle 0.1534 (1 +- v) and energy 1 + [0.4, 1.6] e*.
+
+        :param rng: the generator to draw from (the env's ``np_random``).
+        """
         v = self.initial_state_variation
         if self.start != "impact":
             cos_slope = math.cos(self.slope)
@@ -584,7 +602,10 @@ class SimplestWalkerEnv(gym.Env):
 
     def makes_passive_footstep(self, state) -> bool:
         """Whether the walker started in ``state`` makes a heel strike with zero hip acceleration before this env's
-        fall test ends the episode, within :data:`PASSIVE_FOOTSTEP_STEPS` control steps."""
+        fall test ends the episode, within :data:`PASSIVE_FOOTSTEP_STEPS` control steps.
+
+        :param state: a walker state (phi_st, phi_st', phi_h, phi_h').
+        """
         state = self._checked_state(state).copy()
         outcome = np.zeros(OUTCOME_SIZE)
         for _ in range(PASSIVE_FOOTSTEP_STEPS):

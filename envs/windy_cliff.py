@@ -133,17 +133,27 @@ class WindyCliffEnv(gym.Env):
         self._steps = 0
 
     def is_windy(self, y: int) -> bool:
-        """Whether row ``y`` lies in the wind."""
+        """Whether row ``y`` lies in the wind.
+
+        :param y: the row, 0 the southernmost.
+        """
         return y >= self.first_windy_row
 
     def goal_payout(self, y: int) -> float:
-        """Reward for entering the goal column at row ``y``: linear from 0 (south) to ``goal_reward`` (north)."""
+        """Reward for entering the goal column at row ``y``: linear from 0 (south) to ``goal_reward`` (north).
+
+        :param y: the row, 0 the southernmost.
+        """
         return self.goal_reward * y / (self.height - 1)
 
     def outcome(self, cell: tuple[int, int], action: int, blown: bool) -> tuple[tuple[int, int], float, bool, bool]:
         """Deterministic result of ``action`` in ``cell`` given whether the wind blows: (next cell, reward, fell, goal).
 
         ``blown`` only matters in the wind; ``next_cell`` after a fall is the cell the agent fell from.
+
+        :param cell: the (x, y) cell acted in.
+        :param action: the action index.
+        :param blown: whether the wind blows in this step.
         """
         x, y = cell
         if self.is_windy(y):
@@ -159,7 +169,11 @@ class WindyCliffEnv(gym.Env):
         return (nx, ny), self.step_reward, False, False
 
     def transition_distribution(self, cell: tuple[int, int], action: int) -> list[Outcome]:
-        """All outcomes of ``action`` in the non-terminal ``cell`` with their probabilities (merged, zero ones dropped)."""
+        """All outcomes of ``action`` in the non-terminal ``cell`` with their probabilities (merged, zero ones dropped).
+
+        :param cell: the (x, y) cell, not terminal.
+        :param action: the action index.
+        """
         x, y = self._checked_cell(cell)
         action = discrete_action_index(action, len(KING_MOVES))
         if not self.is_windy(y):
@@ -172,7 +186,11 @@ class WindyCliffEnv(gym.Env):
         return [Outcome(probability, *key) for key, probability in merged.items()]
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start at the south-west corner, or at ``options["cell"]`` (any non-goal cell, e.g. for exploring starts)."""
+        """Start at the south-west corner, or at ``options["cell"]`` (any non-goal cell, e.g. for exploring starts).
+
+        :param seed: the seed of the env's generator (default None).
+        :param options: ``{"cell": (x, y)}`` to start elsewhere (default None).
+        """
         super().reset(seed=seed)
         cell = self.start_cell if options is None else options.get("cell", self.start_cell)
         self._x, self._y = self._checked_cell(cell)

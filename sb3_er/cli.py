@@ -177,6 +177,8 @@ def reproduce_command(argv: Sequence[str]) -> None:
     is writing and a damaged settings or record file exit with the message (status 2). SIGTERM (a scheduler's time
     limit, ``timeout``) ends the command as Ctrl-C does: its worker processes and the Ray instance it started end
     with it, and the runs written so far stay for a resume.
+
+    :param argv: the arguments after ``reproduce`` (the experiment's name first).
     """
     import signal
     import threading
@@ -261,7 +263,10 @@ def reproduce_command(argv: Sequence[str]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """Entry point of the `sb3-er` console script."""
+    """Entry point of the `sb3-er` console script.
+
+    :param argv: the command line without the program's name (default None: ``sys.argv[1:]``).
+    """
     arguments = list(sys.argv[1:] if argv is None else argv)
     commands = ("reproduce", *ZOO_COMMANDS)
     if not arguments or arguments[0] in ("-h", "--help") or arguments[0] not in commands:

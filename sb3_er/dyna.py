@@ -70,7 +70,14 @@ class NearestNeighbourModel:
         return delta
 
     def fit(self, observations, actions, rewards, next_observations, terminal) -> "NearestNeighbourModel":
-        """Index the transitions (n rows) by action."""
+        """Index the transitions (n rows) by action.
+
+        :param observations: states s, (n, D).
+        :param actions: flat action indices, (n,).
+        :param rewards: rewards, (n,).
+        :param next_observations: next states s', (n, D).
+        :param terminal: whether each s' is terminal, (n,) bool.
+        """
         z = self._scaled(observations)
         displacement = self._difference(next_observations, observations)
         self.rewards, self.displacements, self.terminal = [], [], []
@@ -85,7 +92,11 @@ class NearestNeighbourModel:
         return self
 
     def predict(self, observations: np.ndarray, actions: np.ndarray):
-        """Predicted (s' (B, D), r (B,), P(not terminal) (B,), covered (B,) bool) for B queries (s, a)."""
+        """Predicted (s' (B, D), r (B,), P(not terminal) (B,), covered (B,) bool) for B queries (s, a).
+
+        :param observations: query states s, (B, D).
+        :param actions: query flat actions a, (B,).
+        """
         observations = np.asarray(observations, dtype=np.float64)
         batch = observations.shape[0]
         next_observations = observations.copy()
@@ -113,7 +124,13 @@ class NearestNeighbourModel:
         return next_observations, rewards, continuation, covered
 
     def errors(self, observations, actions, rewards, next_observations):
-        """One-step prediction errors on transitions: (next-state error in tile widths, |reward error|, covered)."""
+        """One-step prediction errors on transitions: (next-state error in tile widths, |reward error|, covered).
+
+        :param observations: states s, (n, D).
+        :param actions: flat action indices, (n,).
+        :param rewards: observed rewards, (n,).
+        :param next_observations: observed next states s', (n, D).
+        """
         predicted, predicted_rewards, _, covered = self.predict(observations, actions)
         state_error = np.linalg.norm(self._difference(predicted, next_observations) * self.inv_widths, axis=1)
         return state_error[covered], np.abs(predicted_rewards - rewards)[covered], covered

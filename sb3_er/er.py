@@ -188,7 +188,10 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             self.replay_buffer.truncate_open_trajectory()
 
     def seed_replay(self, seed: Optional[int]) -> None:
-        """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones."""
+        """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones.
+
+        :param seed: the seed of the replay generator; None seeds it from fresh entropy.
+        """
         self.replay_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_REPLAY)
 
     def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
@@ -212,7 +215,11 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         |delta|, and for ER-sigma the phase's mean target shift T_sigma - T and the shares of targets it raised and
         lowered (``sigma_shift``, ``sigma_raised``, ``sigma_lowered``; with the value watch on). Prioritized sweeping
         makes ``prioritized_updates`` updates, by default n_trajectories times the mean length of a stored
-        trajectory."""
+        trajectory.
+
+        :param n_trajectories: trajectories to replay in this phase (drawn uniformly from those stored, the open one
+            included).
+        """
         buffer = self.replay_buffer
         if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}

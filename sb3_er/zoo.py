@@ -64,6 +64,8 @@ def config_path(algo: str) -> Path:
 
     Raises ValueError for an algorithm sb3-er does not have and FileNotFoundError when the installation lacks the file
     (a broken install: reinstall sb3-er, or pass ``--conf-file`` explicitly).
+
+    :param algo: the algorithm's rl-zoo name, e.g. "er_sigma".
     """
     if algo not in ALL_ALGORITHM_NAMES:
         raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALL_ALGORITHM_NAMES)}")
@@ -80,7 +82,11 @@ def config_path(algo: str) -> Path:
 
 
 def load_hyperparameters(algo: str, env_id: str) -> dict[str, Any]:
-    """The YAML entry of `env_id` in `zoo_configs/<algo>.yml`, as rl_zoo3 reads it."""
+    """The YAML entry of `env_id` in `zoo_configs/<algo>.yml`, as rl_zoo3 reads it.
+
+    :param algo: the algorithm's rl-zoo name, e.g. "er_sigma".
+    :param env_id: the Gymnasium env id, e.g. "sb3_er/SimplestWalker-v0".
+    """
     with open(config_path(algo)) as stream:
         entries = yaml.safe_load(stream)
     if env_id not in entries:
@@ -89,7 +95,11 @@ def load_hyperparameters(algo: str, env_id: str) -> dict[str, Any]:
 
 
 def model_kwargs(algo: str, env_id: str) -> dict[str, Any]:
-    """Constructor keyword arguments of `algo` for `env_id` from its zoo config (the run-level keys removed)."""
+    """Constructor keyword arguments of `algo` for `env_id` from its zoo config (the run-level keys removed).
+
+    :param algo: the algorithm's rl-zoo name, e.g. "er_sigma".
+    :param env_id: the Gymnasium env id, e.g. "sb3_er/SimplestWalker-v0".
+    """
     hyperparameters = load_hyperparameters(algo, env_id)
     for key in ZOO_ONLY_KEYS:
         hyperparameters.pop(key, None)
@@ -105,13 +115,25 @@ def _sample_common(trial) -> dict[str, Any]:
 
 
 def sample_sarsa_lambda_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of Sarsa(lambda): alpha, gamma, epsilon and the trace decay lambda."""
+    """Optuna search space of Sarsa(lambda): alpha, gamma, epsilon and the trace decay lambda.
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {**_sample_common(trial), "trace_lambda": trial.suggest_float("trace_lambda", 0.5, 0.99)}
 
 
 def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
     """Optuna search space of vanilla ER: alpha, gamma, epsilon and the replay order: every order ER has (reversed,
-    forward and uniform of thesis Appendix A, and prioritized sweeping of section 3.2)."""
+    forward and uniform of thesis Appendix A, and prioritized sweeping of section 3.2).
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {
         **_sample_common(trial),
         "replay_order": trial.suggest_categorical("replay_order", list(REPLAY_ORDERS)),
@@ -119,17 +141,35 @@ def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) 
 
 
 def sample_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of ER-sigma: alpha, gamma, epsilon and the definition of sigma (thesis Appendix B)."""
+    """Optuna search space of ER-sigma: alpha, gamma, epsilon and the definition of sigma (thesis Appendix B).
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {**_sample_common(trial), "sigma": trial.suggest_categorical("sigma", list(SIGMA_DEFINITIONS))}
 
 
 def sample_residual_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of residual ER: alpha, gamma, epsilon and the residual weight zeta (thesis Eq. 5.9)."""
+    """Optuna search space of residual ER: alpha, gamma, epsilon and the residual weight zeta (thesis Eq. 5.9).
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {**_sample_common(trial), "residual_zeta": trial.suggest_float("residual_zeta", 0.0, 1.0)}
 
 
 def sample_residual_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of residual ER-sigma: both the sigma definition and zeta."""
+    """Optuna search space of residual ER-sigma: both the sigma definition and zeta.
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {
         **sample_residual_er_params(trial, n_actions, n_envs, additional_args),
         "sigma": trial.suggest_categorical("sigma", list(SIGMA_DEFINITIONS)),
@@ -137,7 +177,13 @@ def sample_residual_er_sigma_params(trial, n_actions: int, n_envs: int, addition
 
 
 def sample_dyna_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of Dyna: alpha, gamma, epsilon, the planning updates per step and the model's k."""
+    """Optuna search space of Dyna: alpha, gamma, epsilon, the planning updates per step and the model's k.
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {
         **_sample_common(trial),
         "planning_steps": trial.suggest_categorical("planning_steps", [1, 5, 10, 20, 50]),
@@ -156,12 +202,24 @@ def _sample_fitted(trial) -> dict[str, Any]:
 
 
 def sample_fqi_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of FQI: gamma, epsilon, the fit schedule, the ridge term and the sweeps per fit."""
+    """Optuna search space of FQI: gamma, epsilon, the fit schedule, the ridge term and the sweeps per fit.
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return {**_sample_fitted(trial), "n_iterations": trial.suggest_categorical("n_iterations", [5, 10, 20, 50])}
 
 
 def sample_lspi_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of LSPI: gamma, epsilon, the fit schedule and the ridge term."""
+    """Optuna search space of LSPI: gamma, epsilon, the fit schedule and the ridge term.
+
+    :param trial: the optuna trial that suggests the values.
+    :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
+    :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
+    :param additional_args: rl_zoo3's extra sampler arguments (unused).
+    """
     return _sample_fitted(trial)
 
 
@@ -226,14 +284,20 @@ def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str
 
 
 def train(argv: Sequence[str]) -> None:
-    """`sb3-er train --algo ALGO --env ENV [rl_zoo3 train options]`: rl_zoo3 training with our defaults."""
+    """`sb3-er train --algo ALGO --env ENV [rl_zoo3 train options]`: rl_zoo3 training with our defaults.
+
+    :param argv: the arguments after ``train`` (rl_zoo3's train options).
+    """
     from rl_zoo3.train import train as zoo_train
 
     _run_zoo_script(zoo_train, "sb3-er train", _with_defaults(argv, training=True))
 
 
 def optimize(argv: Sequence[str]) -> None:
-    """`sb3-er optimize --algo ALGO --env ENV [--n-trials N ...]`: rl_zoo3's optuna search with our samplers."""
+    """`sb3-er optimize --algo ALGO --env ENV [--n-trials N ...]`: rl_zoo3's optuna search with our samplers.
+
+    :param argv: the arguments after ``optimize`` (rl_zoo3's train options with ``--optimize``).
+    """
     arguments = list(argv)
     if not _has_option(arguments, "-optimize", "--optimize-hyperparameters"):
         arguments.append("--optimize-hyperparameters")
@@ -241,7 +305,10 @@ def optimize(argv: Sequence[str]) -> None:
 
 
 def enjoy(argv: Sequence[str]) -> None:
-    """`sb3-er enjoy --algo ALGO --env ENV [-f FOLDER --no-render ...]`: rl_zoo3's enjoy for our trained agents."""
+    """`sb3-er enjoy --algo ALGO --env ENV [-f FOLDER --no-render ...]`: rl_zoo3's enjoy for our trained agents.
+
+    :param argv: the arguments after ``enjoy`` (rl_zoo3's enjoy options).
+    """
     from rl_zoo3.enjoy import enjoy as zoo_enjoy
 
     _run_zoo_script(zoo_enjoy, "sb3-er enjoy", _with_defaults(argv, training=False))
@@ -251,7 +318,10 @@ COMMANDS = {"train": train, "enjoy": enjoy, "optimize": optimize}
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """`python -m sb3_er.zoo {train,enjoy,optimize} ...`."""
+    """`python -m sb3_er.zoo {train,enjoy,optimize} ...`.
+
+    :param argv: the verb and its arguments (default None: ``sys.argv[1:]``).
+    """
     arguments = list(sys.argv[1:] if argv is None else argv)
     if not arguments or arguments[0] not in COMMANDS:
         raise SystemExit(f"usage: python -m sb3_er.zoo {{{','.join(COMMANDS)}}} --algo ALGO --env ENV [options]")

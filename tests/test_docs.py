@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import html
 import importlib.util
+import inspect
 import json
 import re
 import subprocess
@@ -97,6 +98,53 @@ def test_algorithm_pages_list_every_parameter(built):
         assert re.search(rf"\b{name}\b", text), name
 
 
+def inventory_objects(objects_inv: Path, roles: tuple[str, ...]) -> list[str]:
+    """The names of the objects of `roles` (e.g. ``"py:function"``) in a Sphinx ``objects.inv`` (version 2: four
+    header lines, then zlib-compressed lines ``name domain:role priority uri display-name``)."""
+    import zlib
+
+    data = objects_inv.read_bytes()
+    header_end = 0
+    for _ in range(4):
+        header_end = data.index(b"\n", header_end) + 1
+    lines = zlib.decompress(data[header_end:]).decode("utf-8").splitlines()
+    return [line.split(" ", 2)[0] for line in lines if len(line.split(" ", 2)) == 3 and line.split(" ", 2)[1] in roles]
+
+
+def resolve(name: str):
+    """The object of a dotted name such as ``sb3_er.common.tile_coding.TileCoder.slots`` (the longest importable
+    module prefix, then attributes); a numba kernel as its Python function, a method as its function."""
+    import importlib
+
+    parts = name.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:cut]))
+            break
+        except ImportError:
+            continue
+    for part in parts[cut:]:
+        obj = inspect.getattr_static(obj, part) if inspect.isclass(obj) else getattr(obj, part)
+    obj = obj.__func__ if isinstance(obj, (staticmethod, classmethod)) else obj
+    return getattr(obj, "py_func", obj)
+
+
+@pytest.mark.slow
+def test_every_function_the_site_shows_lists_its_parameters(built):
+    """What autodoc put on the site (the build's inventory, private members included) documents every parameter: a
+    page never shows a function whose parameters are described in prose only."""
+    from sb3_er.common.docstrings import undocumented_parameters
+
+    shown = inventory_objects(built / "objects.inv", ("py:function", "py:method", "py:classmethod", "py:staticmethod"))
+    assert {"sb3_er.common.tile_coding.default_tile_widths", "sb3_er.TileQPolicy.q_values"} <= set(shown)
+    for name in shown:
+        obj = resolve(name)
+        # a class's signature (autodoc shows ``__init__`` apart): the class's docstring documents its parameters
+        doc = resolve(name.rsplit(".", 1)[0]).__doc__ if name.endswith((".__init__", ".__new__")) else obj.__doc__
+        missing = undocumented_parameters(obj, doc)
+        assert not missing, f"{name} does not document {missing}"
+
+
 def test_verdicts_say_not_judged_yet_without_findings_and_read_them_when_present(tmp_path):
     measured = tmp_path / "measured"
     (measured / "table_6_2").mkdir(parents=True)
@@ -158,6 +206,159 @@ def test_a_malformed_findings_file_is_an_error_naming_it(tmp_path, content, prob
 def test_the_readme_verdict_table_is_generated_and_current():
     assert generator.README_START in (ROOT / "README.md").read_text()
     assert generator.update_readme(check=True), "run: python docs/_ext/sb3er_docs.py readme"
+
+
+# --- measured figures come from the committed results files, never by hand ---
+
+NUMBER = r"[-−+]?\d[\d,]*(?:\.\d+)?"
+# A figure with one of these units, a decimal number or one of 4 or more digits looks measured.
+UNIT = r"(?:%|×|s\b|ms\b|µs\b|min\b|h\b|m\b|MB\b|steps/s|updates/s)"
+# What a number after these words is: a reference, a version or a year, not a figure.
+REFERENCE = re.compile(r"(?:Tables?|Figures?|Fig\.|Eqs?\.|Alg\.|Algorithms?|Appendix|[Ss]ections?|[Cc]hapter|"
+                       r"Python|Ray|version|v)\s*[-–\d.,]*$")
+# Numbers of the prose that are no measurement and appear in no file: each with what it is.
+NOT_MEASURED = {
+    "docs/continuous_actions.md": {"-1.33": "a torque level, 2 * (k / 3 - 1)", "-0.67": "a torque level"},
+    "docs/envs/leo.md": {"0.167": "the RX-28 motor's torque constant", "0.320": "its back-EMF constant"},
+    "docs/guide/install.md": {"3.11": "the Python version tested"},
+    "docs/guide/distributed.md": {"2.59": "a Ray release", "2.61": "a Ray release"},
+    "docs/guide/zoo.md": {"5432": "PostgreSQL's port in an example URL"},
+    "docs/readings.md": {"162000": "5 * 180^2, a cost in degrees", "8.04": "m l^2 of Table 4.1, computed"},
+    "docs/value_growth.md": {"0.265": "a closed-form factor", "0.60": "a closed-form overlap"},
+    "docs/value_watch.md": {"-209.7": "a reward bound, computed", "-0.96": "a reward bound, computed",
+                            "-10485": "a return bound, computed", "65900": "a return bound, computed"},
+}
+
+
+def _plain(number: str) -> str:
+    return number.rstrip(",").replace(",", "").replace("−", "-").lstrip("+")
+
+
+def measured_looking_numbers(text: str) -> list[str]:
+    """The figures of Markdown `text` that look measured (a decimal, 4 or more digits, or a unit such as s, %, ×),
+    outside code (fenced blocks and inline code, where commands and their options live), link targets, references
+    ("Table 6.2", "Eq. 5.7"), versions and years; each as a plain number ("-17400", "1.2")."""
+    text = re.sub(r"```.*?```", "", text, flags=re.DOTALL)
+    text = re.sub(r"`[^`]*`", "", text)
+    text = re.sub(r"\]\([^)]*\)", "]", text)
+    text = re.sub(r"\b\d+\.\d+\.\d+\b", "", text)  # a release such as 1.10.1
+    found = []
+    for match in re.finditer(rf"(?<![\w.^]){NUMBER}(?:\s?{UNIT})?", text):
+        number = _plain(re.match(NUMBER, match.group(0)).group(0))
+        unit = match.group(0)[len(re.match(NUMBER, match.group(0)).group(0)):].strip()
+        if REFERENCE.search(text[max(0, match.start() - 14):match.start()]):
+            continue
+        digits = number.lstrip("-")
+        if re.fullmatch(r"(19|20)\d\d", digits) and not unit:
+            continue
+        if "." in digits or len(digits.split(".")[0]) >= 4 or unit:
+            found.append(number + ("%" if unit == "%" else ""))
+    return found
+
+
+def source_numbers(folders: set[str] | None = None) -> list[float]:
+    """Every number of the results files the pages show (of `folders` of results/measured only, when given), and of
+    the package's code and configuration (parameters, the thesis's printed figures in sb3_er/experiments/thesis.py),
+    sorted."""
+    shown = [path for path in generator.shown_results_files()
+             if folders is None or path.relative_to(generator.MEASURED).parts[0] in folders]
+    paths = shown + [path for folder in ("sb3_er", "envs", "zoo_configs")
+                     for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
+    numbers = set()
+    for path in paths:
+        numbers.update(re.findall(r"[-−]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", path.read_text(encoding="utf-8")))
+    return sorted({float(_plain(number)) for number in numbers})
+
+
+def appears_in(number: str, sources: list[float]) -> bool:
+    """Whether a figure as printed is one of `sources` at its printed precision (-17,400 stands for -1.74e+04 and
+    -17,396; 12.0 for 12.04; 1,200,000 for 1.2e+06), so that a figure rounded from an included file is accepted; a
+    percentage may also be a share (84 % for 0.844)."""
+    import bisect
+
+    if number.endswith("%"):
+        share = number[:-1]
+        digits = share.lstrip("-")
+        places = len(digits.split(".")[1]) if "." in digits else 0
+        as_share = f"{float(share) / 100:.{places + 2}f}"
+        return appears_in(share, sources) or appears_in(as_share, sources)
+    digits = number.lstrip("-")
+    if "." in digits:
+        step = 10.0 ** -len(digits.split(".")[1])
+    else:
+        significant = digits.rstrip("0") or "0"
+        step = 10.0 ** (len(digits) - len(significant))
+    value = float(number)
+    index = bisect.bisect_left(sources, value - step / 2)
+    return index < len(sources) and sources[index] <= value + step / 2
+
+
+def test_appears_in_accepts_a_rounded_figure_and_refuses_another():
+    sources = sorted([-17396.2, 1133961.0, 12.04, 0.39])
+    assert appears_in("-17400", sources) and appears_in("1100000", sources) and appears_in("12.0", sources)
+    assert not appears_in("-17500", sources) and not appears_in("1200000", sources) and not appears_in("12.1", sources)
+    assert not appears_in("0.40", sources) and appears_in("0.4", sources)
+    assert measured_looking_numbers("Sarsa rises in 1,000 s (Table 6.2, Eq. 5.7): 12.0 m, +45 % and 20 seeds; "
+                                    "`--budget 2500` [x](a/1.5.md) Python 3.11, 2013, MushroomRL 1.10.1") == ["1000", "12.0", "45%"]
+    assert appears_in("84%", sorted([0.844])) and not appears_in("85%", sorted([0.844]))
+
+
+def named_folders(text: str) -> set[str]:
+    """The results folders a page names: ``results/measured/<dir>`` and links to a results page ``<dir>.md``."""
+    names = set(re.findall(r"results/measured/(\w+)", text)) | set(re.findall(r"\]\((?:\.\./results/)?(\w+)\.md", text))
+    return names & set(generator.result_dirs())
+
+
+def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file():
+    """A figure of a page must be in a results file the docs show; a folder's analysis (shown on the folder's page)
+    must take its figures from that folder's files or from the folders it names, so that a figure left over from
+    an earlier run does not pass by matching some other file."""
+    sources = source_numbers()
+    for path in [ROOT / "README.md", *hand_written_pages()]:
+        name = path.relative_to(ROOT).as_posix()
+        allowed = NOT_MEASURED.get(name, {})
+        text = path.read_text(encoding="utf-8")
+        own = sources
+        if path.parent == DOCS / "_notes" and path.stem.startswith("results_"):
+            own = source_numbers({path.stem.removeprefix("results_")} | named_folders(text))
+        figures = [number for number in measured_looking_numbers(text)
+                   if number not in allowed and not appears_in(number, own)]
+        assert not figures, (f"{name} quotes figures that no results file the docs show holds: {figures[:12]}; "
+                             "include the results file (or generate the table from it) instead of copying")
+    for name, numbers in NOT_MEASURED.items():  # the exceptions stay true to the pages
+        text = (ROOT / name).read_text(encoding="utf-8")
+        assert all(number in map(_plain, re.findall(NUMBER, text)) for number in numbers), name
+
+
+def table_rows(text: str) -> list[tuple[str, ...]]:
+    """The rows of the Markdown tables of `text` with two or more numeric cells, each as its stripped cells."""
+    rows = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith("|") and line.endswith("|") and not re.fullmatch(r"[|\s:-]+", line):
+            cells = tuple(cell.strip().replace("`", "") for cell in line.strip("|").split("|"))
+            if sum(bool(re.search(r"\d", cell)) for cell in cells) >= 2:
+                rows.append(cells)
+    return rows
+
+
+def test_the_analyses_of_the_results_pages_hold_no_tables_of_figures():
+    """A results folder's analysis (docs/_notes/results_<dir>.md) is shown beneath the folder's own summary: a table
+    of measured figures in it is a copy, or a compilation that belongs in a results file."""
+    for path in sorted((DOCS / "_notes").glob("results_*.md")):
+        text = re.sub(r"```.*?```", "", path.read_text(encoding="utf-8"), flags=re.DOTALL)
+        rows = [line for line in text.splitlines() if line.strip().startswith("|")
+                and measured_looking_numbers(line.replace("|", " "))]
+        assert not rows, f"{path.relative_to(ROOT)} holds a table of figures: {rows[0][:100]}"
+
+
+def test_no_page_copies_a_table_of_a_results_file():
+    results = {row: path for path in generator.shown_results_files() if path.suffix == ".md"
+               for row in table_rows(path.read_text(encoding="utf-8"))}
+    for path in [ROOT / "README.md", *hand_written_pages()]:
+        copied = [row for row in table_rows(path.read_text(encoding="utf-8")) if row in results]
+        assert not copied, (f"{path.relative_to(ROOT)} copies rows of {results[copied[0]].relative_to(ROOT)} "
+                            f"(e.g. {' | '.join(copied[0][:4])}): include the file instead")
 
 
 def test_no_commit_hashes_or_history_in_the_prose_a_user_reads():

@@ -1,5 +1,6 @@
-"""Every public class documents every parameter its constructor accepts (the API pages are complete), and
-inherit_parameters repeats a base's documentation per class with this class's defaults."""
+"""Every public class documents every parameter its constructor accepts and every public function and method every
+parameter it takes (the API pages and help() are complete), and inherit_parameters repeats a base's documentation per
+class with this class's defaults."""
 
 from __future__ import annotations
 
@@ -11,23 +12,64 @@ import pytest
 
 import sb3_er
 import sb3_er_envs
-from sb3_er.common.docstrings import accepted_parameters, documented_parameters, inherit_parameters, parameter_fields
+from sb3_er.common.docstrings import (
+    accepted_parameters,
+    documented_parameters,
+    inherit_parameters,
+    parameter_fields,
+    undocumented_parameters,
+)
+
+
+def public_modules() -> list:
+    modules = []
+    for package in (sb3_er, sb3_er_envs):
+        found = pkgutil.walk_packages(package.__path__, package.__name__ + ".")
+        names = [package.__name__] + [info.name for info in found
+                                      if not any(part.startswith("_") for part in info.name.split(".")[1:])]
+        modules += [importlib.import_module(name) for name in names]
+    return modules
 
 
 def public_classes() -> list[type]:
-    classes = []
-    for package in (sb3_er, sb3_er_envs):
-        modules = pkgutil.walk_packages(package.__path__, package.__name__ + ".")
-        names = [package.__name__] + [info.name for info in modules
-                                      if not any(part.startswith("_") for part in info.name.split(".")[1:])]
-        for name in names:
-            module = importlib.import_module(name)
-            classes += [obj for key, obj in vars(module).items() if inspect.isclass(obj) and not key.startswith("_")
-                        and obj.__module__ == module.__name__]
+    classes = [obj for module in public_modules() for key, obj in vars(module).items()
+               if inspect.isclass(obj) and not key.startswith("_") and obj.__module__ == module.__name__]
     return sorted(set(classes), key=lambda cls: f"{cls.__module__}.{cls.__qualname__}")
 
 
 CLASSES = public_classes()
+
+
+def _overrides_a_foreign_method(cls: type, name: str) -> bool:
+    """Whether `name` overrides a method of a base class outside sb3-er (gymnasium's ``step``, dm_control's
+    ``get_reward``), whose docstring documents it when the override has none of its own."""
+    return any(name in vars(base) for base in cls.__mro__[1:] if not base.__module__.startswith("sb3_er"))
+
+
+def public_functions() -> dict[str, object]:
+    """Every public function of the public modules (numba kernels by their Python function) and every public method
+    (static and class methods included) of the public classes, by qualified name; a method without a docstring of
+    its own that overrides a method of a base outside sb3-er is left out (the base documents it)."""
+    functions = {}
+    for module in public_modules():
+        for key, obj in vars(module).items():
+            obj = getattr(obj, "py_func", obj)  # a numba dispatcher
+            if key.startswith("_") or getattr(obj, "__module__", None) != module.__name__:
+                continue
+            if inspect.isfunction(obj):
+                functions[f"{module.__name__}.{key}"] = obj
+    for cls in CLASSES:
+        for key, member in vars(cls).items():
+            member = member.__func__ if isinstance(member, (staticmethod, classmethod)) else member
+            if key.startswith("_") or not inspect.isfunction(member):
+                continue
+            if member.__doc__ is None and _overrides_a_foreign_method(cls, key):
+                continue
+            functions[f"{cls.__module__}.{cls.__qualname__}.{key}"] = member
+    return dict(sorted(functions.items()))
+
+
+FUNCTIONS = public_functions()
 
 
 def test_the_public_classes_are_found():
@@ -41,6 +83,34 @@ def test_the_public_classes_are_found():
 def test_every_constructor_parameter_is_documented(cls):
     missing = [name for name in accepted_parameters(cls) if name not in documented_parameters(cls.__doc__)]
     assert not missing, f"{cls.__module__}.{cls.__qualname__} does not document {missing}"
+
+
+def test_the_public_functions_are_found():
+    assert {"sb3_er.common.tile_coding.default_tile_widths", "sb3_er.common.kernels.replay_phase",
+            "sb3_er.common.policies.TileQPolicy.q_values", "sb3_er.common.base_class.TileQAlgorithm.learn",
+            "sb3_er_envs.windy_cliff.WindyCliffEnv.reset", "sb3_er.zoo.config_path"} <= set(FUNCTIONS)
+    assert "sb3_er_envs.pendulum.PendulumSwingupEnv.step" not in FUNCTIONS  # gymnasium's docstring documents it
+
+
+@pytest.mark.parametrize("name", list(FUNCTIONS))
+def test_every_function_parameter_is_documented(name):
+    missing = undocumented_parameters(FUNCTIONS[name])
+    assert not missing, f"{name} does not document {missing} (add :param name: fields to its docstring)"
+
+
+def test_a_parameter_described_only_in_prose_counts_as_undocumented():
+    def prose(path, remedy="rerun"):
+        """Read `path`; `remedy` says what to do."""
+
+    def fields(path, remedy="rerun"):
+        """Read a file.
+
+        :param path: the file.
+        :param remedy: what to do.
+        """
+
+    assert undocumented_parameters(prose) == ["path", "remedy"]
+    assert undocumented_parameters(fields) == []
 
 
 @pytest.mark.parametrize("cls", [sb3_er.SarsaLambda, sb3_er.ER, sb3_er.ERSigma, sb3_er.ResidualER,

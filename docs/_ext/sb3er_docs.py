@@ -207,6 +207,28 @@ def _relative(path: Path) -> str:
     return "../../" + path.relative_to(ROOT).as_posix()
 
 
+def _shown(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
+    """The files of `folder` with one of `suffixes` that its page shows (none under ``runs/``), summary.md first."""
+    return sorted((p for p in folder.rglob("*") if p.suffix in suffixes and "runs" not in p.relative_to(folder).parts),
+                  key=lambda p: (p.relative_to(folder).as_posix() != "summary.md", p.relative_to(folder).parts))
+
+
+def _csv_summaries(folder: Path) -> list[Path]:
+    """The ``summary*.csv`` files a folder without a summary.md is summarised by (a screen's ``summary_runs.csv``)."""
+    return [] if (folder / "summary.md").is_file() else sorted(folder.glob("summary*.csv"))
+
+
+def shown_results_files(measured: Path = MEASURED) -> list[Path]:
+    """Every committed results file whose content a page shows: the Markdown and text files of each folder (its
+    summary, VERSIONS.md, READING.md, printouts), its findings.json (the verdicts) and the CSV summaries of folders
+    without a summary.md. A measured figure in the prose of the docs must be one of theirs."""
+    files = []
+    for folder in sorted(p for p in measured.iterdir() if p.is_dir()):
+        files += _shown(folder, (".md", *TEXT_SUFFIXES)) + _csv_summaries(folder)
+        files += [folder / "findings.json"] if (folder / "findings.json").is_file() else []
+    return files
+
+
 def results_page(name: str) -> str:
     """The Markdown page of ``results/measured/<name>``."""
     folder = MEASURED / name
@@ -229,8 +251,7 @@ def results_page(name: str) -> str:
     if regime:
         lines += ["## ER-σ's regime", "", regime, ""]
     notes = NOTES / f"results_{name}.md"
-    markdown = sorted((p for p in folder.rglob("*.md") if "runs" not in p.relative_to(folder).parts),
-                      key=lambda p: (p.relative_to(folder).as_posix() != "summary.md", p.relative_to(folder).parts))
+    markdown = _shown(folder, (".md",))
     summaries = [p for p in markdown if p == folder / "summary.md"]
     others = [p for p in markdown if p not in summaries]
 
@@ -243,10 +264,11 @@ def results_page(name: str) -> str:
         lines += ["## Analysis", "", "```{include} " + _relative(notes), "```", ""]
     for path in others:
         lines += include(path, path.relative_to(folder).as_posix())
-    texts = sorted(p for p in folder.rglob("*") if p.suffix in TEXT_SUFFIXES
-                   and "runs" not in p.relative_to(folder).parts)
+    texts = _shown(folder, TEXT_SUFFIXES)
     for path in texts:
         lines += [f"## {path.relative_to(folder).as_posix()}", "", "```{literalinclude} " + _relative(path), "```", ""]
+    for path in _csv_summaries(folder):
+        lines += [f"## {path.name}", "", csv_table(path), ""]
     figures = sorted(p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES
                      and "runs" not in p.relative_to(folder).parts)
     if figures:
@@ -254,10 +276,35 @@ def results_page(name: str) -> str:
         for path in figures:
             where = path.relative_to(folder).as_posix()
             lines += [f"`{where}`", "", f"![{where}]({_relative(path)})", ""]
-    if not (markdown or texts or figures):
+    if not (markdown or texts or figures or _csv_summaries(folder)):
         tables = sorted(p.relative_to(folder).as_posix() for p in folder.glob("*.csv"))
         lines += ["This folder holds run data only: " + ", ".join(f"`{t}`" for t in tables or ["runs/"]) + ".", ""]
     return "\n".join(lines)
+
+
+def _figure(cell: str) -> str:
+    """A CSV cell as a table shows it: numbers to 4 significant digits, everything else as written."""
+    try:
+        value = float(cell)
+    except ValueError:
+        return _cell(cell)
+    if value != value:  # NaN
+        return "—"
+    return f"{value:.4g}" if not value.is_integer() or abs(value) >= 1e6 else f"{int(value)}"
+
+
+def csv_table(path: Path) -> str:
+    """The Markdown table of a committed CSV file, every row of it, numbers rounded to 4 significant digits."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as stream:
+        rows = list(csv.reader(stream))
+    if not rows:
+        raise FindingsError(f"{path}: an empty CSV file")
+    header, body = rows[0], rows[1:]
+    lines = ["| " + " | ".join(_cell(name) for name in header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(_figure(cell) for cell in row) + " |" for row in body]
+    return "\n".join(lines) + "\n"
 
 
 def results_index() -> str:

@@ -53,12 +53,19 @@ class ObservingGait:
 
         ``info`` needs ``stance_contact`` (the stance foot touches the floor) and ``footstep_length`` (the length of
         the footstep made in the last step, 0 without one); a forward footstep restarts the swing timer.
+
+        :param observation: LeoEnv's observation.
+        :param info: LeoEnv's info dict of the last step.
         """
         return np.array(self._command(observation, info))
 
     def action(self, observation: np.ndarray, info: dict) -> np.ndarray:
         """The same command on Erik's 7 voltage levels: the nearest level index per joint (the lower one at a tie),
-        for ``LeoEnv``."""
+        for ``LeoEnv``.
+
+        :param observation: LeoEnv's observation.
+        :param info: LeoEnv's info dict of the last step.
+        """
         return np.array([_nearest_level(voltage) for voltage in self._command(observation, info)])
 
     def _command(self, observation, info: dict) -> list[float]:

@@ -111,6 +111,9 @@ def butterworth_coefficients(cutoff: float, sample_rate: float) -> tuple[float, 
     """First-order low-pass by the Tustin transform without pre-warping: ``y[n] = b (x[n] + x[n-1]) - a y[n-1]``.
 
     Returns ``(b, a)``; for 10 Hz at 30 Hz this is (0.511527, 0.023055), the coefficients of Erik's rate filter.
+
+    :param cutoff: the cut-off frequency [Hz].
+    :param sample_rate: the sampling frequency [Hz].
     """
     if not 0.0 < cutoff:
         raise ValueError(f"filter cut-off must be positive, got {cutoff}")
@@ -123,7 +126,12 @@ def _clip(value: float, bound: float) -> float:
 
 
 def ankle_x_from_hip(torso: float, hip: float, knee: float) -> float:
-    """Horizontal position of the ankle relative to the hip from joint angles only (Erik's footstep measure) [m]."""
+    """Horizontal position of the ankle relative to the hip from joint angles only (Erik's footstep measure) [m].
+
+    :param torso: the torso's pitch [rad].
+    :param hip: the hip angle [rad].
+    :param knee: the knee angle [rad].
+    """
     thigh = torso + hip
     return THIGH_LENGTH * math.sin(thigh) + SHANK_LENGTH * math.sin(thigh + knee)
 
@@ -182,16 +190,25 @@ class Physics(mujoco.Physics):
         self._warning_counts = raw_data.warning.number
 
     def joint_angle(self, name: str) -> float:
-        """Angle of a joint, or of the root ("torso" pitch, "root_x", "root_z"), in LEO's convention."""
+        """Angle of a joint, or of the root ("torso" pitch, "root_x", "root_z"), in LEO's convention.
+
+        :param name: a joint's name (e.g. "hip_left") or "torso", "root_x", "root_z".
+        """
         return float(self.data.qpos[self.qpos_index[name]])
 
     def joint_rate(self, name: str) -> float:
-        """Unfiltered rate of a joint or of the root."""
+        """Unfiltered rate of a joint or of the root.
+
+        :param name: a joint's name or "torso", "root_x", "root_z".
+        """
         return float(self.data.qvel[self.qvel_index[name]])
 
     def set_pose(self, angles: dict[str, float]) -> None:
         """Set joint angles with zero rates and place the robot so that its lowest contact point touches the floor and
-        the left heel is at x = 0 (Erik's model fixes the left heel to the world origin)."""
+        the left heel is at x = 0 (Erik's model fixes the left heel to the world origin).
+
+        :param angles: joint angles [rad] by name (keys of ``qpos_index``; an unknown name is a ValueError).
+        """
         unknown = set(angles) - set(self.qpos_index)
         if unknown:
             raise ValueError(f"unknown LEO joints {sorted(unknown)}; known: {sorted(self.qpos_index)}")
@@ -212,7 +229,10 @@ class Physics(mujoco.Physics):
         """``with physics.reset_context(): task.initialize_episode(physics)``, leaving bit for bit the same data,
         with two of its four ``mj_forward`` calls dropped: dm_control's ``reset`` forwards the default pose, which
         ``set_pose`` then overwrites entirely (``mj_forward`` does not touch the warm start that ``mj_resetData``
-        zeroed). The closing forward runs without actuation, as dm_control's ``after_reset``."""
+        zeroed). The closing forward runs without actuation, as dm_control's ``after_reset``.
+
+        :param task: the task whose ``initialize_episode`` sets the start pose.
+        """
         model, data = self._raw
         mujoco_engine.mj_resetData(model, data)
         task.initialize_episode(self)
@@ -225,7 +245,10 @@ class Physics(mujoco.Physics):
 
     def set_voltages(self, voltages) -> None:
         """Set the 7 motor voltages (order: shoulder, hip left, hip right, knee left, knee right, ankle left, ankle
-        right), each clipped to +-MAX_VOLTAGE."""
+        right), each clipped to +-MAX_VOLTAGE.
+
+        :param voltages: the 7 voltages [V], in the order above.
+        """
         self.data.ctrl[self._motor_actuators] = np.clip(voltages, -MAX_VOLTAGE, MAX_VOLTAGE)
 
     #: Keep MuJoCo's profiling timers (``data.timer``) running during :meth:`step_control`. By default (False) and
@@ -240,7 +263,10 @@ class Physics(mujoco.Physics):
         ``mj_step1`` so that positions, contacts and velocities in ``data`` belong to the final state), without the
         Python wrapper around it. Like dm_control, a new MuJoCo warning (a diverged and auto-reset state, a full
         contact buffer) raises ``dm_control.rl.control.PhysicsError`` unless errors are suppressed, then it is
-        logged. See ``keep_mujoco_timers`` for the timer callback in place during the step."""
+        logged. See ``keep_mujoco_timers`` for the timer callback in place during the step.
+
+        :param nstep: the number of MuJoCo substeps (30 per control step).
+        """
         counts = self._warning_counts
         before = counts.tolist()
         model, data = self._raw
@@ -343,7 +369,10 @@ class LeoWalk(base.Task):
         return np.array(self._voltages)
 
     def action_spec(self, physics):
-        """Voltages of the stance hip, swing hip and swing knee."""
+        """Voltages of the stance hip, swing hip and swing knee.
+
+        :param physics: the physics (dm_control's signature; unused).
+        """
         return specs.BoundedArray((3,), np.float64, -MAX_VOLTAGE, MAX_VOLTAGE,
                                   name="stance_hip,swing_hip,swing_knee")
 
@@ -411,7 +440,13 @@ class LeoWalk(base.Task):
 
     def apply_voltages(self, stance_hip: float, swing_hip: float, swing_knee: float, physics) -> None:
         """``before_step`` for three finite voltages [V] given as Python floats (not checked): add the auto-controlled
-        joints, clip all to +-MAX_VOLTAGE and set them as the motors' controls for the coming step."""
+        joints, clip all to +-MAX_VOLTAGE and set them as the motors' controls for the coming step.
+
+        :param stance_hip: the stance hip's voltage [V].
+        :param swing_hip: the swing hip's voltage [V].
+        :param swing_knee: the swing knee's voltage [V].
+        :param physics: the physics to set the controls of.
+        """
         stance, swing = self.stance, 1 - self.stance
         voltages = self._auto_voltage_list()
         voltages[_HIP[stance] - 1] = stance_hip
@@ -440,7 +475,10 @@ class LeoWalk(base.Task):
     def info(self, physics) -> dict:
         """Per-step facts: whether a footstep was made (and its length), the net footstep count, the hip's walked
         distance since the start, whether LEO fell, the hip and knee motors' electrical energy of this step [J],
-        the stance leg and whether its foot touches the floor."""
+        the stance leg and whether its foot touches the floor.
+
+        :param physics: the physics after the step.
+        """
         return {
             "footstep": self.footstep,
             "footstep_length": self.footstep_length,
@@ -523,7 +561,10 @@ class LeoWalk(base.Task):
         return self.reward
 
     def get_termination(self, physics):
-        """Discount 0 at a fall (absorbing); the 25 s limit is left to the environment."""
+        """Discount 0 at a fall (absorbing); the 25 s limit is left to the environment.
+
+        :param physics: the physics after the step.
+        """
         return 0.0 if self.fell else None
 
 
@@ -535,7 +576,12 @@ def load_physics() -> Physics:
 
 
 def walk(time_limit: float = TIME_LIMIT, random=None, environment_kwargs: dict | None = None, **task_kwargs):
-    """The LEO walking task as a dm_control environment (voltages in volts), like the suite's ``walker.walk``."""
+    """The LEO walking task as a dm_control environment (voltages in volts), like the suite's ``walker.walk``.
+
+    :param time_limit: the episode's length [s] (default 25).
+    :param random: the task's random state or seed, as in dm_control (default None).
+    :param environment_kwargs: keyword arguments of ``dm_control.rl.control.Environment`` (default None).
+    """
     task = LeoWalk(random=random, **task_kwargs)
     return control.Environment(load_physics(), task, time_limit=time_limit, control_timestep=CONTROL_TIMESTEP,
                                **(environment_kwargs or {}))

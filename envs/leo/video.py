@@ -19,6 +19,13 @@ def save_episode_video(path: str | Path, policy: Callable | None = None, env: Le
     model) is run greedily; ``None`` walks with Erik's hand-made gait. ``env`` defaults to a new ``LeoEnv`` rendering
     RGB frames. Frames are taken every ``round(30 / fps)`` control steps. Returns the episode's ``steps``, ``distance``,
     ``footsteps``, ``fell`` and ``return``.
+
+    :param path: the file to write (``.gif`` or ``.mp4``).
+    :param policy: what acts (see above; default None: Erik's gait).
+    :param env: the env to run (default None: a new ``LeoEnv`` rendering RGB frames).
+    :param seed: the seed of the env's reset (default None).
+    :param fps: frames per second of the video (default 15).
+    :param max_steps: the most control steps to run (default None: the whole episode).
     """
     import imageio.v2 as imageio
 

@@ -19,7 +19,10 @@ PARTIAL_MARK = ".partial"
 
 def partial_path(path: Path) -> Path:
     """A new, unique temporary name beside `path` that keeps its suffix (matplotlib and imageio read the format from
-    it): ``.<stem>.<token>.partial<suffix>``."""
+    it): ``.<stem>.<token>.partial<suffix>``.
+
+    :param path: the file that will be written.
+    """
     path = Path(path)
     return path.with_name(f".{path.stem}.{secrets.token_hex(6)}{PARTIAL_MARK}{path.suffix}")
 
@@ -40,7 +43,10 @@ def _fsync_folder(folder: Path) -> None:
 @contextlib.contextmanager
 def atomic_output(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside `path` to write to (by any library: ``savefig``, ``mimsave``, ...); when the
-    block ends without an error, the file is fsynced and renamed to `path`. On an error it is removed."""
+    block ends without an error, the file is fsynced and renamed to `path`. On an error it is removed.
+
+    :param path: the file to write; replaced only when the block succeeds.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     temporary = partial_path(path)
@@ -56,7 +62,11 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
 
 
 def write_atomically(path: str | Path, content: bytes | str) -> Path:
-    """Write `content` (str as UTF-8) to `path` atomically: unique temporary name, flush, fsync, rename."""
+    """Write `content` (str as UTF-8) to `path` atomically: unique temporary name, flush, fsync, rename.
+
+    :param path: the file to write.
+    :param content: the file's content; a str is encoded as UTF-8.
+    """
     data = content.encode() if isinstance(content, str) else bytes(content)
     with atomic_output(path) as temporary:
         with open(temporary, "xb") as stream:

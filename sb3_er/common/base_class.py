@@ -76,7 +76,11 @@ def _to_builtin(value: Any) -> Any:
 
 def is_fall(info: dict[str, Any], terminated: bool) -> bool:
     """Whether an episode's end counts as a fall: ``info["fell"]`` where the env reports it (the walkers, LEO, the
-    pendulum), else any ``terminated`` end (a goal then counts too, so envs with goals should report ``fell``)."""
+    pendulum), else any ``terminated`` end (a goal then counts too, so envs with goals should report ``fell``).
+
+    :param info: the info dict of the episode's last step.
+    :param terminated: whether the episode terminated (rather than being truncated).
+    """
     return bool(info["fell"]) if "fell" in info else terminated
 
 
@@ -468,7 +472,10 @@ class TileQAlgorithm(BaseAlgorithm):
         ]
 
     def set_random_seed(self, seed: Optional[int] = None) -> None:
-        """Seed SB3's generators, the env, and the generators of exploration and prediction."""
+        """Seed SB3's generators, the env, and the generators of exploration and prediction.
+
+        :param seed: the seed; None leaves every generator as it is.
+        """
         super().set_random_seed(seed)
         if seed is not None:
             self._seed_generators(seed)
@@ -489,7 +496,13 @@ class TileQAlgorithm(BaseAlgorithm):
         episode_start: Optional[np.ndarray] = None,
         deterministic: bool = False,
     ) -> tuple[np.ndarray, Optional[tuple[np.ndarray, ...]]]:
-        """Greedy actions if deterministic, else epsilon-greedy with the model's exploration rate."""
+        """Greedy actions if deterministic, else epsilon-greedy with the model's exploration rate.
+
+        :param observation: one observation (shape of the observation space) or a batch of them (n, ...).
+        :param state: unused (no recurrent state); returned as given, as SB3 does.
+        :param episode_start: unused; accepted for SB3's signature.
+        :param deterministic: greedy actions if True, else epsilon-greedy with ``exploration_rate`` (default False).
+        """
         actions, state = self.policy.predict(observation, state, episode_start, deterministic=True)
         if deterministic or self.exploration_rate == 0.0:
             return actions, state
@@ -512,6 +525,12 @@ class TileQAlgorithm(BaseAlgorithm):
         """Interact for total_timesteps env steps (default 100,000), learning as the algorithm prescribes.
 
         :param log_interval: log every this many episodes.
+        :param total_timesteps: env steps to take (default 100,000).
+        :param callback: SB3 callback(s) called at every step (default None).
+        :param tb_log_name: name of the TensorBoard run (default: the class's name).
+        :param reset_num_timesteps: start the step count and the episode afresh (default True); False continues a
+            previous ``learn``.
+        :param progress_bar: show SB3's progress bar (default False; needs tqdm and rich).
         """
         if self.env is None:
             raise ValueError("This model has no environment: pass env= to load() or call set_env() before learn()")
@@ -546,7 +565,11 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
         """SB3's ``set_env``, refusing observation-normalising wrappers. With ``force_reset`` (the default) the next
-        ``learn()`` resets the new env and the episode in progress ends, unfinished."""
+        ``learn()`` resets the new env and the episode in progress ends, unfinished.
+
+        :param env: the new environment (a Gymnasium env or a VecEnv of one env) with the same spaces.
+        :param force_reset: reset the new env at the next ``learn()`` (default True).
+        """
         super().set_env(env, force_reset)
         self._check_env_wrappers(self.env)
         if getattr(self, "policy", None) is not None:
@@ -572,7 +595,12 @@ class TileQAlgorithm(BaseAlgorithm):
     def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase], exclude: Optional[Iterable[str]] = None,
              include: Optional[Iterable[str]] = None) -> None:
         """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
-        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling."""
+        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling.
+
+        :param path: the zip file (a path, ``.zip`` added when missing, or an open binary file).
+        :param exclude: attribute names not to save, besides SB3's defaults (default None).
+        :param include: attribute names to save that SB3 leaves out by default (default None).
+        """
         self.__dict__[PLAIN_STATE_KEY] = plain_state(self, exclude, include)
         try:
             if isinstance(path, (str, pathlib.Path)):
@@ -597,6 +625,12 @@ class TileQAlgorithm(BaseAlgorithm):
             a crafted file names. False unpickles nothing: those entries are rebuilt from the plain copies sb3-er saves
             beside them (spaces, generators, arrays, the policy class), ``custom_objects`` supplies any other, and a
             file that needs more is refused with the entry named.
+        :param path: the zip file written by ``save`` (a path or an open binary file).
+        :param env: the environment to attach (default None: set one later with ``set_env``).
+        :param device: torch device of the policy's buffers (default "auto"; sb3-er computes on the CPU).
+        :param custom_objects: values replacing saved entries by name, as in SB3 (default None).
+        :param print_system_info: print the system info saved in the file and this one's (default False).
+        :param force_reset: reset the env at the next ``learn()`` (default True).
         """
         if isinstance(path, (str, pathlib.Path)):
             path = resolve_zip_path(path)  # so that errors name the file read
@@ -644,7 +678,13 @@ class TileQAlgorithm(BaseAlgorithm):
     def set_parameters(self, load_path_or_dict: Union[str, pathlib.Path, dict[str, Any]], exact_match: bool = True,
                        device: Union[str, Any] = "auto") -> None:
         """SB3's ``set_parameters``; the weights are checked (shape, finite) before they replace the current ones,
-        which stay as they were on failure. A bad file is a ValueError naming it."""
+        which stay as they were on failure. A bad file is a ValueError naming it.
+
+        :param load_path_or_dict: a zip file written by ``save``, or a dict of parameters by object name (``{"policy":
+            state_dict}``).
+        :param exact_match: require every object's parameters to be given (default True).
+        :param device: torch device to load onto (default "auto").
+        """
         try:
             super().set_parameters(load_path_or_dict, exact_match, device)
         except (ValueError, RuntimeError) as error:

@@ -30,15 +30,24 @@ except ImportError:  # optional: without it, BLAS keeps its own thread count
 
 
 class Transitions(NamedTuple):
-    """The sample database D, oldest transition first (n rows; D observation dimensions, N tilings)."""
+    """The sample database D, oldest transition first (n rows; D observation dimensions, N tilings).
 
-    observations: np.ndarray  # (n, D) float64, s_d
-    slots: np.ndarray  # (n, N) int64, state tiles of s_d
-    actions: np.ndarray  # (n,) int64, flat a_d
-    rewards: np.ndarray  # (n,) float64, r_d
-    next_observations: np.ndarray  # (n, D) float64, s'_d
-    next_slots: np.ndarray  # (n, N) int64, state tiles of s'_d
-    terminal: np.ndarray  # (n,) bool: s'_d ended the episode by termination (target r_d)
+    :param observations: the states s_d, float64 (n, D).
+    :param slots: the state tiles of s_d, int64 (n, N).
+    :param actions: the flat actions a_d, int64 (n,).
+    :param rewards: the rewards r_d, float64 (n,).
+    :param next_observations: the next states s'_d, float64 (n, D).
+    :param next_slots: the state tiles of s'_d, int64 (n, N).
+    :param terminal: whether s'_d ended the episode by termination (the target is then r_d), bool (n,).
+    """
+
+    observations: np.ndarray
+    slots: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    next_observations: np.ndarray
+    next_slots: np.ndarray
+    terminal: np.ndarray
 
     def __len__(self) -> int:
         return self.actions.shape[0]
@@ -50,6 +59,9 @@ def stored_transitions(buffer: TrajectoryReplayBuffer, include_open: bool = Fals
     s'_d is s_{d+1} of the next row inside a trajectory and the trajectory's stored last observation at its end.
     ``include_open`` adds the open trajectory (the episode in progress), its last s' being the buffer's
     ``open_next_obs``; its transitions are not terminal.
+
+    :param buffer: the replay buffer to read.
+    :param include_open: add the open trajectory's transitions (default False).
     """
     capacity = buffer.capacity
     n_trajectories = buffer.n_trajectories
@@ -87,7 +99,12 @@ def single_threaded_blas() -> contextlib.AbstractContextManager:
 
 
 def weight_indices(coder: TileCoder, slots: np.ndarray, actions: np.ndarray) -> np.ndarray:
-    """Indices (n, N) of the active weights of phi(s_d, a_d), given the state tiles (n, N) and flat actions (n,)."""
+    """Indices (n, N) of the active weights of phi(s_d, a_d), given the state tiles (n, N) and flat actions (n,).
+
+    :param coder: the tile coder of the weights.
+    :param slots: state tile slots, (n, N) for N tilings.
+    :param actions: flat action indices, (n,).
+    """
     tilings = np.arange(coder.n_tilings)[None, :]
     return slots * coder.stride + coder.action_columns[tilings, np.asarray(actions)[:, None]]
 
@@ -116,14 +133,21 @@ class TileFeatures:
 
     def columns_of(self, slots: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """Columns (n, N) of phi(s, a) for other states and actions; -1 for weights outside the touched set and for rows
-        with a negative action (a terminal s')."""
+        with a negative action (a terminal s').
+
+        :param slots: state tile slots, (n, N).
+        :param actions: flat action indices, (n,); negative for a terminal s'.
+        """
         indices = weight_indices(self.coder, slots, np.maximum(actions, 0))
         position = np.minimum(np.searchsorted(self.touched, indices), self.n_features - 1)
         found = (self.touched[position] == indices) & (np.asarray(actions) >= 0)[:, None]
         return np.where(found, position, -1)
 
     def matrix(self, columns: Optional[np.ndarray] = None) -> sp.csr_matrix:
-        """Phi as a scipy CSR matrix (n, f), or the matrix of other ``columns`` (entries -1 dropped)."""
+        """Phi as a scipy CSR matrix (n, f), or the matrix of other ``columns`` (entries -1 dropped).
+
+        :param columns: feature columns (n, N) from :meth:`columns_of`; default None: this object's own rows.
+        """
         columns = self.columns if columns is None else columns
         n = columns.shape[0]
         rows = np.repeat(np.arange(n), columns.shape[1])
@@ -270,5 +294,8 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
 
 
 def features_summary(features: TileFeatures) -> dict[str, Any]:
-    """Sizes worth logging: touched features and the share of them seen only once."""
+    """Sizes worth logging: touched features and the share of them seen only once.
+
+    :param features: the touched features of a fit.
+    """
     return {"features": features.n_features, "features_seen_once": float(np.mean(features.counts == 1))}

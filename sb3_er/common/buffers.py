@@ -98,7 +98,10 @@ class TrajectoryReplayBuffer:
 
     @staticmethod
     def check_kwargs(kwargs: Optional[dict[str, Any]]) -> None:
-        """ValueError for keyword arguments that this buffer does not take or whose values are out of range."""
+        """ValueError for keyword arguments that this buffer does not take or whose values are out of range.
+
+        :param kwargs: the keyword arguments meant for the buffer (``replay_buffer_kwargs``); None is none.
+        """
         kwargs = dict(kwargs or {})
         unknown = sorted(set(kwargs) - {"prune", "prune_threshold"})
         if unknown:
@@ -114,7 +117,10 @@ class TrajectoryReplayBuffer:
 
     def record_fill(self, logger) -> None:
         """Log the buffer's fill (stored transitions / capacity) and, when pruning, the pruned share of trajectories
-        and of transitions as ``train/buffer_fill``, ``train/pruned_share`` and ``train/pruned_transitions_share``."""
+        and of transitions as ``train/buffer_fill``, ``train/pruned_share`` and ``train/pruned_transitions_share``.
+
+        :param logger: the SB3 logger to record to.
+        """
         logger.record("train/buffer_fill", self.n_transitions / self.capacity)
         if self.prune:
             logger.record("train/pruned_share", self.pruned_share())
@@ -136,7 +142,14 @@ class TrajectoryReplayBuffer:
 
     def add(self, obs: np.ndarray, slots: np.ndarray, action: int, reward: float, next_obs: np.ndarray) -> None:
         """Append (s_t, a_t, r_{t+1}) to the open trajectory, remember s_{t+1} and mark phi(s_t, a_t) as visited
-        (Eq. 5.2)."""
+        (Eq. 5.2).
+
+        :param obs: the state s_t, in the observation space's shape.
+        :param slots: its tile slots, (N,) for N tilings.
+        :param action: the flat action index a_t.
+        :param reward: the reward r_{t+1}.
+        :param next_obs: the next state s_{t+1}.
+        """
         if self.n_transitions == self.capacity:
             self._evict_oldest_trajectory()
         p = (self.write_row + self.open_length) % self.capacity
@@ -160,7 +173,11 @@ class TrajectoryReplayBuffer:
         self.open_covered += covered
 
     def close_trajectory(self, next_obs: np.ndarray, terminated: bool) -> bool:
-        """End the open trajectory at s_{t+1} = next_obs; returns False if it was empty or pruning dropped it."""
+        """End the open trajectory at s_{t+1} = next_obs; returns False if it was empty or pruning dropped it.
+
+        :param next_obs: the trajectory's last next state s_{t+1}.
+        :param terminated: whether it ended in a terminal state (no bootstrap from it) rather than truncated.
+        """
         if self.open_length == 0:
             return False
         if self.prune:
@@ -324,7 +341,10 @@ class TrajectoryReplayBuffer:
 
 
 def field_checksum(value: Any) -> int:
-    """CRC-32 of one saved field: an array's dtype, shape and bytes, or any other value's JSON form."""
+    """CRC-32 of one saved field: an array's dtype, shape and bytes, or any other value's JSON form.
+
+    :param value: the field: a NumPy array or a JSON-able value.
+    """
     if isinstance(value, np.ndarray):
         header = f"{value.dtype.str}{value.shape}".encode()
         return zlib.crc32(np.ascontiguousarray(value).tobytes(), zlib.crc32(header))
@@ -390,7 +410,10 @@ def _tiles_match(name: str, slots_name: str, observations: np.ndarray, slots: np
 def check_state(state: Any) -> None:
     """Check a saved buffer state field by field: the checksums where saved, dtypes, shapes, index ranges (tile slots,
     actions, visited features), trajectory starts and lengths against the stored rows, and the stored tiles against
-    the stored observations. ValueError naming the first bad field. Runs once, where a buffer is restored."""
+    the stored observations. ValueError naming the first bad field. Runs once, where a buffer is restored.
+
+    :param state: the buffer's state as read from the file (a dict of fields).
+    """
     if not isinstance(state, dict):
         raise ValueError(f"a replay buffer state must be a dict of fields, got {type(state).__name__}")
     checksums = state.get("checksums")
@@ -533,7 +556,12 @@ def _resolve_read_path(path: pathlib.Path) -> pathlib.Path:
 def save_buffer(buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, io.BufferedIOBase],
                 verbose: int = 0) -> None:
     """Write ``buffer`` to ``path``: an .npz archive of plain arrays if the path ends in .npz, else a pickle (SB3's
-    format; ``.pkl`` is added to a path without suffix). A path is written atomically (a partial file, then renamed)."""
+    format; ``.pkl`` is added to a path without suffix). A path is written atomically (a partial file, then renamed).
+
+    :param buffer: the buffer to save.
+    :param path: the file (.npz for plain arrays, else a pickle), or an open binary file.
+    :param verbose: verbosity passed to SB3's ``save_to_pkl`` (default 0: silent).
+    """
     if not isinstance(path, (str, pathlib.Path)):
         save_to_pkl(path, buffer, verbose)
         return
@@ -552,6 +580,10 @@ def load_buffer(path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: T
 
     An .npz file is read without unpickling; a file whose name ends in .npz is never unpickled. A pickle is unpickled
     only with ``allow_pickle`` (the default, as in SB3): unpickling a crafted file runs code from it, before any check.
+
+    :param path: the file written by ``save_buffer``, or an open binary file.
+    :param tile_coder: the tile coder the buffer's stored tiles must match.
+    :param allow_pickle: unpickle a pickle file (default True, as SB3).
     """
     if isinstance(path, (str, pathlib.Path)):
         path = _resolve_read_path(pathlib.Path(path))
@@ -595,7 +627,10 @@ class TrajectoryBufferIO:
 
     def save_replay_buffer(self, path: Union[str, pathlib.Path, io.BufferedIOBase]) -> None:
         """Save the trajectories and the visit vector w: an .npz archive of plain arrays if ``path`` ends in .npz
-        (loadable without unpickling), else a pickle (SB3's format; .pkl is added to a path without suffix)."""
+        (loadable without unpickling), else a pickle (SB3's format; .pkl is added to a path without suffix).
+
+        :param path: the file (.npz for plain arrays, else a pickle), or an open binary file.
+        """
         save_buffer(self.replay_buffer, path, self.verbose)
 
     def load_replay_buffer(self, path: Union[str, pathlib.Path, io.BufferedIOBase], truncate_last_traj: bool = True,
@@ -611,6 +646,7 @@ class TrajectoryBufferIO:
             it as truncated all the same, so it is never joined to another episode.
         :param allow_pickle: unpickle .pkl files (True, SB3's behaviour). Unpickling a crafted file runs code from
             it; with False only .npz buffers load.
+        :param path: the file written by ``save_replay_buffer``, or an open binary file.
         """
         buffer = load_buffer(path, self.policy.tile_coder, allow_pickle)
         if truncate_last_traj:

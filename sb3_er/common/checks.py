@@ -7,14 +7,27 @@ import numpy as np
 
 
 def is_real(value: Any) -> bool:
-    """A real number (Python or NumPy int or float), not a bool, string, tuple or array."""
+    """A real number (Python or NumPy int or float), not a bool, string, tuple or array.
+
+    :param value: the value to test.
+    """
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
 def check_number(name: str, value: Any, low: float, high: float = math.inf, *, low_open: bool = False,
                  high_open: bool = False, optional: bool = False, unit: str = "") -> None:
     """``value`` must be a finite real number in the interval from ``low`` to ``high`` (open ends as given), or None
-    if ``optional``; the ValueError names the parameter, the interval and the value given."""
+    if ``optional``; the ValueError names the parameter, the interval and the value given.
+
+    :param name: the parameter's name, for the message.
+    :param value: the value given.
+    :param low: the interval's lower end.
+    :param high: its upper end (default infinity).
+    :param low_open: exclude ``low`` itself (default False).
+    :param high_open: exclude ``high`` itself (default False).
+    :param optional: accept None too (default False).
+    :param unit: unit named in the message (default none).
+    """
     if optional and value is None:
         return
     if is_real(value) and math.isfinite(value):
@@ -30,7 +43,14 @@ def check_number(name: str, value: Any, low: float, high: float = math.inf, *, l
 
 
 def check_integer(name: str, value: Any, minimum: int, unit: str = "", optional: bool = False) -> None:
-    """``value`` must be an integer (Python or NumPy, not a bool) of at least ``minimum``, or None if ``optional``."""
+    """``value`` must be an integer (Python or NumPy, not a bool) of at least ``minimum``, or None if ``optional``.
+
+    :param name: the parameter's name, for the message.
+    :param value: the value given.
+    :param minimum: the least value allowed.
+    :param unit: unit named in the message (default none).
+    :param optional: accept None too (default False).
+    """
     if optional and value is None:
         return
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
@@ -39,7 +59,12 @@ def check_integer(name: str, value: Any, minimum: int, unit: str = "", optional:
 
 
 def check_choice(name: str, value: Any, options) -> None:
-    """``value`` must be one of ``options`` (compared by equality; unhashable values are refused, never raised on)."""
+    """``value`` must be one of ``options`` (compared by equality; unhashable values are refused, never raised on).
+
+    :param name: the parameter's name, for the message.
+    :param value: the value given.
+    :param options: the allowed values (any iterable).
+    """
     try:
         found = value in options
     except TypeError:
@@ -49,6 +74,11 @@ def check_choice(name: str, value: Any, options) -> None:
 
 
 def check_bool(name: str, value: Any) -> None:
+    """``value`` must be True or False (Python or NumPy bool, not 0 or 1); the ValueError names the parameter.
+
+    :param name: the parameter's name, for the message.
+    :param value: the value given.
+    """
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {value!r}")
 

@@ -17,7 +17,10 @@ _NAMED = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONL
 
 
 def parameter_fields(docstring: str | None) -> dict[str, str]:
-    """The ``:param name:`` fields of `docstring`, each with its indented continuation lines, by parameter name."""
+    """The ``:param name:`` fields of `docstring`, each with its indented continuation lines, by parameter name.
+
+    :param docstring: the docstring (None reads as empty).
+    """
     fields: dict[str, list[str]] = {}
     name = None
     for line in inspect.cleandoc(docstring or "").splitlines():
@@ -34,7 +37,10 @@ def parameter_fields(docstring: str | None) -> dict[str, str]:
 
 def documented_parameters(docstring: str | None) -> set[str]:
     """Every parameter name `docstring` documents: its ``:param name:`` fields, and the entries of a NumPy-style
-    ``Parameters`` section (``name:`` or ``name, other:`` lines followed by an indented description)."""
+    ``Parameters`` section (``name:`` or ``name, other:`` lines followed by an indented description).
+
+    :param docstring: the docstring (None reads as empty).
+    """
     names = set(parameter_fields(docstring))
     lines = inspect.cleandoc(docstring or "").splitlines()
     for index, line in enumerate(lines[:-1]):
@@ -48,10 +54,35 @@ def documented_parameters(docstring: str | None) -> set[str]:
     return names
 
 
+def undocumented_parameters(function, docstring: str | None = None) -> list[str]:
+    """The named parameters of `function` (not ``self``, ``cls`` or private ones) that its docstring does not document
+    (:func:`documented_parameters`), in signature order: a parameter described only in prose counts as undocumented.
+
+    :param function: a function or method (a numba kernel by its ``py_func``).
+    :param docstring: the docstring to read instead of the function's own (a class's, for its ``__init__``); default
+        None: the function's.
+    :return: the names, empty when every parameter has its field.
+    """
+    names = [parameter.name for parameter in inspect.signature(function).parameters.values()
+             if parameter.kind in (inspect.Parameter.POSITIONAL_ONLY, *_NAMED)
+             and parameter.name not in ("self", "cls") and not parameter.name.startswith("_")]
+    documented = documented_parameters(function.__doc__ if docstring is None else docstring)
+    return [name for name in names if name not in documented]
+
+
 def accepted_parameters(cls: type) -> list[str]:
     """The keyword arguments `cls(...)` accepts, in order: the named parameters of its ``__init__`` and, while an
     ``__init__`` takes ``**kwargs``, those of the next class up the MRO that defines one (within sb3_er), less the
-    names a class passes on itself (its ``hidden_parameters``). Private names (``_init_setup_model``) are left out."""
+    names a class passes on itself (its ``hidden_parameters``: ``ER`` passes ``trace_lambda=online_lambda``, so
+    ``ER(trace_lambda=...)`` is no call it takes). Private names (``_init_setup_model``) are left out.
+
+    The one source of what an algorithm accepts: the API pages list these parameters, and the runner passes a zoo
+    config's and ``--algo-kwargs``' settings through to a model only when they are among them
+    (:func:`sb3_er.experiments.jobs.job_model_kwargs`).
+
+    :param cls: the class, e.g. ``ERSigma``.
+    :return: the parameter names, in the order the constructors declare them.
+    """
     hidden: set[str] = set()
     for klass in cls.__mro__:
         hidden.update(vars(klass).get("hidden_parameters", ()))

@@ -66,7 +66,11 @@ RNG_STREAM_PLANNING = 100  # Dyna's planning picks
 
 
 def new_rng_state(seed=None, stream: int = RNG_STREAM_ACTIONS) -> np.ndarray:
-    """A seeded xoshiro256** state for the kernels; each stream of one seed is independent (None: fresh entropy)."""
+    """A seeded xoshiro256** state for the kernels; each stream of one seed is independent (None: fresh entropy).
+
+    :param seed: the seed (default None: fresh entropy).
+    :param stream: the stream of that seed (RNG_STREAM_*; default the actions' stream).
+    """
     return np.random.SeedSequence(seed, spawn_key=(stream,)).generate_state(4, dtype=np.uint64)
 
 
@@ -77,7 +81,10 @@ def _rotl(x, k):
 
 @nb.njit(inline="always", cache=True)
 def random_uint64(state):
-    """Next output of xoshiro256** (Blackman and Vigna, 2018); advances state in place."""
+    """Next output of xoshiro256** (Blackman and Vigna, 2018); advances state in place.
+
+    :param state: a xoshiro256** state (4 uint64), advanced in place.
+    """
     result = _rotl(state[1] * np.uint64(5), 7) * np.uint64(9)
     t = state[1] << np.uint64(17)
     state[2] ^= state[0]
@@ -91,19 +98,32 @@ def random_uint64(state):
 
 @nb.njit(inline="always", cache=True)
 def random_float(state):
-    """Uniform in [0, 1) with 53 random bits."""
+    """Uniform in [0, 1) with 53 random bits.
+
+    :param state: a xoshiro256** state (4 uint64), advanced in place.
+    """
     return np.float64(random_uint64(state) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
 @nb.njit(inline="always", cache=True)
 def random_integer(state, n):
-    """Uniform in {0, ..., n-1}."""
+    """Uniform in {0, ..., n-1}.
+
+    :param state: a xoshiro256** state (4 uint64), advanced in place.
+    :param n: the number of values, at least 1.
+    """
     return np.int64(random_float(state) * n)
 
 
 @nb.njit(inline="always", cache=True)
 def tile_coordinate(x, inv_width, offset, wrap_tiles):
-    """Integer tile coordinate of x in a tiling displaced by ``offset`` tile widths (Eq. 2.9), wrapped if periodic."""
+    """Integer tile coordinate of x in a tiling displaced by ``offset`` tile widths (Eq. 2.9), wrapped if periodic.
+
+    :param x: the state's value in this dimension.
+    :param inv_width: 1 / the tile width.
+    :param offset: the tiling's displacement in tile widths.
+    :param wrap_tiles: tiles per period (0: not periodic).
+    """
     c = np.int64(np.floor(x * inv_width + offset))
     if wrap_tiles > 0:
         c = c % wrap_tiles
@@ -112,7 +132,11 @@ def tile_coordinate(x, inv_width, offset, wrap_tiles):
 
 @nb.njit(inline="always", cache=True)
 def hash_tile(tiling, coords_hash):
-    """Final slot hash of one tiling given the running hash of its coordinates."""
+    """Final slot hash of one tiling given the running hash of its coordinates.
+
+    :param tiling: the tiling's index k.
+    :param coords_hash: the running hash of its coordinates.
+    """
     return _mix64(coords_hash ^ (np.uint64(tiling) * _GOLDEN))
 
 
@@ -123,7 +147,15 @@ MAX_TILE_COORDINATE = 2.0**62
 @nb.njit(cache=True)
 def state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
     """Hashed state-tile slot of obs in each tiling; False if an entry of obs is NaN, infinite or so large that its
-    tile coordinate would overflow (|x / width| >= MAX_TILE_COORDINATE)."""
+    tile coordinate would overflow (|x / width| >= MAX_TILE_COORDINATE).
+
+    :param obs: the state s, float64 (D,).
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param out_slots: written: the state-tile slots, (N,) (or (B, N) for a batch).
+    """
     n_dims = obs.shape[0]
     for d in range(n_dims):
         if not abs(obs[d] * inv_widths[d]) < MAX_TILE_COORDINATE:
@@ -139,7 +171,14 @@ def state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
 
 @nb.njit(inline="always", cache=True)
 def q_value(theta, slots, stride, action_columns, action):
-    """Q(s, a) = theta . phi(s, a) (Eq. 2.8)."""
+    """Q(s, a) = theta . phi(s, a) (Eq. 2.8).
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param action: the flat action index a.
+    """
     q = 0.0
     for k in range(slots.shape[0]):
         q += theta[slots[k] * stride + action_columns[k, action]]
@@ -151,6 +190,13 @@ def all_q_values(theta, slots, stride, action_columns, columns_are_actions, out_
     """Q(s, .) over all actions: the state part of each tiling once, then its row of adjacent action weights.
 
     Without action tiling (``columns_are_actions``) a row is read contiguously, which the compiler vectorises.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param out_q: written: Q(s, .), (A,) (or (B, A) for a batch).
     """
     n_actions = np.uint64(out_q.shape[0])
     for a in range(n_actions):
@@ -168,7 +214,13 @@ def all_q_values(theta, slots, stride, action_columns, columns_are_actions, out_
 @nb.njit(inline="always", cache=True)
 def initial_weight(i, initial_low, initial_span, initial_seed):
     """The initial value of weight i: initial_low + initial_span * u_i, u_i uniform in [0, 1) (splitmix64 of the
-    seed and i: a counter-based generator, so the value is recomputed rather than stored)."""
+    seed and i: a counter-based generator, so the value is recomputed rather than stored).
+
+    :param i: a weight index (or, for the heap, a node index).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    """
     if initial_span == 0.0:
         return initial_low
     u = np.float64(_mix64(initial_seed ^ (np.uint64(i) * _GOLDEN)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
@@ -177,7 +229,13 @@ def initial_weight(i, initial_low, initial_span, initial_seed):
 
 @nb.njit(cache=True)
 def fill_initial_weights(theta, initial_low, initial_span, initial_seed):
-    """theta_i <- its initial value (Alg. 7-14 line 1 with a user-chosen initialisation instead of 0)."""
+    """theta_i <- its initial value (Alg. 7-14 line 1 with a user-chosen initialisation instead of 0).
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    """
     for i in range(theta.shape[0]):
         theta[i] = initial_weight(i, initial_low, initial_span, initial_seed)
 
@@ -196,6 +254,18 @@ def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, 
     written (every variant but the residual ones) this is Q(s, a) minus the initial values of its unvisited
     features, bit for bit (each is subtracted as it was added); with zero initial weights, Q(s, a) itself. The
     initial-value arguments are not needed for that and kept for the callers.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param out_q: written: Q_v(s, .), (A,).
+    :param out_w: written: W(s, .), (A,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
     """
     n_actions = np.uint64(out_q.shape[0])
     has_initial = initial_low != 0.0 or initial_span != 0.0
@@ -221,6 +291,10 @@ def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, 
 
 @nb.njit(inline="always", cache=True)
 def argmax_first(values):
+    """The index of the largest of ``values``, the lowest one on ties (a greedy action without a random draw).
+
+    :param values: action values, float64 (A,).
+    """
     best = 0
     for a in range(1, values.shape[0]):
         if values[a] > values[best]:
@@ -233,6 +307,9 @@ def argmax_random_ties(values, rng):
     """Greedy action, ties broken uniformly at random; a random draw only when there is a tie.
 
     Three branch-free passes (max, count of maxima, pick) beat one pass with data-dependent branches.
+
+    :param values: action values, float64 (A,).
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
     """
     n = np.uint64(values.shape[0])
     best_value = values[0]
@@ -252,13 +329,23 @@ def argmax_random_ties(values, rng):
 
 @nb.njit(inline="always", cache=True)
 def epsilon_greedy(values, epsilon, rng):
-    """argmax_a values[a] w.p. 1 - epsilon, a uniform random action w.p. epsilon (Alg. 2 line 8, Alg. 8 line 6)."""
+    """argmax_a values[a] w.p. 1 - epsilon, a uniform random action w.p. epsilon (Alg. 2 line 8, Alg. 8 line 6).
+
+    :param values: action values, float64 (A,).
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    """
     return epsilon_greedy_explored(values, epsilon, rng)[0]
 
 
 @nb.njit(inline="always", cache=True)
 def epsilon_greedy_explored(values, epsilon, rng):
-    """:func:`epsilon_greedy`'s action and whether it was the exploratory draw, from the same random numbers."""
+    """:func:`epsilon_greedy`'s action and whether it was the exploratory draw, from the same random numbers.
+
+    :param values: action values, float64 (A,).
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    """
     if epsilon > 0.0 and random_float(rng) < epsilon:
         return random_integer(rng, values.shape[0]), True
     return argmax_random_ties(values, rng), False
@@ -269,7 +356,22 @@ def select_action(
     theta, obs, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions, epsilon, rng,
     out_slots, q_scratch,
 ):
-    """Epsilon-greedy a_k at s_k (Alg. 7 line 8); fills out_slots with the tiles of s_k. Returns -1 for a bad obs."""
+    """Epsilon-greedy a_k at s_k (Alg. 7 line 8); fills out_slots with the tiles of s_k. Returns -1 for a bad obs.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param obs: the state s, float64 (D,).
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param out_slots: written: the state-tile slots, (N,) (or (B, N) for a batch).
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    """
     if not state_slots(obs, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
         return -1
     all_q_values(theta, out_slots, stride, action_columns, columns_are_actions, q_scratch)
@@ -279,7 +381,21 @@ def select_action(
 @nb.njit(cache=True)
 def greedy_actions(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
                    columns_are_actions, slots_scratch, q_scratch, out_actions):
-    """Greedy action (lowest index on ties) for each row of observations; False if a row is not finite."""
+    """Greedy action (lowest index on ties) for each row of observations; False if a row is not finite.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param observations: the states, float64 (B, D).
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param slots_scratch: scratch for one state's slots, (N,).
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    :param out_actions: written: the greedy action of each row, (B,).
+    """
     for i in range(observations.shape[0]):
         if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, slots_scratch):
             return False
@@ -291,7 +407,20 @@ def greedy_actions(theta, observations, inv_widths, offsets, wrap_tiles, slot_ma
 @nb.njit(cache=True)
 def batch_q_values(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
                    columns_are_actions, slots_scratch, out_q):
-    """Q(s, .) for each row of observations into out_q (B, A); False if a row is not finite."""
+    """Q(s, .) for each row of observations into out_q (B, A); False if a row is not finite.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param observations: the states, float64 (B, D).
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param slots_scratch: scratch for one state's slots, (N,).
+    :param out_q: written: Q(s, .), (A,) (or (B, A) for a batch).
+    """
     for i in range(observations.shape[0]):
         if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, slots_scratch):
             return False
@@ -301,7 +430,14 @@ def batch_q_values(theta, observations, inv_widths, offsets, wrap_tiles, slot_ma
 
 @nb.njit(cache=True)
 def mark_visited(visits, slots, stride, action_columns, action):
-    """w <- w OR phi(s_k, a_k) (Eq. 5.2)."""
+    """w <- w OR phi(s_k, a_k) (Eq. 5.2).
+
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param action: the flat action index a.
+    """
     for k in range(slots.shape[0]):
         visits[slots[k] * stride + action_columns[k, action]] = 1
 
@@ -314,6 +450,15 @@ def mark_visited_tracked(visits, fresh, slots, stride, action_columns, action, n
     ``fresh`` flags the features first visited by the trajectory in progress and ``new_features[:n_new]`` lists
     them (room for N more is the caller's job), so that a pruned trajectory's marks can be taken back. Returns
     (n_new, covered).
+
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param fresh: one bool per weight: first visited by the trajectory in progress.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param action: the flat action index a.
+    :param new_features: written: the features first visited by this trajectory, appended after ``n_new``.
+    :param n_new: the entries of new_features so far.
     """
     covered = True
     for k in range(slots.shape[0]):
@@ -333,7 +478,11 @@ NO_WATCH = np.zeros(0, dtype=np.float64)
 
 
 def new_watch(low: float = -np.inf, high: float = np.inf) -> np.ndarray:
-    """A value watch with bounds [low, high], nothing seen yet."""
+    """A value watch with bounds [low, high], nothing seen yet.
+
+    :param low: the bounds' lower end (default -inf).
+    :param high: their upper end (default +inf).
+    """
     watch = np.zeros(WATCH_SIZE, dtype=np.float64)
     reset_watch_period(watch)
     watch[WATCH_LOW], watch[WATCH_HIGH] = low, high
@@ -343,7 +492,10 @@ def new_watch(low: float = -np.inf, high: float = np.inf) -> np.ndarray:
 
 
 def reset_watch_period(watch: np.ndarray) -> None:
-    """Start a new logging period: minima +inf, maxima -inf, shift sums and counts 0."""
+    """Start a new logging period: minima +inf, maxima -inf, shift sums and counts 0.
+
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
+    """
     watch[[WATCH_TARGET_MIN, WATCH_Q_MIN]] = np.inf
     watch[[WATCH_TARGET_MAX, WATCH_Q_MAX]] = -np.inf
     watch[[WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT, WATCH_RAISED, WATCH_LOWERED]] = 0.0
@@ -353,7 +505,12 @@ def reset_watch_period(watch: np.ndarray) -> None:
 def watch_update(watch, target, q_sa):
     """Fold one update's target T and Q(s_t, a_t) into the value watch; True when this is the first value the watch
     ever saw outside [watch[WATCH_LOW], watch[WATCH_HIGH]]. No allocation, no random number; nothing when ``watch``
-    is empty (the watch switched off)."""
+    is empty (the watch switched off).
+
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
+    :param target: the update's target T.
+    :param q_sa: Q(s_t, a_t) before the update.
+    """
     if watch.shape[0] == 0:
         return False
     watch[WATCH_TARGET_MIN] = min(watch[WATCH_TARGET_MIN], target)
@@ -376,7 +533,11 @@ def watch_update(watch, target, q_sa):
 
 @nb.njit(inline="always", cache=True)
 def watch_shift(watch, shift):
-    """Fold ER-sigma's target shift T_sigma - T (the same transition's target without sigma) into the watch."""
+    """Fold ER-sigma's target shift T_sigma - T (the same transition's target without sigma) into the watch.
+
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
+    :param shift: T_sigma - T of one update.
+    """
     if watch.shape[0] == 0:
         return
     watch[WATCH_SHIFT_SUM] += shift
@@ -388,7 +549,12 @@ def watch_shift(watch, shift):
 @nb.njit(cache=True)
 def watch_batch(watch, targets, values):
     """Fold a batch of targets T_d and values Q(s_d, a_d) (FQI's and LSPI's sweeps over the database) into the
-    watch; True when it saw its first value outside the bounds."""
+    watch; True when it saw its first value outside the bounds.
+
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
+    :param targets: the targets T_d, (n,).
+    :param values: the values Q(s_d, a_d), (n,).
+    """
     flagged = False
     for d in range(targets.shape[0]):
         flagged |= watch_update(watch, targets[d], values[d])
@@ -409,6 +575,33 @@ def sarsa_lambda_step(
     below ``trace_cutoff`` are dropped. Returns (a_{k+1}, delta, status); a_{k+1} is -1 when s_{k+1} is terminal and
     status reports an s_{k+1} that cannot be tiled (NaN, infinite, too large), a full trace list, or the first value
     outside the value watch's bounds (the step is made all the same).
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param trace_index: the weights with a non-zero trace (first trace_length[0] entries).
+    :param trace_value: their traces.
+    :param trace_position: each weight's place in trace_index, -1 if absent.
+    :param trace_length: the trace's length, a (1,) array changed in place.
+    :param slots: the slots of s_k, (N,).
+    :param action: a_k.
+    :param reward: r_{k+1}.
+    :param terminated: whether s' is terminal (no bootstrap from it).
+    :param next_obs: the next state s', float64 (D,).
+    :param next_slots: written: the slots of s_{k+1}, (N,).
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param step_size: alpha / N, the step of each active weight.
+    :param gamma: the discount factor.
+    :param trace_decay: gamma lambda.
+    :param trace_cutoff: traces below it are dropped.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
     """
     n_tilings = slots.shape[0]
     q_sa = q_value(theta, slots, stride, action_columns, action)
@@ -465,7 +658,12 @@ def sarsa_lambda_step(
 
 @nb.njit(cache=True)
 def clear_trace(trace_index, trace_position, trace_length):
-    """e <- 0 at the start of an episode (Alg. 2 line 5)."""
+    """e <- 0 at the start of an episode (Alg. 2 line 5).
+
+    :param trace_index: the weights with a non-zero trace.
+    :param trace_position: each weight's place in trace_index, set back to -1.
+    :param trace_length: the trace's length, a (1,) array set to 0.
+    """
     for p in range(trace_length[0]):
         trace_position[trace_index[p]] = -1
     trace_length[0] = 0
@@ -477,6 +675,10 @@ def sigma_of_state(q, w, sigma_kind):
 
     Actions with W(s', a) = 0 are left out of the per-action ratios. Callers handle the state where no action was
     ever visited (0 is returned for it).
+
+    :param q: Q_v(s', .), (A,).
+    :param w: W(s', .), (A,).
+    :param sigma_kind: SIGMA_NONE (vanilla ER) or one of the SIGMA_* definitions of Appendix B.
     """
     sum_q = 0.0
     sum_w = 0.0
@@ -523,6 +725,26 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
     exploratory a' when the draw explored, else max_a Q(s', a) (Q-learning and the greedy part of Sarsa; Expected
     Sarsa's expectation on Q). It draws no random number, so results are the same with and without it; ``w`` is
     used as scratch for it when the initial weights are not zero.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param next_slots: state-tile slots of s', (N,).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param n_tilings: the number of tilings N.
+    :param target_kind: TARGET_SARSA, TARGET_Q_LEARNING or TARGET_EXPECTED_SARSA.
+    :param sigma_kind: SIGMA_NONE (vanilla ER) or one of the SIGMA_* definitions of Appendix B.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param q: scratch for Q(s', .), float64 (A,).
+    :param w: scratch for W(s', .), float64 (A,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    :param want_plain: also return the value without sigma (default False).
+    :param unvisited_written: whether unvisited weights may hold more than their initial values (residual ER-sigma;
+        default False).
     """
     sigma = 0.0
     if sigma_kind == SIGMA_NONE:
@@ -581,6 +803,32 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
     With ``residual_next_action`` the second term uses a_{t+1} instead of a_t: Baird's residual gradient of the
     squared TD error. The value watch sees T and Q(s_t, a_t) before the update, and for ER-sigma the shift
     T_sigma - T of its target over the plain one (:func:`next_state_value`).
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param actions: the flat action of each stored row, (rows,).
+    :param rewards: the reward of each stored row, (rows,).
+    :param p: the row of the stored transition in the ring of rows.
+    :param next_slots: state-tile slots of s', (N,).
+    :param terminal: whether s'_p is terminal.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param target_kind: TARGET_SARSA, TARGET_Q_LEARNING or TARGET_EXPECTED_SARSA.
+    :param sigma_kind: SIGMA_NONE (vanilla ER) or one of the SIGMA_* definitions of Appendix B.
+    :param residual_zeta: zeta of the residual update (Eq. 5.9); 0 for plain ER.
+    :param residual_next_action: use a_{t+1} instead of a_t in the residual term (Baird's residual gradient).
+    :param step_size: alpha / N, the step of each active weight.
+    :param gamma: the discount factor.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param q: scratch for Q(s', .), float64 (A,).
+    :param w: scratch for W(s', .), float64 (A,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
     """
     n_tilings = slots.shape[1]
     a = actions[p]
@@ -615,7 +863,11 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
 
 @nb.njit(inline="always", cache=True)
 def ring_index(i, capacity):
-    """i mod capacity for 0 <= i < 2 capacity, without an integer division."""
+    """i mod capacity for 0 <= i < 2 capacity, without an integer division.
+
+    :param i: an index in [0, 2 capacity).
+    :param capacity: the ring's size.
+    """
     return i - capacity if i >= capacity else i
 
 
@@ -641,6 +893,44 @@ def replay_phase(
     Every update's target and Q(s_t, a_t) go to the value ``watch`` (:func:`watch_update`).
     Returns (updates, sum of |delta|, last delta, status); status is STATUS_OUT_OF_BOUNDS when the watch saw its first
     value outside the bounds in this phase (the phase goes on), STATUS_DIVERGED on a non-finite delta (it stops).
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param actions: the flat action of each stored row, (rows,).
+    :param rewards: the reward of each stored row, (rows,).
+    :param transition_trajectory: the trajectory of each stored row, (rows,).
+    :param trajectory_start: the first row of each trajectory, (trajectories,).
+    :param trajectory_length: the rows of each trajectory, (trajectories,).
+    :param trajectory_terminated: whether each trajectory ended in a terminal state, (trajectories,).
+    :param trajectory_next_slots: the slots of each trajectory's last s', (trajectories, N).
+    :param oldest_trajectory: the index of the oldest closed trajectory in the ring of trajectories.
+    :param n_closed_trajectories: the number of closed trajectories stored.
+    :param first_row: the oldest stored row.
+    :param n_transitions: the stored transitions, the open trajectory's included.
+    :param open_trajectory: the index of the open trajectory (the episode in progress).
+    :param open_length: the rows of the open trajectory (0: none).
+    :param open_next_slots: the slots of the open trajectory's latest s', (N,).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param n_replays: trajectories to replay.
+    :param order: ORDER_REVERSED, ORDER_FORWARD or ORDER_UNIFORM.
+    :param target_kind: TARGET_SARSA, TARGET_Q_LEARNING or TARGET_EXPECTED_SARSA.
+    :param sigma_kind: SIGMA_NONE (vanilla ER) or one of the SIGMA_* definitions of Appendix B.
+    :param residual_zeta: zeta of the residual update (Eq. 5.9); 0 for plain ER.
+    :param residual_next_action: use a_{t+1} instead of a_t in the residual term (Baird's residual gradient).
+    :param step_size: alpha / N, the step of each active weight.
+    :param gamma: the discount factor.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param replay_rng: the generator of the trajectory picks (a xoshiro256** state).
+    :param action_rng: the generator of exploratory draws (a xoshiro256** state).
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    :param w_scratch: scratch for W(s', .), float64 (A,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
     """
     capacity = slots.shape[0]
     trajectory_capacity = trajectory_start.shape[0]
@@ -714,7 +1004,13 @@ def _heap_swap(heap_rows, heap_keys, heap_position, i, j):
 
 @nb.njit(cache=True)
 def heap_sift_up(heap_rows, heap_keys, heap_position, i):
-    """Move node i towards the root while it pops before its parent."""
+    """Move node i towards the root while it pops before its parent.
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued.
+    :param i: a weight index (or, for the heap, a node index).
+    """
     while i > 0:
         parent = (i - 1) // 2
         if not _heap_before(heap_rows, heap_keys, i, parent):
@@ -725,7 +1021,14 @@ def heap_sift_up(heap_rows, heap_keys, heap_position, i):
 
 @nb.njit(cache=True)
 def heap_sift_down(heap_rows, heap_keys, heap_position, heap_size, i):
-    """Move node i towards the leaves while a child pops before it."""
+    """Move node i towards the leaves while a child pops before it.
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    :param i: a weight index (or, for the heap, a node index).
+    """
     size = heap_size[0]
     while True:
         first = i
@@ -740,7 +1043,15 @@ def heap_sift_down(heap_rows, heap_keys, heap_position, heap_size, i):
 
 @nb.njit(cache=True)
 def heap_set(heap_rows, heap_keys, heap_position, heap_size, row, priority):
-    """Queue `row` with `priority`, or change the priority of a queued row (Moore and Atkeson's "promote")."""
+    """Queue `row` with `priority`, or change the priority of a queued row (Moore and Atkeson's "promote").
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    :param row: a stored row.
+    :param priority: its priority |delta|.
+    """
     i = heap_position[row]
     if i < 0:
         i = heap_size[0]
@@ -760,7 +1071,14 @@ def heap_set(heap_rows, heap_keys, heap_position, heap_size, row, priority):
 
 @nb.njit(cache=True)
 def heap_remove(heap_rows, heap_keys, heap_position, heap_size, row):
-    """Take `row` out of the queue (nothing if it is not queued)."""
+    """Take `row` out of the queue (nothing if it is not queued).
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    :param row: a stored row.
+    """
     i = heap_position[row]
     if i < 0:
         return
@@ -776,7 +1094,13 @@ def heap_remove(heap_rows, heap_keys, heap_position, heap_size, row):
 
 @nb.njit(cache=True)
 def heap_pop(heap_rows, heap_keys, heap_position, heap_size):
-    """(row, priority) of the first node, taken out of the queue; the queue must not be empty."""
+    """(row, priority) of the first node, taken out of the queue; the queue must not be empty.
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    """
     row, priority = heap_rows[0], heap_keys[0]
     heap_remove(heap_rows, heap_keys, heap_position, heap_size, row)
     return row, priority
@@ -784,7 +1108,13 @@ def heap_pop(heap_rows, heap_keys, heap_position, heap_size):
 
 @nb.njit(cache=True)
 def heap_heapify(heap_rows, heap_keys, heap_position, heap_size):
-    """Order the first heap_size[0] nodes into a heap (Floyd's bottom-up construction, O(n))."""
+    """Order the first heap_size[0] nodes into a heap (Floyd's bottom-up construction, O(n)).
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    """
     for i in range(heap_size[0]):
         heap_position[heap_rows[i]] = i
     for i in range(heap_size[0] // 2 - 1, -1, -1):
@@ -793,7 +1123,12 @@ def heap_heapify(heap_rows, heap_keys, heap_position, heap_size):
 
 @nb.njit(cache=True)
 def heap_clear(heap_rows, heap_position, heap_size):
-    """Empty the queue, leaving every heap_position at -1."""
+    """Empty the queue, leaving every heap_position at -1.
+
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    """
     for i in range(heap_size[0]):
         heap_position[heap_rows[i]] = -1
     heap_size[0] = 0
@@ -803,7 +1138,20 @@ def heap_clear(heap_rows, heap_position, heap_size):
 def transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
                    trajectory_next_slots, open_trajectory, open_start, open_length, open_next_slots):
     """(tiles of s_{t+1}, terminal, t) of stored row p: the next row's tiles inside a trajectory, the trajectory's
-    stored last s' at its end (the open trajectory's latest s', never terminal)."""
+    stored last s' at its end (the open trajectory's latest s', never terminal).
+
+    :param p: the row of the stored transition in the ring of rows.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param transition_trajectory: the trajectory of each stored row, (rows,).
+    :param trajectory_start: the first row of each trajectory, (trajectories,).
+    :param trajectory_length: the rows of each trajectory, (trajectories,).
+    :param trajectory_terminated: whether each trajectory ended in a terminal state, (trajectories,).
+    :param trajectory_next_slots: the slots of each trajectory's last s', (trajectories, N).
+    :param open_trajectory: the index of the open trajectory (the episode in progress).
+    :param open_start: the first row of the open trajectory.
+    :param open_length: the rows of the open trajectory (0: none).
+    :param open_next_slots: the slots of the open trajectory's latest s', (N,).
+    """
     capacity = slots.shape[0]
     j = transition_trajectory[p]
     if j == open_trajectory:
@@ -823,7 +1171,30 @@ def transition_priority(theta, visits, slots, actions, rewards, p, next_slots, t
                         initial_span, initial_seed):
     """|delta| of stored transition p under the current theta, without an update: the priority of prioritized
     sweeping. ``priority_target`` is never the sampled Sarsa target (the caller passes expected Sarsa instead), so
-    no random number is drawn and a priority does not depend on an exploratory draw."""
+    no random number is drawn and a priority does not depend on an exploratory draw.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param actions: the flat action of each stored row, (rows,).
+    :param rewards: the reward of each stored row, (rows,).
+    :param p: the row of the stored transition in the ring of rows.
+    :param next_slots: state-tile slots of s', (N,).
+    :param terminal: whether s' of the transition is terminal.
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param priority_target: the target of the priority, never TARGET_SARSA (see above).
+    :param sigma_kind: SIGMA_NONE (vanilla ER) or one of the SIGMA_* definitions of Appendix B.
+    :param gamma: the discount factor.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param q: scratch for Q(s', .), float64 (A,).
+    :param w: scratch for W(s', .), float64 (A,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    """
     q_sa = 0.0
     for k in range(slots.shape[1]):
         q_sa += theta[slots[p, k] * stride + action_columns[k, actions[p]]]
@@ -846,6 +1217,21 @@ def build_predecessor_index(slots, transition_trajectory, trajectory_start, traj
     tiles of s'_p (terminal transitions have no s' and are left out). A row whose s' has slot c in two tilings (a
     hash collision) is listed twice. ``index_start`` has one entry per slot plus one; ``index_rows`` room for
     n_transitions * N rows.
+
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param transition_trajectory: the trajectory of each stored row, (rows,).
+    :param trajectory_start: the first row of each trajectory, (trajectories,).
+    :param trajectory_length: the rows of each trajectory, (trajectories,).
+    :param trajectory_terminated: whether each trajectory ended in a terminal state, (trajectories,).
+    :param trajectory_next_slots: the slots of each trajectory's last s', (trajectories, N).
+    :param first_row: the oldest stored row.
+    :param n_transitions: the stored transitions, the open trajectory's included.
+    :param open_trajectory: the index of the open trajectory (the episode in progress).
+    :param open_start: the first row of the open trajectory.
+    :param open_length: the rows of the open trajectory (0: none).
+    :param open_next_slots: the slots of the open trajectory's latest s', (N,).
+    :param index_start: the predecessor index's start per slot, (slots + 1,) (:func:`build_predecessor_index`).
+    :param index_rows: the predecessor index's rows, (n_transitions * N,).
     """
     capacity = slots.shape[0]
     n_slots = index_start.shape[0] - 1
@@ -924,6 +1310,53 @@ def prioritized_phase(
     ``action_rng`` as in the other orders. Arrays after ``initial_seed`` are the workspace (see sb3_er.er), then the
     value ``watch`` (updates only; priority evaluations are not updates).
     Returns (updates, sum of |delta|, last delta, status, priority evaluations), status as in :func:`replay_phase`.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param visits: the visit vector w (Eq. 5.2), one bool per weight, like theta.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param actions: the flat action of each stored row, (rows,).
+    :param rewards: the reward of each stored row, (rows,).
+    :param transition_trajectory: the trajectory of each stored row, (rows,).
+    :param trajectory_start: the first row of each trajectory, (trajectories,).
+    :param trajectory_length: the rows of each trajectory, (trajectories,).
+    :param trajectory_terminated: whether each trajectory ended in a terminal state, (trajectories,).
+    :param trajectory_next_slots: the slots of each trajectory's last s', (trajectories, N).
+    :param oldest_trajectory: the index of the oldest closed trajectory in the ring of trajectories.
+    :param n_closed_trajectories: the number of closed trajectories stored.
+    :param first_row: the oldest stored row.
+    :param n_transitions: the stored transitions, the open trajectory's included.
+    :param open_trajectory: the index of the open trajectory (the episode in progress).
+    :param open_length: the rows of the open trajectory (0: none).
+    :param open_next_slots: the slots of the open trajectory's latest s', (N,).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param n_updates: the most updates of the phase.
+    :param threshold: theta of prioritized sweeping: only a |delta| above it is queued.
+    :param predecessors: PREDECESSORS_TILES or PREDECESSORS_TRAJECTORY.
+    :param max_predecessors: the most distinct predecessors queued per update.
+    :param target_kind: TARGET_SARSA, TARGET_Q_LEARNING or TARGET_EXPECTED_SARSA.
+    :param sigma_kind: SIGMA_NONE (vanilla ER) or one of the SIGMA_* definitions of Appendix B.
+    :param residual_zeta: zeta of the residual update (Eq. 5.9); 0 for plain ER.
+    :param residual_next_action: use a_{t+1} instead of a_t in the residual term (Baird's residual gradient).
+    :param step_size: alpha / N, the step of each active weight.
+    :param gamma: the discount factor.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param action_rng: the generator of exploratory draws (a xoshiro256** state).
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    :param w_scratch: scratch for W(s', .), float64 (A,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    :param heap_rows: the priority queue's rows by node, (rows,).
+    :param heap_keys: the priority of each node, (rows,).
+    :param heap_position: the node of each row, -1 for a row not queued, (rows,).
+    :param heap_size: the number of queued rows, a (1,) array changed in place.
+    :param index_start: the predecessor index's start per slot, (slots + 1,) (:func:`build_predecessor_index`).
+    :param index_rows: the predecessor index's rows, (n_transitions * N,).
+    :param stamp: workspace: per row, the last update that queued it as a predecessor (rows,).
+    :param stamp_counter: workspace: the update counter of ``stamp``, a (1,) array.
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
     """
     capacity = slots.shape[0]
     n_tilings = slots.shape[1]
@@ -1023,7 +1456,13 @@ def prioritized_phase(
 @nb.njit(cache=True)
 def weight_statistics(theta, initial_low, initial_span, initial_seed):
     """(mean |theta| over the touched weights, share of touched weights): a weight is touched when it differs from its
-    initial value (:func:`initial_weight`). No temporary array."""
+    initial value (:func:`initial_weight`). No temporary array.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    """
     total = 0.0
     touched = 0
     for i in range(theta.shape[0]):
@@ -1042,7 +1481,15 @@ def weight_statistics(theta, initial_low, initial_span, initial_seed):
 
 @nb.njit(cache=True)
 def batch_state_slots(observations, inv_widths, offsets, wrap_tiles, slot_mask, out_slots):
-    """Hashed state-tile slots (B, N) of each row of observations (B, D); False if a row is not finite."""
+    """Hashed state-tile slots (B, N) of each row of observations (B, D); False if a row is not finite.
+
+    :param observations: the states, float64 (B, D).
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param out_slots: written: the slots, (B, N).
+    """
     for i in range(observations.shape[0]):
         if not state_slots(observations[i], inv_widths, offsets, wrap_tiles, slot_mask, out_slots[i]):
             return False
@@ -1053,7 +1500,18 @@ def batch_state_slots(observations, inv_widths, offsets, wrap_tiles, slot_mask, 
 def greedy_next_values(theta, next_slots, terminal, stride, action_columns, columns_are_actions, q_scratch, out_values,
                        out_actions):
     """max_a Q(s'_d, a) and its argmax (lowest index on ties) for each transition d (FQI's Eq. 3.1, LSPI's greedy
-    policy at s'); 0 and -1 where s'_d is terminal."""
+    policy at s'); 0 and -1 where s'_d is terminal.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param next_slots: the slots of each s'_d, (n, N).
+    :param terminal: whether each s'_d is terminal, (n,).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    :param out_values: written: max_a Q(s'_d, a), (n,).
+    :param out_actions: written: the greedy action of each row, (B,).
+    """
     for d in range(next_slots.shape[0]):
         if terminal[d]:
             out_values[d] = 0.0
@@ -1067,7 +1525,12 @@ def greedy_next_values(theta, next_slots, terminal, stride, action_columns, colu
 
 @nb.njit(cache=True)
 def features_dot(x, columns, out):
-    """out = Phi x: out[d] = sum_k x[columns[d, k]] (the fitted values of the n samples)."""
+    """out = Phi x: out[d] = sum_k x[columns[d, k]] (the fitted values of the n samples).
+
+    :param x: the weights of the fit, (features,).
+    :param columns: the active feature columns of each sample, (n, N).
+    :param out: written: Phi x, (n,).
+    """
     for d in range(columns.shape[0]):
         total = 0.0
         for k in range(columns.shape[1]):
@@ -1077,7 +1540,12 @@ def features_dot(x, columns, out):
 
 @nb.njit(cache=True)
 def features_transpose_dot(y, columns, out):
-    """out = Phi^T y: out[j] = sum of y[d] over the samples d with feature j active (with multiplicity)."""
+    """out = Phi^T y: out[j] = sum of y[d] over the samples d with feature j active (with multiplicity).
+
+    :param y: one value per sample, (n,).
+    :param columns: the active feature columns of each sample, (n, N).
+    :param out: written: Phi^T y, (features,).
+    """
     for j in range(out.shape[0]):
         out[j] = 0.0
     for d in range(columns.shape[0]):
@@ -1087,7 +1555,13 @@ def features_transpose_dot(y, columns, out):
 
 @nb.njit(cache=True)
 def ridge_normal_matvec(x, columns, ridge, out):
-    """out = (Phi^T Phi + ridge I) x: the matrix of the ridge normal equations of FQI's least-squares fit."""
+    """out = (Phi^T Phi + ridge I) x: the matrix of the ridge normal equations of FQI's least-squares fit.
+
+    :param x: a weight vector, (features,).
+    :param columns: the active feature columns of each sample, (n, N).
+    :param ridge: the ridge term lambda.
+    :param out: written: the product, (features,).
+    """
     for j in range(out.shape[0]):
         out[j] = ridge * x[j]
     for d in range(columns.shape[0]):
@@ -1107,6 +1581,23 @@ def one_step_update(theta, slots, action, reward, continuation, next_slots, stri
     theta <- theta + alpha delta phi(s, a) / N with delta = r + gamma c v(s') - Q(s, a), where v(s') = max_a Q(s', a)
     for Q-learning (T*) or Q(s', a') with a' epsilon-greedy for Sarsa (T^pi), and c is the probability that s' is not
     terminal (0 or 1 for a real transition; a model's prediction may lie between). c = 0 skips s' altogether.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param slots: state-tile slots: (N,) of one state, or (rows, N) of the stored transitions.
+    :param action: the flat action index a.
+    :param reward: the reward r.
+    :param continuation: c, the probability that s' is not terminal.
+    :param next_slots: state-tile slots of s', (N,).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param target_kind: TARGET_SARSA, TARGET_Q_LEARNING or TARGET_EXPECTED_SARSA.
+    :param step_size: alpha / N, the step of each active weight.
+    :param gamma: the discount factor.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param q: scratch for Q(s', .), float64 (A,).
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
     """
     q_sa = q_value(theta, slots, stride, action_columns, action)
     target = reward
@@ -1139,6 +1630,35 @@ def dyna_step(
 
     Returns (delta of the direct update, planning updates made, sum of their |delta|, status); both kinds of update
     go to the value ``watch``, and status is STATUS_OUT_OF_BOUNDS when it saw its first value outside the bounds.
+
+    :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
+    :param slots: the slots of s_k, (N,).
+    :param action: a_k.
+    :param reward: r_{k+1}.
+    :param terminated: whether s_{k+1} is terminal.
+    :param next_obs: s_{k+1}, float64 (D,).
+    :param next_slots: written: the slots of s_{k+1}, (N,).
+    :param plan_slots: the planned transitions' slots of s, (M, N).
+    :param plan_actions: their actions, (M,).
+    :param plan_rewards: their predicted rewards, (M,).
+    :param plan_continuation: their predicted probability that s' is not terminal (negative: not covered), (M,).
+    :param plan_next_slots: their slots of the predicted s', (M, N).
+    :param plan_start: the first planned row to use.
+    :param plan_count: planning updates to make.
+    :param inv_widths: 1 / tile width per state dimension, (D,).
+    :param offsets: tiling displacements in tile units, (N, D).
+    :param wrap_tiles: tiles per period of each periodic dimension, (D,) (0: not periodic).
+    :param slot_mask: number of state-tile slots minus one (a power of two minus one).
+    :param stride: weights per state-tile slot (the action columns of one slot).
+    :param action_columns: column of each (tiling, action) within a slot's row, int (N, A).
+    :param columns_are_actions: True when actions are not tiled (column a is action a).
+    :param target_kind: TARGET_SARSA, TARGET_Q_LEARNING or TARGET_EXPECTED_SARSA.
+    :param step_size: alpha / N, the step of each active weight.
+    :param gamma: the discount factor.
+    :param epsilon: the exploration rate of the epsilon-greedy policy.
+    :param rng: a xoshiro256** state (4 uint64, from :func:`new_rng_state`), advanced in place.
+    :param q_scratch: scratch for Q(s, .), float64 (A,).
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
     """
     continuation = 0.0
     if not terminated:
@@ -1171,6 +1691,13 @@ def dyna_step(
 
 @nb.njit(cache=True)
 def initial_weights_at(indices, initial_low, initial_span, initial_seed, out):
-    """out[j] <- the initial value of weight indices[j] (:func:`initial_weight`), for a whole index array at once."""
+    """out[j] <- the initial value of weight indices[j] (:func:`initial_weight`), for a whole index array at once.
+
+    :param indices: weight indices, (n,).
+    :param initial_low: the initial weights' lower end.
+    :param initial_span: the initial weights' range (0: every weight starts at initial_low).
+    :param initial_seed: the seed of the initial weights' hash (uint64).
+    :param out: written: their initial values, (n,).
+    """
     for j in range(indices.shape[0]):
         out[j] = initial_weight(indices[j], initial_low, initial_span, initial_seed)

@@ -20,12 +20,18 @@ from sb3_er.common.tile_coding import TileCoder
 
 
 def action_start(action_space: spaces.Space) -> np.ndarray:
-    """The first action of each action dimension (gymnasium's ``start``; 0 unless the space says otherwise)."""
+    """The first action of each action dimension (gymnasium's ``start``; 0 unless the space says otherwise).
+
+    :param action_space: a Discrete, MultiDiscrete or Box action space.
+    """
     return np.atleast_1d(np.asarray(getattr(action_space, "start", 0), dtype=np.int64)).reshape(-1)
 
 
 def action_nvec(action_space: spaces.Space) -> list[int]:
-    """Choices per action dimension of a Discrete or MultiDiscrete space."""
+    """Choices per action dimension of a Discrete or MultiDiscrete space.
+
+    :param action_space: a Discrete or MultiDiscrete action space.
+    """
     if isinstance(action_space, spaces.Discrete):
         return [int(action_space.n)]
     if isinstance(action_space, spaces.MultiDiscrete):
@@ -220,12 +226,18 @@ class TileQPolicy(BasePolicy):
         return self.theta_array.copy()
 
     def load_from_vector(self, vector: np.ndarray) -> None:
-        """Write a 1D array of weights into theta in place (the inverse of ``parameters_to_vector``)."""
+        """Write a 1D array of weights into theta in place (the inverse of ``parameters_to_vector``).
+
+        :param vector: the weights, 1D of theta's size.
+        """
         self.load_state_dict({"theta": th.as_tensor(np.asarray(vector, dtype=np.float64))})
 
     def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase]) -> None:
         """Save the weights and the constructor settings (SB3's policy file, ``TileQPolicy.load`` reads it back), the
-        spaces in plain form, so that loading needs no pickle; written atomically."""
+        spaces in plain form, so that loading needs no pickle; written atomically.
+
+        :param path: the file to write (a path or an open binary file).
+        """
         saved = {"state_dict": self.state_dict(), "data": encode_plain(self._get_constructor_parameters())}
         if not isinstance(path, (str, pathlib.Path)):  # a file object, as torch.save takes
             th.save(saved, path)
@@ -241,6 +253,8 @@ class TileQPolicy(BasePolicy):
         unpickling it can run code from the file. ValueError naming the file for anything unreadable or inconsistent.
 
         :param device: accepted for SB3's signature; the weights live on the CPU.
+        :param path: the file written by ``save`` (a path or an open binary file).
+        :param allow_pickle: read a policy file of SB3's own format, whose spaces are pickled (default True, as in SB3).
         """
         try:
             try:
@@ -276,7 +290,10 @@ class TileQPolicy(BasePolicy):
         return data
 
     def initial_weights(self, indices: np.ndarray) -> np.ndarray:
-        """The initial values of the weights at ``indices`` (any integer array shape)."""
+        """The initial values of the weights at ``indices`` (any integer array shape).
+
+        :param indices: weight indices, any integer array shape.
+        """
         indices = np.asarray(indices, dtype=np.int64)
         out = np.empty(indices.size, dtype=np.float64)
         for j, i in enumerate(indices.reshape(-1)):
@@ -289,7 +306,10 @@ class TileQPolicy(BasePolicy):
         return np.ascontiguousarray(obs.reshape(-1, self.tile_coder.n_dims)), vectorized
 
     def flat_greedy_actions(self, observations: np.ndarray) -> np.ndarray:
-        """Greedy flat action index for each row of a (B, D) float64 array; lowest index on ties."""
+        """Greedy flat action index for each row of a (B, D) float64 array; lowest index on ties.
+
+        :param observations: the states, (B, D) float64.
+        """
         coder = self.tile_coder
         out = np.empty(observations.shape[0], dtype=np.int64)
         ok = kernels.greedy_actions(
@@ -302,7 +322,10 @@ class TileQPolicy(BasePolicy):
 
     def to_env_actions(self, flat_actions: np.ndarray) -> np.ndarray:
         """Flat action indices (B,) to the action space's format: (B,) for Discrete, (B, dims) for MultiDiscrete,
-        shifted by the space's ``start``; (B, *shape) levels in the Box's dtype for a Box."""
+        shifted by the space's ``start``; (B, *shape) levels in the Box's dtype for a Box.
+
+        :param flat_actions: flat action indices, (B,).
+        """
         if self._actions_are_indices:
             return flat_actions
         table = self.action_table[flat_actions]
@@ -311,7 +334,10 @@ class TileQPolicy(BasePolicy):
         return table[:, 0] if isinstance(self.action_space, spaces.Discrete) else table
 
     def q_values(self, observations: np.ndarray) -> np.ndarray:
-        """Q(s, .) for each observation: (B, D) -> (B, n_actions), MultiDiscrete actions flattened in C order."""
+        """Q(s, .) for each observation: (B, D) -> (B, n_actions), MultiDiscrete actions flattened in C order.
+
+        :param observations: the states, (B, D) (or one state, (D,)).
+        """
         batch, _ = self._as_batch(observations)
         coder = self.tile_coder
         out = np.empty((batch.shape[0], coder.n_actions), dtype=np.float64)
@@ -321,7 +347,14 @@ class TileQPolicy(BasePolicy):
         return out
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = False):
-        """Greedy actions for one observation or a batch, computed in float64 (no float32 round trip)."""
+        """Greedy actions for one observation or a batch, computed in float64 (no float32 round trip).
+
+        :param observation: one observation or a batch (n, ...).
+        :param state: unused (no recurrent state); returned as given.
+        :param episode_start: unused; accepted for SB3's signature.
+        :param deterministic: accepted for SB3's signature: the policy is greedy either way (the algorithm's ``predict``
+            adds exploration).
+        """
         if isinstance(observation, dict):
             raise ValueError("TileQPolicy needs a flat Box observation, got a dict: flatten it as the model's env "
                              "does (gymnasium.wrappers.FlattenObservation around the env, or "

@@ -44,7 +44,10 @@ def _numeric_dtype(name: Any) -> np.dtype:
 
 def encode_plain(value: Any) -> Any:
     """A JSON-native form of ``value`` (numbers, strings, lists, dicts, NumPy arrays and generators, deques, gymnasium
-    Box/Discrete/MultiDiscrete spaces, torch devices, classes by name); TypeError for anything else."""
+    Box/Discrete/MultiDiscrete spaces, torch devices, classes by name); TypeError for anything else.
+
+    :param value: the value to encode or check.
+    """
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     if isinstance(value, list):
@@ -78,7 +81,11 @@ def encode_plain(value: Any) -> Any:
 
 def decode_plain(value: Any, classes: dict[str, type]) -> Any:
     """The inverse of :func:`encode_plain`, checking every part; a class is looked up in ``classes`` ("module:name"
-    to class), never imported. ValueError for anything malformed."""
+    to class), never imported. ValueError for anything malformed.
+
+    :param value: a plain form written by :func:`encode_plain`.
+    :param classes: the classes a plain form may name, by "module:name".
+    """
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     if isinstance(value, list):
@@ -158,7 +165,12 @@ def _decode_space(body: dict[str, Any], classes: dict[str, type]) -> spaces.Spac
 
 def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[list[str]] = None) -> dict[str, Any]:
     """Plain forms of the attributes that ``model.save(path, exclude, include)`` pickles (those without a JSON form);
-    an attribute without a plain form (a schedule function, a custom object) is left to its pickle alone."""
+    an attribute without a plain form (a schedule function, a custom object) is left to its pickle alone.
+
+    :param model: the algorithm being saved.
+    :param exclude: attribute names ``save`` leaves out (default None).
+    :param include: attribute names ``save`` adds (default None).
+    """
     excluded = (set(exclude or []) | set(model._excluded_save_params())) - set(include or [])
     state_dicts, torch_variables = model._get_torch_save_params()
     excluded |= {name.split(".")[0] for name in [*state_dicts, *torch_variables]}
@@ -174,7 +186,10 @@ def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[li
 
 
 def resolve_zip_path(path: Union[str, pathlib.Path]) -> pathlib.Path:
-    """SB3's convention: a path without suffix that does not exist is read with .zip added."""
+    """SB3's convention: a path without suffix that does not exist is read with .zip added.
+
+    :param path: the path as given to ``load``.
+    """
     path = pathlib.Path(path)
     if not path.exists() and not path.suffix and path.with_suffix(".zip").exists():
         return path.with_suffix(".zip")
@@ -183,7 +198,10 @@ def resolve_zip_path(path: Union[str, pathlib.Path]) -> pathlib.Path:
 
 def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[dict[str, Any], Any]:
     """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and a path
-    or buffer to pass on to SB3."""
+    or buffer to pass on to SB3.
+
+    :param path: the model's file (a path or an open binary file).
+    """
     source = resolve_zip_path(path) if isinstance(path, (str, pathlib.Path)) else io.BytesIO(path.read())
     try:
         with zipfile.ZipFile(source) as archive:
@@ -209,7 +227,12 @@ def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[di
 def custom_objects_without_pickle(data: dict[str, Any], classes: dict[str, type],
                                   custom_objects: Optional[dict[str, Any]]) -> dict[str, Any]:
     """SB3 ``custom_objects`` that replace every pickled entry of ``data`` by its plain copy, so that SB3 unpickles
-    none; ValueError naming an entry that only its pickle holds."""
+    none; ValueError naming an entry that only its pickle holds.
+
+    :param data: the zip's parsed ``data`` entry.
+    :param classes: the classes a plain form may name, by "module:name".
+    :param custom_objects: the caller's own replacements, which win (default None).
+    """
     custom_objects = dict(custom_objects or {})
     plain = data.get(PLAIN_STATE_KEY, {})
     if not isinstance(plain, dict):
@@ -235,7 +258,11 @@ def custom_objects_without_pickle(data: dict[str, Any], classes: dict[str, type]
 @contextmanager
 def atomic_path(path: Union[str, pathlib.Path], suffix: str) -> Iterator[pathlib.Path]:
     """A partial path to write to, renamed to ``path`` (with ``suffix`` added if it has none) when the block ends
-    without error, so that a crash while saving never leaves a truncated file under the final name."""
+    without error, so that a crash while saving never leaves a truncated file under the final name.
+
+    :param path: the final file.
+    :param suffix: the suffix added to a path without one (e.g. ".zip").
+    """
     path = pathlib.Path(path)
     if not path.suffix:
         path = path.with_suffix(suffix)
@@ -245,7 +272,11 @@ def atomic_path(path: Union[str, pathlib.Path], suffix: str) -> Iterator[pathlib
 
 def check_rng_state(name: str, value: Any) -> None:
     """A kernel generator's state: 4 uint64 words of xoshiro256**, not all zero (its one fixed point); or a NumPy
-    Generator. ValueError naming the attribute."""
+    Generator. ValueError naming the attribute.
+
+    :param name: the attribute's name, for the message.
+    :param value: the generator state read from the file.
+    """
     if isinstance(value, np.random.Generator):
         return
     if not (isinstance(value, np.ndarray) and value.dtype == np.uint64 and value.shape == (4,)

@@ -35,6 +35,9 @@ def tiling_offsets(n_tilings: int, n_dims: int) -> np.ndarray:
 
     These are the asymmetric offsets of Miller et al. (1990) and Sutton's tiles: tiling k is displaced by
     (1, 3, 5, ...) * k / N tile widths along dimensions (0, 1, 2, ...).
+
+    :param n_tilings: the number of tilings N.
+    :param n_dims: the number of state dimensions D.
     """
     k = np.arange(n_tilings, dtype=np.float64)[:, None]
     d = np.arange(n_dims, dtype=np.float64)[None, :]
@@ -178,7 +181,11 @@ class TileCoder:
 
     def bad_observation_message(self, obs: np.ndarray, where: str = "") -> str:
         """Why ``obs`` cannot be tiled: NaN or infinite entries, or entries so far out that a tile coordinate would
-        overflow (|x / width| >= 2^62)."""
+        overflow (|x / width| >= 2^62).
+
+        :param obs: the observation, (D,).
+        :param where: where it came from, for the message (default "").
+        """
         obs = np.asarray(obs, dtype=np.float64).reshape(-1)
         if not np.all(np.isfinite(obs)):
             problem = f"NaN or infinite values in dimensions {np.flatnonzero(~np.isfinite(obs)).tolist()}"
@@ -189,7 +196,10 @@ class TileCoder:
         return f"Observation {obs.tolist()}{where} cannot be tiled: {problem}"
 
     def coordinates(self, obs: np.ndarray) -> np.ndarray:
-        """Integer tile coordinates (N, D) of one observation, before hashing."""
+        """Integer tile coordinates (N, D) of one observation, before hashing.
+
+        :param obs: one observation, (D,).
+        """
         obs = np.asarray(obs, dtype=np.float64).reshape(self.n_dims)
         coords = np.floor(obs * self.inv_widths + self.offsets).astype(np.int64)
         wrapped = self.wrap_tiles > 0
@@ -197,7 +207,10 @@ class TileCoder:
         return coords
 
     def slots(self, obs: np.ndarray) -> np.ndarray:
-        """Hashed state-tile slot (N,) of one observation."""
+        """Hashed state-tile slot (N,) of one observation.
+
+        :param obs: one observation, (D,).
+        """
         out = np.empty(self.n_tilings, dtype=np.int64)
         obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(self.n_dims)
         if not kernels.state_slots(obs, self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, out):
@@ -205,7 +218,11 @@ class TileCoder:
         return out
 
     def feature_indices(self, obs: np.ndarray, action: int) -> np.ndarray:
-        """Weight indices (N,) of the active features of phi(s, a); repeated indices mean a hash collision."""
+        """Weight indices (N,) of the active features of phi(s, a); repeated indices mean a hash collision.
+
+        :param obs: one observation, (D,).
+        :param action: the flat action index.
+        """
         return self.slots(obs) * self.stride + self.action_columns[:, int(action)]
 
     def memory_report(self, observations: np.ndarray) -> dict[str, float]:
@@ -213,6 +230,8 @@ class TileCoder:
 
         distinct_tiles: distinct (tiling, state tile) pairs; slots_used: distinct slots they occupy; collision_rate:
         share of distinct tiles sharing a slot with another tile; fill: slots_used / slots in the table.
+
+        :param observations: the states to tile, (n, D).
         """
         observations = np.asarray(observations, dtype=np.float64).reshape(-1, self.n_dims)
         keys = set()
@@ -242,6 +261,9 @@ def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUD
     A cell budget per tiling spread evenly over the dimensions keeps a tiling's cell count near ``cell_budget``
     whatever the dimension, where a fixed 10 per dimension gives 10^D cells (Acrobot's 6 dimensions: 10^6 cells per
     tiling, which 100,000 steps cannot fill). The root is taken in integers, so 5^6 = 15,625 cells give exactly 5.
+
+    :param n_dims: the number of tiled dimensions D (at least 1).
+    :param cell_budget: the cells per tiling to aim at (default 16,384).
     """
     if int(n_dims) != n_dims or n_dims < 0:
         raise ValueError(f"n_dims must be a non-negative integer, got {n_dims!r}")
@@ -258,7 +280,10 @@ def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUD
 
 
 def varying_dimensions(observation_space: spaces.Box) -> int:
-    """The number of observation dimensions whose bounds differ (the generic rule's D; a constant needs no tiles)."""
+    """The number of observation dimensions whose bounds differ (the generic rule's D; a constant needs no tiles).
+
+    :param observation_space: a Box observation space.
+    """
     return int(np.count_nonzero(observation_space.high.astype(np.float64) > observation_space.low.astype(np.float64)))
 
 
@@ -272,6 +297,10 @@ def default_tile_widths(
     least 2 tiles each, ``cell_budget`` cells per tiling). Bounds that are infinite, or placeholders for infinity
     (magnitude >= 1e30, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
     ValueError names them. A dimension whose bounds coincide (a constant) gets width 1, one tile for its only value.
+
+    :param observation_space: a Box observation space with finite bounds.
+    :param tiles_per_dimension: tiles per dimension (default None: the generic rule).
+    :param cell_budget: the generic rule's cells per tiling (default 16,384).
     """
     if tiles_per_dimension is not None and (
         isinstance(tiles_per_dimension, bool) or int(tiles_per_dimension) != tiles_per_dimension

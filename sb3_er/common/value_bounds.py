@@ -71,7 +71,10 @@ class RewardBounds:
     @classmethod
     def from_attribute(cls, value: Any) -> "RewardBounds":
         """An env's ``reward_bounds``: a RewardBounds or a mapping with ``step``, optional ``terminal`` and
-        ``horizon``, e.g. ``{"step": (-1, 30), "terminal": (-50, -50)}``; ValueError naming the problem."""
+        ``horizon``, e.g. ``{"step": (-1, 30), "terminal": (-50, -50)}``; ValueError naming the problem.
+
+        :param value: the env's ``reward_bounds`` attribute.
+        """
         if isinstance(value, RewardBounds):
             return value
         if not isinstance(value, Mapping) or "step" not in value or set(value) - {"step", "terminal", "horizon"}:
@@ -87,7 +90,10 @@ class RewardBounds:
                    None if horizon is None else int(horizon))
 
     def returns(self, gamma: float) -> tuple[float, float]:
-        """The interval of every possible return under discount ``gamma`` (module docstring); +-inf where unbounded."""
+        """The interval of every possible return under discount ``gamma`` (module docstring); +-inf where unbounded.
+
+        :param gamma: the discount factor, in [0, 1].
+        """
         r_lo, r_hi = self.step
         c_lo, c_hi = self.terminal if self.terminal is not None else (math.inf, -math.inf)
         if gamma < 1.0:
@@ -104,13 +110,21 @@ class RewardBounds:
 
 
 def value_bounds(returns: tuple[float, float], initial: tuple[float, float]) -> tuple[float, float]:
-    """The hull of the possible returns and the range the values started in."""
+    """The hull of the possible returns and the range the values started in.
+
+    :param returns: the (low, high) interval of the possible returns.
+    :param initial: the (low, high) range of the initial values.
+    """
     return min(returns[0], initial[0]), max(returns[1], initial[1])
 
 
 def widened(bounds: tuple[float, float], tolerance: float = TOLERANCE) -> tuple[float, float]:
     """The bounds widened on each side by ``tolerance`` times their width (and a rounding margin); a half-infinite
-    interval's finite end by ``tolerance`` times its magnitude (at least 1)."""
+    interval's finite end by ``tolerance`` times its magnitude (at least 1).
+
+    :param bounds: the (low, high) interval; either end may be infinite.
+    :param tolerance: the widening per side as a share of the width (default 0.05).
+    """
     low, high = bounds
     finite = [b for b in bounds if math.isfinite(b)]
     if not finite:
@@ -125,6 +139,8 @@ def reward_changing_wrapper(env: gym.Env) -> Optional[str]:
 
     Observation and action wrappers and the wrappers of :data:`REWARD_PRESERVING_WRAPPERS` keep them; every other
     wrapper (a RewardWrapper such as TransformReward or ClipReward, NormalizeReward, or an unknown one) may not.
+
+    :param env: the (possibly wrapped) Gymnasium env.
     """
     while isinstance(env, gym.Wrapper):
         if not (isinstance(env, (gym.ObservationWrapper, gym.ActionWrapper))
@@ -180,7 +196,11 @@ class ValueWatch:
         self.array[kernels.WATCH_LOW], self.array[kernels.WATCH_HIGH] = widened(self.bounds)
 
     def observe(self, reward: float, terminated: bool) -> None:
-        """Widen observed bounds with one reward (``source="observed"``; call per transition)."""
+        """Widen observed bounds with one reward (``source="observed"``; call per transition).
+
+        :param reward: the transition's reward.
+        :param terminated: whether the transition ended the episode in a terminal state.
+        """
         seen = self._terminal if terminated else self._step
         if seen[0] <= reward <= seen[1]:
             return
@@ -188,7 +208,11 @@ class ValueWatch:
         self._update_bounds()
 
     def observe_many(self, rewards: np.ndarray, terminal: np.ndarray) -> None:
-        """:meth:`observe` for arrays of rewards and termination flags (a replay buffer's stored transitions)."""
+        """:meth:`observe` for arrays of rewards and termination flags (a replay buffer's stored transitions).
+
+        :param rewards: the rewards, (n,).
+        :param terminal: whether each transition was terminal, (n,) bool.
+        """
         for flag in (False, True):
             chosen = rewards[terminal == flag]
             if chosen.size:

@@ -26,7 +26,10 @@ COMMANDS = {
 
 
 def command(name: str):
-    """The ``reproduce_<name>`` function of analysis `name`; ValueError naming the analyses for another name."""
+    """The ``reproduce_<name>`` function of analysis `name`; ValueError naming the analyses for another name.
+
+    :param name: the analysis's name, e.g. "sigma".
+    """
     if name not in COMMANDS:
         raise ValueError(f"unknown analysis {name!r}; choose one of {', '.join(COMMANDS)}")
     module, _, function = COMMANDS[name].partition(":")
@@ -35,7 +38,14 @@ def command(name: str):
 
 def check_request(n_seeds: int, budget: float, unit: str, backend: str, address: str | None) -> None:
     """ValueError naming the problem for a non-positive seed count or run length (in `unit`), an unknown backend or
-    an address without the Ray backend."""
+    an address without the Ray backend.
+
+    :param n_seeds: the number of seeds.
+    :param budget: the run length.
+    :param unit: the run length's unit, for the message.
+    :param backend: "local" or "ray".
+    :param address: the Ray cluster's address, or None.
+    """
     if int(n_seeds) != n_seeds or n_seeds < 1:
         raise ValueError(f"the number of seeds must be a positive integer, got {n_seeds}")
     if not budget > 0:
@@ -48,7 +58,11 @@ def check_request(n_seeds: int, budget: float, unit: str, backend: str, address:
 
 def check_settings(out_dir: Path, settings: dict[str, Any]) -> None:
     """Refuse (ValueError) when `out_dir` holds runs made with other settings (see
-    :func:`sb3_er.experiments.records.check_settings`); the settings are written once a run has finished."""
+    :func:`sb3_er.experiments.records.check_settings`); the settings are written once a run has finished.
+
+    :param out_dir: the results folder.
+    :param settings: the command's settings, as ``settings.json`` holds them.
+    """
     records.check_settings(out_dir, settings)
 
 
@@ -71,6 +85,15 @@ def run_analysis_jobs(
     :mod:`sb3_er.experiments.records`). `settings` maps results folders (a run's folder holds ``runs/``) to the
     settings their ``settings.json`` pins, written once a run of the folder has finished. Failed runs raise RunFailure
     after the others are written.
+
+    :param jobs: the analysis's runs.
+    :param out_dir: the analysis's results folder.
+    :param n_workers: worker processes (None: all CPUs).
+    :param show_progress: show a progress bar.
+    :param backend: "local" or "ray".
+    :param address: the Ray cluster's address, or None.
+    :param allow_mixed_versions: accept finished runs of other code or configuration.
+    :param settings: the settings to pin per results folder (default None: none).
     """
     settings = {Path(folder): pinned for folder, pinned in (settings or {}).items()}
 
@@ -99,13 +122,19 @@ def run_analysis_jobs(
 
 def code_line(jobs: list[RunJob]) -> str:
     """Which code made the finished runs of `jobs`, e.g. ``"Code: sb3-er 0.1.0, code 1f4d0e44dc (60 runs; commit
-    91bd149)."`` (`records.code_versions_line`)."""
+    91bd149)."`` (`records.code_versions_line`).
+
+    :param jobs: the analysis's runs.
+    """
     return records.code_versions_line([records.read_record(job.csv_path) for job in jobs if job.csv_path.is_file()])
 
 
 def env_reading(jobs: list[RunJob]) -> str:
     """The env's constructor arguments as the first finished run of `jobs` resolved them (its defaults at run time,
-    overridden by ``--env-kwargs``), e.g. ``"max_torque=0.6, n_torques=7, ..."``; "unknown" without a record."""
+    overridden by ``--env-kwargs``), e.g. ``"max_torque=0.6, n_torques=7, ..."``; "unknown" without a record.
+
+    :param jobs: the analysis's runs.
+    """
     for job in jobs:
         record = records.read_record(job.csv_path) if job.csv_path.is_file() else None
         if record is not None and "resolved" in record:

@@ -46,30 +46,48 @@ class FolderLockedError(RuntimeError):
 
 
 def json_bytes(data: Any) -> bytes:
-    """`data` as the indented, key-sorted JSON text every record and settings file is written in."""
+    """`data` as the indented, key-sorted JSON text every record and settings file is written in.
+
+    :param data: JSON-able data.
+    """
     return (json.dumps(data, indent=2, sort_keys=True) + "\n").encode()
 
 
 def write_json(path: str | Path, data: Any) -> Path:
-    """Write `data` as indented JSON (keys sorted) to `path` atomically."""
+    """Write `data` as indented JSON (keys sorted) to `path` atomically.
+
+    :param path: the file.
+    :param data: JSON-able data.
+    """
     return write_atomically(path, json_bytes(data))
 
 
 def csv_bytes(frame) -> bytes:
-    """A pandas DataFrame as the CSV text (without the index) every table and run file is written in."""
+    """A pandas DataFrame as the CSV text (without the index) every table and run file is written in.
+
+    :param frame: a pandas DataFrame.
+    """
     buffer = io.StringIO()
     frame.to_csv(buffer, index=False)
     return buffer.getvalue().encode()
 
 
 def write_csv(path: str | Path, frame) -> Path:
-    """Write a pandas DataFrame to `path` as CSV (without the index) atomically."""
+    """Write a pandas DataFrame to `path` as CSV (without the index) atomically.
+
+    :param path: the file.
+    :param frame: a pandas DataFrame.
+    """
     return write_atomically(path, csv_bytes(frame))
 
 
 def read_json(path: str | Path, remedy: str) -> Any:
     """The JSON data in `path`; DamagedFileError naming the file, the fault and `remedy` (what to do) when the file
-    is empty or not valid JSON."""
+    is empty or not valid JSON.
+
+    :param path: the file.
+    :param remedy: what the reader should do about a damaged file, for the message.
+    """
     path = Path(path)
     text = path.read_bytes()
     if not text.strip():
@@ -82,7 +100,11 @@ def read_json(path: str | Path, remedy: str) -> Any:
 
 def read_csv(path: str | Path, remedy: str):
     """The pandas DataFrame in CSV file `path`; DamagedFileError naming the file, the fault and `remedy` when it is
-    empty, has no header or rows of another width than the header."""
+    empty, has no header or rows of another width than the header.
+
+    :param path: the file.
+    :param remedy: what the reader should do about a damaged file, for the message.
+    """
     import pandas as pd
 
     path = Path(path)
@@ -97,7 +119,10 @@ def read_csv(path: str | Path, remedy: str):
 def remove_partial_files(folder: str | Path) -> list[Path]:
     """Remove the temporary files that killed writers left under `folder` (see
     :func:`sb3_er.common.atomic.partial_path`, and the ``<name>.partial`` files of earlier versions); return them. Call
-    it only while holding the folder's lock."""
+    it only while holding the folder's lock.
+
+    :param folder: the folder to clean, searched recursively.
+    """
     folder = Path(folder)
     if not folder.is_dir():
         return []
@@ -168,7 +193,11 @@ class FolderLock:
 
 def move_aside(path: str | Path, reason: str = "damaged") -> Path | None:
     """Rename `path` to ``<name>.<reason>-<UTC time>`` (with ``-2``, ``-3``, ... if taken) beside it, so that no
-    reader takes it for the file it was and nothing is lost; return the new path, None when `path` does not exist."""
+    reader takes it for the file it was and nothing is lost; return the new path, None when `path` does not exist.
+
+    :param path: the file (or folder) to move aside.
+    :param reason: the word in the new name (default "damaged").
+    """
     path = Path(path)
     if not path.exists():
         return None
@@ -187,7 +216,10 @@ _held = threading.local()
 
 def holds_folder_locks(function):
     """Decorate a command function (``reproduce``, ``reproduce_<analysis>``) so that the locks it takes with
-    :func:`lock_folder` are held until it returns or raises, and released then."""
+    :func:`lock_folder` are held until it returns or raises, and released then.
+
+    :param function: the command function to decorate.
+    """
 
     @functools.wraps(function)
     def with_locks(*args, **kwargs):
@@ -221,7 +253,11 @@ def lock_folder(*folders: str | Path) -> None:
     _held.folders = held
 
 def save_figure(figure, path: str | Path, **savefig_kwargs) -> Path:
-    """``figure.savefig(path, **savefig_kwargs)`` (a matplotlib figure), atomically."""
+    """``figure.savefig(path, **savefig_kwargs)`` (a matplotlib figure), atomically.
+
+    :param figure: the matplotlib figure.
+    :param path: the image file; its suffix gives the format.
+    """
     with atomic_output(path) as temporary:
         figure.savefig(temporary, **savefig_kwargs)
     return Path(path)

@@ -40,7 +40,10 @@ N_RESAMPLES = 2000
 
 
 def thesis_sign(text: str) -> int | None:
-    """The sign of a printed difference ("-67 %" -> -1, ">+25 %" -> +1, "0 %" -> 0); None for "-" (no figure)."""
+    """The sign of a printed difference ("-67 %" -> -1, ">+25 %" -> +1, "0 %" -> 0); None for "-" (no figure).
+
+    :param text: the thesis table's printed difference.
+    """
     match = re.search(r"([+-]?)(\d+(?:\.\d+)?)\s*%", text)
     if match is None:
         return None
@@ -50,7 +53,13 @@ def thesis_sign(text: str) -> int | None:
 
 
 def metric_value(experiment: Experiment, curves: Curves, metric: str, run_end: float) -> float:
-    """One metric of the mean curve of `curves` (rise time beyond the run: the run's end)."""
+    """One metric of the mean curve of `curves` (rise time beyond the run: the run's end).
+
+    :param experiment: the experiment (its metrics and thesis table).
+    :param curves: one algorithm's learning curves (rows: seeds).
+    :param metric: the metric, a field of the curves' summary (e.g. "rise_time").
+    :param run_end: the run's length, the rise time of a curve that never rises.
+    """
     summary = summarize(experiment, curves)
     if summary is None:
         return math.nan
@@ -98,7 +107,12 @@ def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves
 
 
 def judge(sign: int, low: float, high: float) -> bool | None:
-    """The rule of the module docstring: True (holds), False (does not hold) or None (inconclusive)."""
+    """The rule of the module docstring: True (holds), False (does not hold) or None (inconclusive).
+
+    :param sign: the sign of the thesis's difference (-1, 0 or +1).
+    :param low: the 2.5 percentile of our difference.
+    :param high: its 97.5 percentile.
+    """
     if math.isnan(low) or math.isnan(high) or low <= 0.0 <= high:
         return None
     ours = 1 if low > 0.0 else -1
@@ -151,7 +165,14 @@ def _finite(value: float) -> float | None:
 
 def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0,
                    n_resamples: int = N_RESAMPLES) -> list[dict[str, Any]]:
-    """Every printed difference of the experiment's thesis table, judged on our curves (module docstring)."""
+    """Every printed difference of the experiment's thesis table, judged on our curves (module docstring).
+
+    :param experiment: the experiment (its metrics and thesis table).
+    :param curves: the algorithms' learning curves by algorithm (rows: seeds).
+    :param budget: the runs' length.
+    :param seed: the seed of the bootstrap (default 0).
+    :param n_resamples: bootstrap resamples (default 2000).
+    """
     rng = np.random.default_rng(seed)
     run_end = budget / experiment.rise_time_scale if experiment.protocol == "walking" else budget  # table units
     reference = curves.get(REFERENCE)
@@ -192,7 +213,13 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
 
 
 def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], regime: str = "") -> Path:
-    """``<out_dir>/findings.json`` (the format the docs' verdict table reads), written atomically."""
+    """``<out_dir>/findings.json`` (the format the docs' verdict table reads), written atomically.
+
+    :param out_dir: the results folder.
+    :param thesis: what the folder reproduces, e.g. "Table 6.2".
+    :param findings: the findings (``claim``, ``holds``, ``evidence``).
+    :param regime: the reading's name, added to the file when given (default "").
+    """
     data = {"thesis": thesis, "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
             "bootstrap CI over seeds excludes zero; inconclusive (null) when the CI includes zero; where the thesis "
             "prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no gait",

@@ -190,7 +190,10 @@ def value_updates(model) -> int:
     """Value-function updates so far: online steps (Sarsa(λ), an ER with ``online_lambda``, Dyna's direct update),
     replayed samples (ER), planning updates (Dyna), and for FQI and LSPI the sample backups of their fits (samples
     times sweeps or policy evaluations). An update at the end of an episode is counted in that episode when the
-    protocol reads it after the step (replays and fits run inside the step that ends the episode)."""
+    protocol reads it after the step (replays and fits run inside the step that ends the episode).
+
+    :param model: the learning model.
+    """
     from sb3_er import Dyna
     from sb3_er.common.batch import FittedTileQAlgorithm
 
@@ -202,7 +205,10 @@ def value_updates(model) -> int:
 
 def framework_experiment(problem: Problem) -> Analysis:
     """The runner's experiment of one problem: a task run of ``budget`` learning episodes, the level in its
-    settings (so that a resume with another level is refused)."""
+    settings (so that a resume with another level is refused).
+
+    :param problem: the problem (an entry of :data:`PROBLEMS`).
+    """
     return Analysis(
         name=f"framework-{problem.name}",
         env_id=problem.env_id,
@@ -221,7 +227,11 @@ def framework_experiment(problem: Problem) -> Analysis:
 
 
 def method_kwargs(problem: Problem, method_name: str) -> dict:
-    """The method's settings on `problem` beyond the zoo config (all of them where the problem has none)."""
+    """The method's settings on `problem` beyond the zoo config (all of them where the problem has none).
+
+    :param problem: the problem.
+    :param method_name: the method's rl-zoo name.
+    """
     method = METHODS[method_name]
     base = {} if problem.zoo_configs else dict(MOUNTAIN_CAR_SETTINGS[method.algo])
     base.pop("policy", None)
@@ -230,7 +240,12 @@ def method_kwargs(problem: Problem, method_name: str) -> dict:
 
 def framework_run(job: RunJob, env, report) -> TaskOutput:
     """One (problem, method, seed): learn ``job.budget`` episodes under :class:`FrameworkProtocol`. A divergence ends
-    the run; its rows are kept and marked ``diverged``."""
+    the run; its rows are kept and marked ``diverged``.
+
+    :param job: the run.
+    :param env: the env the runner made for it.
+    :param report: called with the run's finished fraction, for the progress bar.
+    """
     from sb3_er import DivergenceError
     from sb3_er.zoo import algorithm_classes
 
@@ -252,7 +267,14 @@ def framework_run(job: RunJob, env, report) -> TaskOutput:
 def framework_jobs(out_dir: Path, problems: Sequence[str], methods: Sequence[str], seeds: Sequence[int],
                    budget: float | None) -> list[RunJob]:
     """One job per (problem, method, seed): ``<out>/<problem>/runs/<method>/seed_<n>.csv``, key
-    ``<problem>/<method>/seed_<n>``."""
+    ``<problem>/<method>/seed_<n>``.
+
+    :param out_dir: the results folder.
+    :param problems: the problems' names.
+    :param methods: the methods' rl-zoo names.
+    :param seeds: the seeds.
+    :param budget: learning episodes per run (None: each problem's own).
+    """
     jobs = []
     for name in problems:
         problem = PROBLEMS[name]
@@ -268,7 +290,12 @@ def framework_jobs(out_dir: Path, problems: Sequence[str], methods: Sequence[str
 
 def samples_to_level(frame: pd.DataFrame, level: float, window: int = WINDOW) -> float:
     """Env steps until the mean return of the last `window` learning episodes first reaches `level` (the steps at
-    the end of that episode); NaN if it never does."""
+    the end of that episode); NaN if it never does.
+
+    :param frame: one run's CSV (one row per learning episode).
+    :param level: the return to reach.
+    :param window: episodes in the moving mean (default 10).
+    """
     returns = frame["return"].to_numpy(dtype=float)
     if returns.size < window:
         return math.nan
@@ -279,7 +306,11 @@ def samples_to_level(frame: pd.DataFrame, level: float, window: int = WINDOW) ->
 
 def summarize_runs(frames: dict[int, pd.DataFrame], level: float) -> dict:
     """The measured columns of one (problem, method) from its runs (seed -> frame); diverged runs are left out of
-    the averages and counted."""
+    the averages and counted.
+
+    :param frames: the runs' CSVs by seed.
+    :param level: the return of the samples-to-level column.
+    """
     diverged = [seed for seed, frame in frames.items() if frame.empty or frame["diverged"].astype(bool).any()]
     complete = [frame for seed, frame in sorted(frames.items()) if seed not in diverged]
     if not complete:
@@ -323,7 +354,11 @@ def thesis_table_markdown() -> str:
 
 
 def measured_table_markdown(problem: Problem, table: pd.DataFrame) -> str:
-    """The measured table of one problem: Table 3.1's qualitative columns of the method's row beside ours."""
+    """The measured table of one problem: Table 3.1's qualitative columns of the method's row beside ours.
+
+    :param problem: the problem.
+    :param table: its measured table (:func:`summarize_runs` per method).
+    """
     lines = [
         (f"| Method | Update | Operator | pi/vi | Complexity (thesis) | Samples to mean return ≥ {problem.level:g} "
         "(seeds that reach it) | End performance (last 10 episodes) | Updates / episode | CPU s / episode | "
@@ -373,6 +408,20 @@ def reproduce_framework(
     ``<problem>/settings.json``, ``<problem>/learning_curves.png``, ``summary.md`` and ``summary.csv``. An
     interrupted run resumes; a folder holding runs of other settings or code is refused as in the other
     reproductions. Returns a Reproduction.
+
+    :param n_seeds: the number of seeds (default 20, the thesis's).
+    :param out_dir: the results folder (default None: ``results/<name>``).
+    :param budget: learning episodes of every problem (default None: each problem's own).
+    :param n_workers: worker processes, or the local Ray instance's CPUs (default None: all CPUs).
+    :param first_seed: the first seed; the seeds are ``first_seed, ..., first_seed + n_seeds - 1`` (default 0).
+    :param show_progress: show a progress bar (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster's address (default None: a new local instance; only with ``backend="ray"``).
+    :param allow_mixed_versions: accept finished runs made by other code or settings (default False: refused).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
+        None).
+    :param problems: the problems' names (default None: all).
+    :param methods: the methods' rl-zoo names (default None: all).
     """
     from sb3_er.experiments.plots import plot_mean_with_ci
     from sb3_er.experiments.reproduce import Reproduction

@@ -81,6 +81,12 @@ def gait_trace(
 
     ``start_state`` is a state ``[phi_st, phi_h, phi_st', phi_h']`` (default Garcia's fixed point, so that traces of
     different algorithms start alike), or None for the env's random start drawn with ``seed``.
+
+    :param model: the trained model (acts greedily).
+    :param env: a simplest-walker env.
+    :param seconds: how long to walk [s of model time] (default 10).
+    :param start_state: the start (see above; default Garcia's fixed point).
+    :param seed: the seed of a random start (default None).
     """
     base = _walker(env)
     rows: list[tuple[float, float, float]] = []
@@ -106,7 +112,12 @@ def gait_trace(
 
 def plot_gait(traces: Mapping[str, GaitTrace], path: str | Path, title: str | None = None) -> Path:
     """Figures 4.6 / 6.3: stance angle, hip angle and swing-foot height against time in three stacked panels, one line
-    per label (e.g. per algorithm); a cross marks a fall. Saved to ``path`` (format from its suffix)."""
+    per label (e.g. per algorithm); a cross marks a fall. Saved to ``path`` (format from its suffix).
+
+    :param traces: the traces by label.
+    :param path: the image file.
+    :param title: the figure's title (default None: none).
+    """
     if not traces:
         raise ValueError("plot_gait needs at least one trace")
     import matplotlib
@@ -154,6 +165,14 @@ def save_walker_gif(
     ``fps`` frames per second of playback: 5 (= 1 / dt) plays in model time. ``env`` must render ``rgb_array``;
     None makes ``sb3_er/SimplestWalker-v0`` with its default options (pass your own env for other options or
     CompassWalker-v0). Needs ``imageio`` (the ``dmc`` extra).
+
+    :param model: the trained model (acts greedily).
+    :param path: the GIF file.
+    :param seconds: how long to walk [s of model time] (default 10).
+    :param fps: frames per second of playback (default 5).
+    :param env: the env to walk in (default None: see above).
+    :param start_state: the start state (default Garcia's fixed point; None: the env's random start).
+    :param seed: the seed of the env's reset (default None).
     """
     if not (np.isfinite(fps) and fps > 0.0):
         raise ValueError(f"fps must be a positive finite number, got {fps}")

@@ -62,7 +62,11 @@ class StopAtFirstGoal(BaseCallback):
 
 
 def value_map(model, env) -> np.ndarray:
-    """V(x, y) = max_a Q((x, y), a) of every non-goal cell, indexed [y, x] (y northwards)."""
+    """V(x, y) = max_a Q((x, y), a) of every non-goal cell, indexed [y, x] (y northwards).
+
+    :param model: the trained model.
+    :param env: its grid-world env.
+    """
     unwrapped = env.unwrapped
     xs, ys = np.meshgrid(np.arange(unwrapped.goal_column), np.arange(unwrapped.height))
     cells = np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
@@ -70,7 +74,11 @@ def value_map(model, env) -> np.ndarray:
 
 
 def map_statistics(values: np.ndarray, first_windy_row: int) -> dict[str, float]:
-    """Figures behind the thesis's reading of a value map: the windy (doomed-to-fall) area against the calm one."""
+    """Figures behind the thesis's reading of a value map: the windy (doomed-to-fall) area against the calm one.
+
+    :param values: a value map V[y, x] of the non-goal cells (y northwards).
+    :param first_windy_row: the first row in the wind.
+    """
     windy, calm = values[first_windy_row:], values[:first_windy_row]
     return {
         "windy_max": float(windy.max()),
@@ -90,7 +98,14 @@ def _new_model(algo: str, env, policy_kwargs: dict, seed: int):
 
 
 def learn_until_goal(algo: str, env, policy_kwargs: dict, seed: int, max_episodes: int = 1000):
-    """A learning run of `algo` stopped after the episode in which it first reaches the goal."""
+    """A learning run of `algo` stopped after the episode in which it first reaches the goal.
+
+    :param algo: the algorithm's rl-zoo name.
+    :param env: the grid-world env.
+    :param policy_kwargs: the policy's tiling settings (the case's).
+    :param seed: the seed.
+    :param max_episodes: the most episodes to learn (default 1000).
+    """
     model = _new_model(algo, env, policy_kwargs, seed)
     stopper = StopAtFirstGoal(max_episodes)
     model.learn(total_timesteps=max_episodes * env.unwrapped.max_episode_steps + 1, callback=stopper)
@@ -101,7 +116,11 @@ def learn_until_goal(algo: str, env, policy_kwargs: dict, seed: int, max_episode
 
 def positive_cells(values: np.ndarray, first_windy_row: int) -> dict[str, int]:
     """How far the goal's reward has spread in a value map V[y, x] (non-goal cells): the number of cells with V > 0
-    in all (``positive_cells``), below the wind (``calm_positive_cells``) and in it (``windy_positive_cells``)."""
+    in all (``positive_cells``), below the wind (``calm_positive_cells``) and in it (``windy_positive_cells``).
+
+    :param values: a value map V[y, x] of the non-goal cells (y northwards).
+    :param first_windy_row: the first row in the wind.
+    """
     return {
         "positive_cells": int((values > 0).sum()),
         "calm_positive_cells": int((values[:first_windy_row] > 0).sum()),
@@ -111,7 +130,10 @@ def positive_cells(values: np.ndarray, first_windy_row: int) -> dict[str, int]:
 
 def replay_variants(pessimistic_value: float | None = None) -> dict[str, tuple[str, dict]]:
     """The replay variants of the value-map study: name -> (algorithm, policy kwargs on top of the case's tiling).
-    With `pessimistic_value`, also vanilla ER whose Q starts at that value everywhere (:data:`PESSIMISTIC`)."""
+    With `pessimistic_value`, also vanilla ER whose Q starts at that value everywhere (:data:`PESSIMISTIC`).
+
+    :param pessimistic_value: the pessimistic initial Q (default None: no pessimistic variant).
+    """
     variants = {algo: (algo, {}) for algo in REPLAY_VARIANTS}
     if pessimistic_value is not None:
         variants[PESSIMISTIC] = ("er", {"initial_value": float(pessimistic_value)})
@@ -121,7 +143,14 @@ def replay_variants(pessimistic_value: float | None = None) -> dict[str, tuple[s
 def replay_model(algo: str, env, policy_kwargs: dict, seed: int, buffer_path: Path):
     """A fresh `algo` model (the grid world's thesis settings, `policy_kwargs`, `seed`) holding the replay buffer
     saved at `buffer_path`, its trajectory generator seeded with `seed`: every such model replays the same
-    trajectories (thesis 5.2-5.4, "the exact same samples are replayed")."""
+    trajectories (thesis 5.2-5.4, "the exact same samples are replayed").
+
+    :param algo: the algorithm's rl-zoo name.
+    :param env: the grid-world env.
+    :param policy_kwargs: the policy's tiling settings (the case's).
+    :param seed: the seed.
+    :param buffer_path: the saved replay buffer.
+    """
     model = _new_model(algo, env, policy_kwargs, seed)
     model.load_replay_buffer(buffer_path)
     model.seed_replay(seed)
@@ -136,6 +165,10 @@ def same_data_value_maps(
     Situations: ``"after goal"`` (one replay phase, Table 5.1) and ``"long replay"`` (`long_phases` phases, Table 5.2).
     With `pessimistic_value` (e.g. :data:`PESSIMISTIC_VALUE`), vanilla ER with Q starting at that value replays the
     same data too, under the name :data:`PESSIMISTIC` (thesis Figure 5.5).
+
+    :param seed: the seed of the collecting runs and the replays (default 0).
+    :param long_phases: replay phases of the long replay (default 30).
+    :param pessimistic_value: the pessimistic initial Q (default None: no pessimistic variant).
     """
     import gymnasium as gym
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sb3_er.common.docstrings import accepted_parameters
 from sb3_er.experiments.specs import Experiment
 
 
@@ -50,18 +51,6 @@ class RunJob:
         return f"{self.label or self.algo}/seed_{self.seed}"
 
 
-def accepted_parameters(algorithm_class: type) -> set[str]:
-    """Constructor parameter names of `algorithm_class` and its sb3_er base classes (which receive ``**kwargs``)."""
-    import inspect
-
-    names: set[str] = set()
-    for cls in algorithm_class.__mro__:
-        if cls.__module__.startswith("sb3_er") and "__init__" in vars(cls):
-            names.update(name for name, parameter in inspect.signature(cls.__init__).parameters.items()
-                         if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY))
-    return names
-
-
 RUNNER_ARGUMENTS = {
     "self": "a method's own object",
     "policy": "the runner passes the policy, 'TileQ'",
@@ -78,12 +67,17 @@ refuses them (:func:`check_algo_kwargs`)."""
 def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, Any], who: str | None = None) -> None:
     """ValueError naming the problem when `algo_kwargs` sets an argument the runner sets itself (RUNNER_ARGUMENTS)
     or one that none of `algorithm_classes` has; `who` names the one algorithm in the message (default: "no chosen
-    algorithm")."""
+    algorithm").
+
+    :param algorithm_classes: the classes of the chosen algorithms.
+    :param algo_kwargs: the settings by parameter name.
+    :param who: the one algorithm's name for the message (default None: several).
+    """
     reserved = [name for name in algo_kwargs if name in RUNNER_ARGUMENTS]
     if reserved:
         raise ValueError("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}"
                                                                  for name in reserved))
-    accepted = set().union(*(accepted_parameters(cls) for cls in algorithm_classes)) - set(RUNNER_ARGUMENTS)
+    accepted = set().union(*map(accepted_parameters, algorithm_classes)) - set(RUNNER_ARGUMENTS)
     unknown = sorted(set(algo_kwargs) - accepted)
     if unknown:
         if who is None:
@@ -93,15 +87,23 @@ def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, 
 
 def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
-    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda))."""
+    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda)).
+
+    :param job: the run.
+    """
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
     kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
-    accepted = accepted_parameters(algorithm_classes()[job.algo])
+    accepted = set(accepted_parameters(algorithm_classes()[job.algo]))
     kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS})
     return kwargs
 
 
 def run_csv_path(out_dir: Path, algo: str, seed: int) -> Path:
-    """Where the CSV of one run lives (its version record is beside it, ``.json``)."""
+    """Where the CSV of one run lives (its version record is beside it, ``.json``).
+
+    :param out_dir: the results folder.
+    :param algo: the run's name (its algorithm, or its label).
+    :param seed: the run's seed.
+    """
     return Path(out_dir) / "runs" / algo / f"seed_{seed}.csv"

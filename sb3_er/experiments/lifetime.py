@@ -42,7 +42,11 @@ def die_with_parent(parent_pid: int, name: str | None = None) -> None:
     """Make this process end when the process `parent_pid` (its parent) ends: SIGKILL from the kernel on Linux (also
     when this process is stopped or blocked), and a daemon thread that kills this process within WATCH_INTERVAL_S of
     being orphaned on any platform. `name` (at most 15 bytes) then becomes the process's name on Linux, as ``ps``,
-    ``top`` and the OOM killer's log show it."""
+    ``top`` and the OOM killer's log show it.
+
+    :param parent_pid: the parent's process id.
+    :param name: the process name to set (default None: keep it).
+    """
     _prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
     if os.getppid() != parent_pid:  # the parent died before the line above
         os._exit(1)
@@ -70,7 +74,10 @@ def _proc_stat(pid: int) -> tuple[int, int] | None:
 
 
 def descendants(pid: int | None = None) -> dict[int, int]:
-    """The living descendants of `pid` (default this process), pid to start time; empty where /proc is missing."""
+    """The living descendants of `pid` (default this process), pid to start time; empty where /proc is missing.
+
+    :param pid: the ancestor's process id (default None: this process).
+    """
     pid = os.getpid() if pid is None else pid
     children: dict[int, list[int]] = {}
     started: dict[int, int] = {}

@@ -22,7 +22,12 @@ def _as_seed_matrix(curves) -> np.ndarray:
 
 
 def mean_confidence_interval(samples, confidence: float = 0.95, axis: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and the half-width of its Student-t confidence interval along `axis` (NaN half-width for one sample)."""
+    """Mean and the half-width of its Student-t confidence interval along `axis` (NaN half-width for one sample).
+
+    :param samples: the samples (an array; rows along `axis`).
+    :param confidence: the interval's confidence level (default 0.95).
+    :param axis: the axis of the samples (default 0).
+    """
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
     values = np.asarray(samples, dtype=float)
@@ -40,6 +45,9 @@ def end_performance(mean_curve, success_threshold: float | None = None) -> float
     """Highest value of the mean curve, the thesis's "highest performance after a successful gait has been learned".
 
     With a `success_threshold`, a curve that never reaches it has learned no gait: the result is NaN (thesis "NA").
+
+    :param mean_curve: the mean curve over seeds, (P,).
+    :param success_threshold: the level a curve must reach to count as learned (default None: any).
     """
     curve = _as_seed_matrix(mean_curve)[0]
     best = float(np.max(curve))
@@ -54,6 +62,11 @@ def rise_time(abscissa, mean_curve, end: float | None = None, fraction: float = 
     `end` defaults to the curve's maximum (the end performance). For curves starting at zero, such as walked distance,
     this is the thesis's "time to reach 90% of the end performance"; measuring from the first value also makes it
     meaningful for negative returns (pendulum). NaN when `end` is NaN (no gait learned) or is never reached.
+
+    :param abscissa: the curve's x values (episodes or seconds), (P,).
+    :param mean_curve: the mean curve over seeds, (P,).
+    :param end: the value the rise aims at (default None: the curve's maximum).
+    :param fraction: the share of the way from the first value to `end` (default 0.9).
     """
     x = np.asarray(abscissa, dtype=float)
     curve = _as_seed_matrix(mean_curve)[0]
@@ -78,6 +91,11 @@ def settling_time(abscissa, mean_curve, tolerance: float = 0.1, plateau_points: 
     first value nor from the best value, so once a run is long enough to reach its plateau, a longer run leaves it
     unchanged (the thesis's rise time moves with the run length whenever the mean curve still creeps up at its end).
     NaN when the plateau is 0.
+
+    :param abscissa: the curve's x values (episodes or seconds), (P,).
+    :param mean_curve: the mean curve over seeds, (P,).
+    :param tolerance: the relative distance to the plateau (default 0.1).
+    :param plateau_points: points at the end averaged into the plateau (default 10).
     """
     x = np.asarray(abscissa, dtype=float)
     curve = _as_seed_matrix(mean_curve)[0]
@@ -96,7 +114,11 @@ def settling_time(abscissa, mean_curve, tolerance: float = 0.1, plateau_points: 
 
 
 def relative_difference(value: float, reference: float) -> float:
-    """Difference with a reference in percent of the reference's magnitude (the thesis tables' last column)."""
+    """Difference with a reference in percent of the reference's magnitude (the thesis tables' last column).
+
+    :param value: our value.
+    :param reference: the reference value.
+    """
     if reference == 0 or np.isnan(reference):
         return float("nan")
     return 100.0 * (value - reference) / abs(reference)
@@ -134,7 +156,15 @@ def summarize_curves(
     fraction: float = 0.9,
     confidence: float = 0.95,
 ) -> CurveSummary:
-    """Summarise per-seed learning curves (rows: seeds) the way thesis Tables 6.1-6.3 do."""
+    """Summarise per-seed learning curves (rows: seeds) the way thesis Tables 6.1-6.3 do.
+
+    :param abscissa: the curves' x values, (P,).
+    :param performance: the per-seed curves, (S, P).
+    :param cumulative_falls: the per-seed cumulative falls, (S, P) (default None: no falls column).
+    :param success_threshold: see :func:`end_performance` (default None).
+    :param fraction: see :func:`rise_time` (default 0.9).
+    :param confidence: the confidence level of the intervals (default 0.95).
+    """
     curves = _as_seed_matrix(performance)
     mean, half_width = mean_confidence_interval(curves, confidence)
     end = end_performance(mean, success_threshold)

@@ -50,12 +50,19 @@ THESIS_CLAIM = "slower, narrower back-propagation than ER-σ (fewer cells with V
 
 
 def variant_label(variant: str, initial_value: float) -> str:
-    """Display name of a replay variant, the pessimistic one with its initial value."""
+    """Display name of a replay variant, the pessimistic one with its initial value.
+
+    :param variant: the variant's name.
+    :param initial_value: the pessimistic initial Q.
+    """
     return {"er": "vanilla-ER", "er_sigma": "ER-σ"}.get(variant, f"ER, pessimistic Q₀ = {initial_value:g}")
 
 
 def figure_variants(initial_value: float) -> dict[str, tuple[str, dict]]:
-    """The variants of Figure 5.5: name -> (algorithm, policy kwargs on top of the case's tiling)."""
+    """The variants of Figure 5.5: name -> (algorithm, policy kwargs on top of the case's tiling).
+
+    :param initial_value: the pessimistic initial Q.
+    """
     from sb3_er.experiments.gridworld import PESSIMISTIC, replay_variants
 
     variants = replay_variants(initial_value)
@@ -79,6 +86,10 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
     ``database_sha256`` and ``diverged``; the tile-coding case's collector is the run's model. A figure run also
     returns the value maps after the first and the last phase (``value_maps.csv``: case, variant, phase, y, x,
     value). RuntimeError when no collector reaches the goal within 1000 episodes.
+
+    :param job: the run.
+    :param env: the env the runner made for it.
+    :param report: called with the run's finished fraction, for the progress bar.
     """
     from sb3_er import DivergenceError
     from sb3_er.experiments.gridworld import (CASES, REPLAYS_PER_TRAJECTORY, learn_until_goal, map_statistics,
@@ -131,7 +142,12 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
 def pessimistic_table(frames: dict[int, pd.DataFrame], phases: int, initial_value: float) -> pd.DataFrame:
     """Per (situation, case, variant): mean over seeds with 95% CI of the cells with V > 0 (all, calm, windy), the mean
     calm V, the windy max and the overall max of V (``max_v``), the paired difference of positive cells with ER-sigma (same data and replays), and the
-    thesis's claim beside the pessimistic rows. Situations: after phase 1 and after phase `phases`."""
+    thesis's claim beside the pessimistic rows. Situations: after phase 1 and after phase `phases`.
+
+    :param frames: the runs' CSVs by seed.
+    :param phases: the long replay's phases.
+    :param initial_value: the pessimistic initial Q.
+    """
     data = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
     rows = []
     for situation, phase in (("after_goal", 1), ("long_replay", phases)):
@@ -231,6 +247,19 @@ def reproduce_pessimistic(
     Figure 5.5) and ``positive_cells.png`` (cells with V > 0 against replay phases, mean and 95 % CI per case) into
     `out_dir` (default ``results/pessimistic``). Returns a Reproduction. ValueError for bad settings or a folder
     holding runs of other settings; MixedVersionsError / RunFailure as :func:`sb3_er.experiments.reproduce.reproduce`.
+
+    :param n_seeds: the number of seeds (default 20, the thesis's).
+    :param out_dir: the results folder (default None: ``results/<name>``).
+    :param budget: replay phases of the long replay (default None: 30).
+    :param n_workers: worker processes, or the local Ray instance's CPUs (default None: all CPUs).
+    :param first_seed: the first seed; the seeds are ``first_seed, ..., first_seed + n_seeds - 1`` (default 0).
+    :param show_progress: show a progress bar (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster's address (default None: a new local instance; only with ``backend="ray"``).
+    :param allow_mixed_versions: accept finished runs made by other code or settings (default False: refused).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
+        None).
+    :param initial_value: the pessimistic initial Q (default None: -50).
     """
     import gymnasium as gym
     import matplotlib.pyplot as plt

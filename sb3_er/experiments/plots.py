@@ -20,7 +20,14 @@ from sb3_er.experiments.thesis import ALGORITHM_LABELS  # noqa: E402
 def plot_mean_with_ci(
     series: Mapping[str, tuple[np.ndarray, np.ndarray]], x_label: str, y_label: str, title: str, path: Path
 ) -> Path:
-    """One line per algorithm (mean over seeds) with a shaded 95% confidence interval of the mean; saved to `path`."""
+    """One line per algorithm (mean over seeds) with a shaded 95% confidence interval of the mean; saved to `path`.
+
+    :param series: per label, (x of shape (P,), samples of shape (S, P)).
+    :param x_label: the x axis's label.
+    :param y_label: the y axis's label.
+    :param title: the figure's title.
+    :param path: the image file; its suffix gives the format.
+    """
     figure, axes = plt.subplots(figsize=(7.0, 4.2))
     for algo, (x, curves) in series.items():
         mean, half_width = mean_confidence_interval(curves)
@@ -42,7 +49,14 @@ def plot_typical_runs(
     runs: Mapping[str, tuple[np.ndarray, np.ndarray]], x_label: str, y_label: str, title: str, path: Path
 ) -> Path:
     """Figure 4.5: one run's learning curve per algorithm (label -> (x, y)), to show how single runs behave (drops in
-    performance, runs that find no gait) where the mean curves smooth it away; saved to `path`."""
+    performance, runs that find no gait) where the mean curves smooth it away; saved to `path`.
+
+    :param runs: per label, (x, y) of one run.
+    :param x_label: the x axis's label.
+    :param y_label: the y axis's label.
+    :param title: the figure's title.
+    :param path: the image file; its suffix gives the format.
+    """
     figure, axes = plt.subplots(figsize=(7.0, 4.2))
     for label, (x, y) in runs.items():
         axes.plot(x, y, label=label, linewidth=1.2)
@@ -69,6 +83,11 @@ def plot_value_maps(
     Each map is indexed [y, x] with y growing northwards; the wind starts at `first_windy_row` (dashed line, the
     thesis's striped line). Every cell is annotated with its value; each map has its own symmetric colour scale (red
     negative, blue positive) so that a diverged map does not wash out the others.
+
+    :param maps: value maps V[y, x] by case, then by algorithm.
+    :param first_windy_row: the first row in the wind.
+    :param title: the figure's title.
+    :param path: the image file; its suffix gives the format.
     """
     rows = list(maps)
     columns = list(maps[rows[0]])
@@ -101,7 +120,15 @@ def plot_mean_with_error_bars(
 ) -> Path:
     """Figure A.1's style: per series (label -> (x of shape (P,), samples of shape (S, P), rows the seeds)) the mean
     at each x with the 95% CI of the mean as error bars, the series shifted slightly apart along x so that their bars
-    do not hide each other; `references` (label -> value) are drawn as dashed horizontal lines. Saved to `path`."""
+    do not hide each other; `references` (label -> value) are drawn as dashed horizontal lines. Saved to `path`.
+
+    :param series: per label, (x of shape (P,), samples of shape (S, P)).
+    :param x_label: the x axis's label.
+    :param y_label: the y axis's label.
+    :param title: the figure's title.
+    :param path: the image file; its suffix gives the format.
+    :param references: horizontal reference lines by label (default None: none).
+    """
     figure, axes = plt.subplots(figsize=(7.0, 4.2))
     span = max((float(np.ptp(x)) for x, _ in series.values() if len(x)), default=1.0) or 1.0
     shift = 0.012 * span
@@ -129,7 +156,13 @@ def plot_mean_with_error_bars(
 
 def plot_scores(scores: Mapping[str, np.ndarray], y_label: str, title: str, path: Path) -> Path:
     """Figure B.1's style: one category per key (in the given order) with its per-run scores (1-D), the mean and
-    the 95% CI of the mean as an error bar, the single runs as faint dots. Saved to `path`."""
+    the 95% CI of the mean as an error bar, the single runs as faint dots. Saved to `path`.
+
+    :param scores: per category, its per-run scores (1-D).
+    :param y_label: the y axis's label.
+    :param title: the figure's title.
+    :param path: the image file; its suffix gives the format.
+    """
     figure, axes = plt.subplots(figsize=(7.0, 4.2))
     for index, (label, values) in enumerate(scores.items()):
         values = np.asarray(values, dtype=float).reshape(-1)

@@ -19,7 +19,10 @@ ProgressHook = Callable[[float], None]
 
 
 def values_out_of_range(model) -> int:
-    """The learner's count of values seen outside the possible returns so far; -1 without a value watch."""
+    """The learner's count of values seen outside the possible returns so far; -1 without a value watch.
+
+    :param model: the learning sb3-er algorithm.
+    """
     if getattr(model, "value_bounds", None) is None:
         return -1
     return int(model.values_out_of_range)

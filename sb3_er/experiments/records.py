@@ -73,6 +73,8 @@ def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
     None when clean. All three are None when `root` is not the top level of a git work tree (so a wheel installed in a
     virtual environment inside some other repository gets None, not that repository's commit), when git is not
     installed, or when git fails (e.g. "dubious ownership").
+
+    :param root: the checkout's top level (default: the folder holding the imported package).
     """
     unknown = {"git_commit": None, "git_dirty": None, "git_diff_sha256": None}
     root = Path(root).resolve()
@@ -169,7 +171,10 @@ def _jsonable(value: Any) -> Any:
 
 
 def normalized(record: dict[str, Any]) -> dict[str, Any]:
-    """`record` as it reads back from its JSON file (tuples become lists, numpy numbers Python numbers)."""
+    """`record` as it reads back from its JSON file (tuples become lists, numpy numbers Python numbers).
+
+    :param record: a run's version record (a dict as written to its JSON file).
+    """
     return json.loads(json.dumps(_jsonable(record)))
 
 
@@ -178,6 +183,8 @@ def run_config(job) -> dict[str, Any]:
 
     Raises ValueError for an algorithm that has no class (the zoo lookup names the known ones) and KeyError when
     ``zoo_configs/<algo>.yml`` has no entry for the experiment's env.
+
+    :param job: the run (a :class:`~sb3_er.experiments.jobs.RunJob`).
     """
     from sb3_er.experiments.jobs import job_model_kwargs
     from sb3_er.zoo import algorithm_classes
@@ -214,6 +221,9 @@ def resolved_settings(model, env) -> dict[str, Any]:
     ``algorithm``: each constructor parameter of the model's classes defined in sb3_er, read back from the model's
     attribute of that name when it has one. ``env``: the unwrapped env's constructor arguments, the ones given to
     ``gymnasium.make`` with the defaults of the rest.
+
+    :param model: the constructed sb3-er algorithm.
+    :param env: its Gymnasium env (wrapped or not).
     """
     names: list[str] = []
     for cls in type(model).__mro__:
@@ -237,7 +247,10 @@ def resolved_settings(model, env) -> dict[str, Any]:
 
 
 def dependency_versions(names: Iterable[str] = DEPENDENCIES) -> dict[str, str | None]:
-    """Installed versions of `names` (distribution names), None for those not installed."""
+    """Installed versions of `names` (distribution names), None for those not installed.
+
+    :param names: distribution names (default: the packages a run's results depend on).
+    """
     versions = {}
     for name in names:
         try:
@@ -251,6 +264,9 @@ def current_record(job, code: dict[str, Any] | None = None) -> dict[str, Any]:
     """The comparable part of the record that `job` would get from this process: code version, config, dependencies.
 
     `code` is a :func:`code_version` result to reuse (git is asked once per call otherwise).
+
+    :param job: the run (a :class:`~sb3_er.experiments.jobs.RunJob`).
+    :param code: a :func:`code_version` result (default None: read it now).
     """
     return normalized(
         {
@@ -268,6 +284,12 @@ def finished_record(job, model, env, wall_time_s: float, code: dict[str, Any] | 
     """The full record of a finished run of `job`: :func:`current_record` plus resolved settings, host and times.
 
     `code` is the :func:`code_version` read when the run started (read now when None).
+
+    :param job: the run (a :class:`~sb3_er.experiments.jobs.RunJob`).
+    :param model: the trained model.
+    :param env: its env.
+    :param wall_time_s: the run's wall time [s].
+    :param code: a :func:`code_version` result (default None: read it now).
     """
     return normalized(
         {
@@ -281,12 +303,19 @@ def finished_record(job, model, env, wall_time_s: float, code: dict[str, Any] | 
 
 
 def record_path(csv_path: str | Path) -> Path:
-    """Where the record of the run whose CSV is `csv_path` lives: the same name with ``.json``."""
+    """Where the record of the run whose CSV is `csv_path` lives: the same name with ``.json``.
+
+    :param csv_path: the run's CSV file.
+    """
     return Path(csv_path).with_suffix(".json")
 
 
 def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
-    """Write `data` as indented JSON to `path` atomically (see :func:`sb3_er.experiments.files.write_json`)."""
+    """Write `data` as indented JSON to `path` atomically (see :func:`sb3_er.experiments.files.write_json`).
+
+    :param path: the file.
+    :param data: the JSON-able data.
+    """
     files.write_json(path, data)
 
 
@@ -296,7 +325,10 @@ RECORD_REMEDY = ("rerun the command: it moves the run's files aside (renamed, ke
 
 def read_record(csv_path: str | Path) -> dict[str, Any] | None:
     """The record beside `csv_path`, or None when there is none. An empty file, a file that is not JSON or not a JSON
-    object raises DamagedFileError (a ValueError) naming the file and what to do."""
+    object raises DamagedFileError (a ValueError) naming the file and what to do.
+
+    :param csv_path: the run's CSV file.
+    """
     path = record_path(csv_path)
     if not path.is_file():
         return None
@@ -312,13 +344,19 @@ def _sha256(data: bytes) -> str:
 
 def record_checksum(record: dict[str, Any]) -> str:
     """SHA-256 of every field of `record` but ``checksum`` itself, as key-sorted compact JSON: a field added to the
-    record (by the run, the driver or a later version) is covered without any change here."""
+    record (by the run, the driver or a later version) is covered without any change here.
+
+    :param record: a run's version record (a dict as written to its JSON file).
+    """
     content = {key: value for key, value in record.items() if key != CHECKSUM_FIELD}
     return _sha256(json.dumps(content, sort_keys=True, separators=(",", ":")).encode())
 
 
 def csv_rows(data: bytes) -> int:
-    """The number of data rows of CSV text `data` (lines after the header; a quoted field may span lines)."""
+    """The number of data rows of CSV text `data` (lines after the header; a quoted field may span lines).
+
+    :param data: the CSV file's bytes.
+    """
     import csv
 
     return max(0, sum(1 for _ in csv.reader(io.StringIO(data.decode(errors="replace")))) - 1)
@@ -328,7 +366,13 @@ def sealed(record: dict[str, Any], csv_name: str, csv_data: bytes, artifacts: di
            **fields: Any) -> dict[str, Any]:
     """`record` ready to be written after its files: ``format`` set to RECORD_FORMAT, ``files`` holding each file's
     name (beside the record) with its SHA-256 and, for the run's CSV `csv_name`, its row count; `fields` added; and
-    ``checksum`` (see :func:`record_checksum`) over all of it. `artifacts` maps file names to their contents."""
+    ``checksum`` (see :func:`record_checksum`) over all of it. `artifacts` maps file names to their contents.
+
+    :param record: a run's version record (a dict as written to its JSON file).
+    :param csv_name: the file name of the run's CSV.
+    :param csv_data: the CSV's bytes.
+    :param artifacts: other files' contents by file name (default None: none).
+    """
     record = {key: value for key, value in normalized(record).items() if key != CHECKSUM_FIELD}
     record.update(normalized(fields))
     record["format"] = RECORD_FORMAT
@@ -340,7 +384,11 @@ def sealed(record: dict[str, Any], csv_name: str, csv_data: bytes, artifacts: di
 
 def check_sealed(record: dict[str, Any], csv_path: Path) -> str | None:
     """What is wrong with a sealed run (its record and the files it names, see :func:`sealed`), or None when the
-    record's checksum matches its content and every file its checksum and row count."""
+    record's checksum matches its content and every file its checksum and row count.
+
+    :param record: the sealed record read back.
+    :param csv_path: the run's CSV file.
+    """
     if record.get(CHECKSUM_FIELD) != record_checksum(record):
         return f"{record_path(csv_path)}: the record's checksum does not match its content (edited or damaged)"
     named = record.get("files")
@@ -361,7 +409,11 @@ def check_sealed(record: dict[str, Any], csv_path: Path) -> str | None:
 def check_legacy_csv(csv_path: Path, expected_rows: int | None) -> str | None:
     """What is wrong with the CSV of a run whose record predates checksums, or None: it must be well-formed CSV
     (a header, every line as many fields as the header, ending in a newline) with `expected_rows` rows, the length
-    the protocol gives the run (when `expected_rows` is known), or fewer only when its ``diverged`` column says so."""
+    the protocol gives the run (when `expected_rows` is known), or fewer only when its ``diverged`` column says so.
+
+    :param csv_path: the run's CSV file.
+    :param expected_rows: the rows the protocol gives the run, or None when unknown.
+    """
     import csv
 
     data = csv_path.read_bytes()
@@ -385,7 +437,10 @@ SETTINGS_NAME = "settings.json"
 
 
 def holds_runs(out_dir: str | Path) -> bool:
-    """Whether results folder `out_dir` holds the CSV of any run (``runs/**/seed_<n>.csv``)."""
+    """Whether results folder `out_dir` holds the CSV of any run (``runs/**/seed_<n>.csv``).
+
+    :param out_dir: the results folder.
+    """
     return any(path.is_file() for path in (Path(out_dir) / "runs").rglob("seed_*.csv"))
 
 
@@ -396,6 +451,9 @@ def check_settings(out_dir: str | Path, settings: dict[str, Any]) -> None:
     settings but holds no run (left by a command whose runs all failed) is not refused: its settings are replaced
     when the first run finishes. An empty or unreadable settings file is moved aside (renamed, kept) with a warning
     naming it and is pinned anew: the runs' records hold their settings too and are checked on their own.
+
+    :param out_dir: the results folder.
+    :param settings: the command's settings (seeds aside), as ``settings.json`` holds them.
     """
     import warnings
 
@@ -419,7 +477,11 @@ def check_settings(out_dir: str | Path, settings: dict[str, Any]) -> None:
 
 def pin_settings(out_dir: str | Path, settings: dict[str, Any]) -> None:
     """Write `settings` to ``out_dir/settings.json`` (atomically) unless it holds them already. Call it once a run of
-    `out_dir` has finished (see :func:`check_settings`)."""
+    `out_dir` has finished (see :func:`check_settings`).
+
+    :param out_dir: the results folder.
+    :param settings: the command's settings (seeds aside), as ``settings.json`` holds them.
+    """
     path = Path(out_dir) / SETTINGS_NAME
     wanted = normalized(settings)
     try:
@@ -461,6 +523,9 @@ def compare_records(recorded: dict[str, Any] | None, current: dict[str, Any]) ->
     Each reason is one line naming the field with its recorded and current values, e.g.
     ``"config.algorithm_kwargs.learning_rate 0.25 -> 0.3"``. `recorded` None (a run without a record) refuses as an
     unknown version.
+
+    :param recorded: the run's record, or None when it has none.
+    :param current: the record this process would write (:func:`current_record`).
     """
     if recorded is None:
         return ["no version record (a run made before records existed, or its .json was deleted): unknown version"], []
@@ -489,6 +554,8 @@ def compact_runs(runs: Iterable[str]) -> str:
     e.g. ``["pendulum/er/seed_0", "pendulum/er/seed_1", "pendulum/er/seed_2", "pendulum/er/seed_5", "lspi/seed_3"]``
     -> ``"pendulum/er/seed_0-2, 5, lspi/seed_3"``; keys without a seed are kept as they are. A resume of hundreds of
     runs names them in a line or two instead of one name per run.
+
+    :param runs: run keys such as ``"er/seed_3"``.
     """
     seeds_by_prefix: dict[str, list[int]] = {}
     for run in runs:
@@ -511,7 +578,10 @@ def compact_runs(runs: Iterable[str]) -> str:
 
 
 def grouped(reasons_by_run: dict[str, list[str]]) -> list[str]:
-    """Lines ``"runs: reason; reason"``, one per distinct list of reasons, runs as :func:`compact_runs` writes them."""
+    """Lines ``"runs: reason; reason"``, one per distinct list of reasons, runs as :func:`compact_runs` writes them.
+
+    :param reasons_by_run: reasons (one line each) by run key.
+    """
     groups: dict[tuple[str, ...], list[str]] = {}
     for run, reasons in reasons_by_run.items():
         if reasons:
@@ -520,7 +590,10 @@ def grouped(reasons_by_run: dict[str, list[str]]) -> list[str]:
 
 
 def describe_code(record: dict[str, Any] | None) -> str:
-    """One-line description of the code version in `record`, e.g. ``"sb3-er 0.1.0, commit 91bd149ab1 (dirty)"``."""
+    """One-line description of the code version in `record`, e.g. ``"sb3-er 0.1.0, commit 91bd149ab1 (dirty)"``.
+
+    :param record: a run's record, or None ("no record").
+    """
     if record is None:
         return "unknown version (no record)"
     commit = record.get("git_commit")
@@ -534,6 +607,8 @@ def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
 
     e.g. ``"Code: sb3-er 0.1.0, code 1f4d0e44dc (100 runs; commits dc32abd, 294af56 (dirty))."``; runs without a
     record count as their own version, and more than one version adds a bold warning.
+
+    :param run_records: the records of the runs summarized (None for a run without one).
     """
     groups: dict[str, list[dict[str, Any] | None]] = {}
     for record in run_records:
@@ -581,6 +656,11 @@ def check_versions(
     `recorded` and `current` map run keys (``"er/seed_3"``) to records (None: no record); `what` names the runs in the
     message (e.g. ``"results/leo holds finished runs that"``). With `allow_mixed_versions` the reasons to refuse are
     warned about instead.
+
+    :param recorded: records of the finished runs by run key (None: no record).
+    :param current: the records this process would write, by run key.
+    :param allow_mixed_versions: warn instead of refusing.
+    :param what: names the runs in the message.
     """
     import warnings
 

@@ -65,7 +65,10 @@ COLUMNS = ("order", "checkpoint", "replayed_updates", "return", "length", "goal_
 def database_digest(buffer) -> str:
     """SHA-256 hex digest of a TrajectoryReplayBuffer's stored transitions: every closed trajectory's observations,
     actions, rewards, last s' and terminal flag, oldest first, plus the open trajectory's length. Two buffers with the
-    same digest hold the same data."""
+    same digest hold the same data.
+
+    :param buffer: the TrajectoryReplayBuffer.
+    """
     digest = hashlib.sha256()
     for trajectory in buffer.trajectories():
         for name in ("observations", "actions", "rewards", "next_obs"):
@@ -76,13 +79,21 @@ def database_digest(buffer) -> str:
 
 
 def weights_digest(model) -> str:
-    """SHA-256 hex digest of a tile-coded model's weight vector theta (float64 bytes)."""
+    """SHA-256 hex digest of a tile-coded model's weight vector theta (float64 bytes).
+
+    :param model: the tile-coded model.
+    """
     return hashlib.sha256(np.ascontiguousarray(model.policy.theta_array).tobytes()).hexdigest()
 
 
 def greedy_return(model, env, seed: int = 0) -> tuple[float, int, bool]:
     """(undiscounted return, steps, goal reached) of one greedy episode of `env` from its reset (seeded `seed`),
-    until it terminates or is truncated by the env's time limit."""
+    until it terminates or is truncated by the env's time limit.
+
+    :param model: the model (acts greedily).
+    :param env: the env.
+    :param seed: the seed of the reset (default 0).
+    """
     observation, _ = env.reset(seed=seed)
     total, steps = 0.0, 0
     while True:
@@ -95,14 +106,23 @@ def greedy_return(model, env, seed: int = 0) -> tuple[float, int, bool]:
 
 
 def checkpoints(horizon: int, eval_every: int) -> list[int]:
-    """0, eval_every, 2 eval_every, ... up to `horizon`, and `horizon` itself (replayed updates)."""
+    """0, eval_every, 2 eval_every, ... up to `horizon`, and `horizon` itself (replayed updates).
+
+    :param horizon: the last checkpoint, in replayed updates.
+    :param eval_every: replayed updates between checkpoints.
+    """
     points = list(range(0, int(horizon) + 1, int(eval_every)))
     return points if points[-1] == int(horizon) else [*points, int(horizon)]
 
 
 def collect_database(job: RunJob, env, report=None):
     """The collector of `job` after ``database_episodes`` learning episodes, and the records of those episodes
-    (EpisodeReturnProtocol's). Raises DivergenceError if Sarsa(lambda) diverges."""
+    (EpisodeReturnProtocol's). Raises DivergenceError if Sarsa(lambda) diverges.
+
+    :param job: the run.
+    :param env: the env the runner made for it.
+    :param report: called with the run's finished fraction (default None).
+    """
     from sb3_er import ER
     from sb3_er.experiments.protocols import EpisodeReturnProtocol
 
@@ -115,7 +135,13 @@ def collect_database(job: RunJob, env, report=None):
 
 def fresh_replay_model(job: RunJob, env, order: str, buffer_path: Path):
     """A fresh ER model (the collector's hyperparameters and seed, initial weights) with ``replay_order=order``,
-    holding the database saved at `buffer_path`, its trajectory generator seeded with the job's seed."""
+    holding the database saved at `buffer_path`, its trajectory generator seeded with the job's seed.
+
+    :param job: the run.
+    :param env: the env the runner made for it.
+    :param order: the replay order ("reversed", "forward" or "uniform").
+    :param buffer_path: the saved database.
+    """
     from sb3_er import ER
 
     model = ER("TileQ", env, seed=job.seed, **{**job_model_kwargs(job), "replay_order": order})
@@ -131,6 +157,10 @@ def replay_order_run(job: RunJob, env, report) -> TaskOutput:
     ``eval_every``. Returns the frame described in the module docstring and the collector as the run's model.
     A divergence of a replay marks that order's remaining checkpoints ``diverged`` (return NaN); one of the
     collector marks every row.
+
+    :param job: the run.
+    :param env: the env the runner made for it.
+    :param report: called with the run's finished fraction, for the progress bar.
     """
     import gymnasium as gym
 
@@ -204,7 +234,10 @@ def _format(value: float, half_width: float | None = None) -> str:
 
 def ranking(means: dict[str, float]) -> str:
     """The orders by mean, best first, ``"reversed > uniform > forward"``; equal means joined by ``=``; NaN left
-    out."""
+    out.
+
+    :param means: mean greedy return by order.
+    """
     finite = sorted(((mean, order) for order, mean in means.items() if math.isfinite(mean)), key=lambda item: -item[0])
     text = ""
     for index, (mean, order) in enumerate(finite):
@@ -217,7 +250,10 @@ def ranking(means: dict[str, float]) -> str:
 def replay_order_table(frames: dict[int, pd.DataFrame]) -> pd.DataFrame:
     """Per checkpoint: per order the mean greedy return over seeds with its 95% CI (diverged replays left out and
     counted), how many greedy episodes reached the goal, the mean actual replayed updates, the paired differences between the orders (same database per seed)
-    with their 95% CI, our ranking and the thesis's finding. `frames` maps seeds to run frames."""
+    with their 95% CI, our ranking and the thesis's finding. `frames` maps seeds to run frames.
+
+    :param frames: the runs' frames by seed.
+    """
     data = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
     rows = []
     for point in sorted(data["checkpoint"].unique()):
@@ -300,6 +336,20 @@ def reproduce_replay_order(
     ``replay_orders.png`` (Figure A.1) into `out_dir` (default ``results/replay-order``). Returns a Reproduction.
     ValueError for bad settings or a folder holding runs of other settings; MixedVersionsError / RunFailure as
     :func:`sb3_er.experiments.reproduce.reproduce`.
+
+    :param n_seeds: the number of seeds (default 20, the thesis's).
+    :param out_dir: the results folder (default None: ``results/<name>``).
+    :param budget: the horizon in replayed updates (default None: 300,000).
+    :param n_workers: worker processes, or the local Ray instance's CPUs (default None: all CPUs).
+    :param first_seed: the first seed; the seeds are ``first_seed, ..., first_seed + n_seeds - 1`` (default 0).
+    :param show_progress: show a progress bar (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster's address (default None: a new local instance; only with ``backend="ray"``).
+    :param allow_mixed_versions: accept finished runs made by other code or settings (default False: refused).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
+        None).
+    :param database_episodes: Sarsa(lambda) episodes per database (default None: 200).
+    :param eval_every: replayed updates between evaluations (default None: 75,000).
     """
     from sb3_er.experiments.plots import plot_mean_with_error_bars
     from sb3_er.experiments.reproduce import Reproduction

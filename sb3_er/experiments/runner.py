@@ -104,7 +104,10 @@ class TaskOutput:
 
 
 def task_function(task: str):
-    """The function of a task name in TASKS; ValueError naming the known tasks for another name."""
+    """The function of a task name in TASKS; ValueError naming the known tasks for another name.
+
+    :param task: the task's name, a key of TASKS.
+    """
     import importlib
 
     if task not in TASKS:
@@ -120,7 +123,15 @@ def _limit_threads_of_children() -> None:
 
 def build_protocol(experiment: Experiment, env, budget: float, seed: int, progress=None, env_kwargs=None):
     """The experiment's protocol callback and the number of timesteps to give `learn` (the callback stops earlier).
-    The walking protocols evaluate on envs made with the learning env's `env_kwargs`."""
+    The walking protocols evaluate on envs made with the learning env's `env_kwargs`.
+
+    :param experiment: the experiment the runs belong to.
+    :param env: the learning env.
+    :param budget: run length in the experiment's unit (episodes or seconds of learning time).
+    :param seed: the run's seed (its evaluation envs are seeded from it).
+    :param progress: called with the finished fraction of the run (default None).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments of the runs' envs (default None: none).
+    """
     import gymnasium as gym
 
     from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
@@ -149,6 +160,9 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     diverges is finished too: its frame holds the records up to the divergence and every row has ``diverged`` set, so
     that the summary can count it instead of averaging a truncated curve. Errors of the run (an unknown env id, a
     missing zoo config entry, ...) propagate.
+
+    :param job: the run.
+    :param progress_queue: where progress goes (anything with ``put((key, fraction))``; default None: nowhere).
     """
     import gymnasium as gym
     import torch
@@ -218,7 +232,11 @@ GAIT_SECONDS = 10.0
 
 def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
     """The data of a run's own figures, made where the run ran: for the simplest walker, the final greedy policy's
-    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` and an animation as ``walker.gif``."""
+    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` and an animation as ``walker.gif``.
+
+    :param job: the run.
+    :param model: the trained model.
+    """
     if not job.experiment.env_id.endswith("SimplestWalker-v0"):
         return {}
     import tempfile
@@ -238,19 +256,30 @@ def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
 
 
 def read_run_csv(csv_path: str | Path) -> pd.DataFrame:
-    """The CSV of a run; DamagedFileError (a ValueError) naming the file and what to do when it is empty or torn."""
+    """The CSV of a run; DamagedFileError (a ValueError) naming the file and what to do when it is empty or torn.
+
+    :param csv_path: the run's CSV file.
+    """
     return files.read_csv(csv_path, records.RECORD_REMEDY)
 
 
 def artifact_path(csv_path: Path, suffix: str) -> Path:
-    """Where a run's figure data `suffix` (e.g. ``"gait.csv"``) lives: ``seed_<n>_<suffix>`` beside its CSV."""
+    """Where a run's figure data `suffix` (e.g. ``"gait.csv"``) lives: ``seed_<n>_<suffix>`` beside its CSV.
+
+    :param csv_path: the run's CSV file.
+    :param suffix: the artifact's name, e.g. ``"gait.csv"``.
+    """
     return csv_path.with_name(f"{csv_path.stem}_{suffix}")
 
 
 def write_run(job: RunJob, result: RunResult) -> None:
     """Write `result`: its artifacts, then its CSV ``job.csv_path``, then its version record beside it (see
     :func:`sb3_er.experiments.records.sealed`), each atomically. The record, written last, holds the checksums and row
-    count of the files before it, so a run is finished exactly when its record matches them (:func:`check_run`)."""
+    count of the files before it, so a run is finished exactly when its record matches them (:func:`check_run`).
+
+    :param job: the run.
+    :param result: what :func:`execute_run` returned.
+    """
     job.csv_path.parent.mkdir(parents=True, exist_ok=True)
     artifacts = {artifact_path(job.csv_path, suffix).name: content for suffix, content in result.artifacts.items()}
     for name, content in artifacts.items():
@@ -262,7 +291,11 @@ def write_run(job: RunJob, result: RunResult) -> None:
 
 
 def run_single(job: RunJob, progress_queue=None) -> float:
-    """Learn one run in this process, write its CSV and record, and return its wall time in seconds."""
+    """Learn one run in this process, write its CSV and record, and return its wall time in seconds.
+
+    :param job: the run.
+    :param progress_queue: where progress goes (anything with ``put((key, fraction))``; default None: nowhere).
+    """
     result = execute_run(job, progress_queue)
     write_run(job, result)
     return result.wall_time_s
@@ -271,7 +304,10 @@ def run_single(job: RunJob, progress_queue=None) -> float:
 def expected_rows(job: RunJob) -> int | None:
     """The rows a finished, not diverged run of `job` has under its protocol: one per learning episode, or one per
     evaluation (at the start, every evaluation interval and at the end) for the walking protocol; None for a task
-    (an analysis's run), whose length its task decides."""
+    (an analysis's run), whose length its task decides.
+
+    :param job: the run.
+    """
     experiment = job.experiment
     if getattr(experiment, "task", ""):
         return None
@@ -298,7 +334,10 @@ class RecordUpgradeWarning(UserWarning):
 
 
 def run_files(csv_path: Path) -> list[Path]:
-    """The files of the run whose CSV is `csv_path`: the CSV, its record and its artifacts (``seed_<n>_*``)."""
+    """The files of the run whose CSV is `csv_path`: the CSV, its record and its artifacts (``seed_<n>_*``).
+
+    :param csv_path: the run's CSV file.
+    """
     artifacts = (path for path in csv_path.parent.glob(f"{csv_path.stem}_*")
                  if path.is_file() and ".damaged-" not in path.name and files.PARTIAL_MARK not in path.name)
     return [csv_path, records.record_path(csv_path), *sorted(artifacts)]
@@ -312,6 +351,8 @@ def check_run(job: RunJob) -> tuple[bool, str | None]:
     protocol's length (:func:`expected_rows`), and, when the CSV passes, sealed with the checksums of the files as they
     are, once (its ``upgraded_from_format`` field says so). Not finished without a problem: no CSV. Not finished with a
     problem (a message naming the file): anything else.
+
+    :param job: the run.
     """
     csv_path = job.csv_path
     if not csv_path.is_file():
@@ -339,7 +380,10 @@ def check_run(job: RunJob) -> tuple[bool, str | None]:
 def split_finished(jobs: list[RunJob]) -> tuple[list[RunJob], list[RunJob]]:
     """`jobs` split into (to run, finished) by :func:`check_run`. The files of a run that does not match its record
     are moved aside (``<name>.damaged-<time>``, see :func:`sb3_er.experiments.files.move_aside`) with a
-    DamagedRunWarning naming them, and the run is to run again. Needs the folder's lock (it renames files)."""
+    DamagedRunWarning naming them, and the run is to run again. Needs the folder's lock (it renames files).
+
+    :param jobs: the runs.
+    """
     to_run, finished, upgraded = [], [], []
     for folder in dict.fromkeys(job.csv_path.parent for job in jobs):
         files.remove_partial_files(folder)
@@ -365,7 +409,16 @@ def split_finished(jobs: list[RunJob]) -> tuple[list[RunJob], list[RunJob]]:
 def plan_jobs(experiment: Experiment, algos, seeds, budget: float, out_dir: Path, env_kwargs=None,
               algo_kwargs=None) -> tuple[list[RunJob], list[RunJob]]:
     """All jobs of the reproduction, split into (to run, already finished) by :func:`split_finished` (which moves
-    damaged runs aside). The first seed's runs make the per-run figures' data."""
+    damaged runs aside). The first seed's runs make the per-run figures' data.
+
+    :param experiment: the experiment the runs belong to.
+    :param algos: the algorithms' rl-zoo names.
+    :param seeds: the seeds.
+    :param budget: run length in the experiment's unit (episodes or seconds of learning time).
+    :param out_dir: the results folder.
+    :param env_kwargs: ``gymnasium.make`` keyword arguments of the runs' envs (default None: none).
+    :param algo_kwargs: constructor overrides by parameter name (default None: none).
+    """
     env_items = tuple(sorted((env_kwargs or {}).items()))
     algo_items = tuple(sorted((algo_kwargs or {}).items()))
     seeds = list(seeds)
@@ -472,6 +525,14 @@ def run_jobs(
     `on_written(job)` is called after each run is written (e.g. to pin the folder's settings).
     Raises ValueError for a bad backend, worker count or an address without the Ray backend, and ImportError naming
     ``pip install 'sb3-er[ray]'`` when Ray is not installed.
+
+    :param jobs: the runs.
+    :param n_workers: worker processes, or the local Ray instance's CPUs (default None: all CPUs).
+    :param show_progress: show a progress bar (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster's address (default None: a new local instance).
+    :param allow_mixed_versions: accept runs whose version record differs from the driver's (default False).
+    :param on_written: called with each job after it is written (default None).
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")

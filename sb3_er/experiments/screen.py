@@ -61,11 +61,19 @@ class Candidate:
     folder: Path | None = None
 
     def run_folder(self, screen_dir: Path) -> Path:
+        """Where the candidate's runs live: its own ``folder`` if set, else ``<screen_dir>/<name>``.
+
+        :param screen_dir: the screen's folder.
+        """
         return Path(self.folder) if self.folder is not None else Path(screen_dir) / self.name
 
 
 def relative_error(ours: float | None, thesis: float) -> float:
-    """``|ours - thesis| / |thesis|``; infinite when ours is missing or NaN (not measurable in the run)."""
+    """``|ours - thesis| / |thesis|``; infinite when ours is missing or NaN (not measurable in the run).
+
+    :param ours: our figure, None or NaN when not measurable.
+    :param thesis: the thesis's figure.
+    """
     if not isinstance(thesis, (int, float)) or thesis == 0 or math.isnan(thesis):
         raise ValueError(f"the thesis's figure must be a non-zero number, got {thesis!r}")
     if ours is None or math.isnan(ours):
@@ -75,7 +83,11 @@ def relative_error(ours: float | None, thesis: float) -> float:
 
 def score(figures: Mapping[str, float | None], thesis_row: Mapping[str, tuple]) -> dict[str, float]:
     """Relative error of each figure the thesis row prints (``rise_time``, ``end_performance``, ``falls``), their sum
-    (``score``) and whether every error is within the rule's 50 % (``within_50``)."""
+    (``score``) and whether every error is within the rule's 50 % (``within_50``).
+
+    :param figures: our figures by name (None: not measurable).
+    :param thesis_row: the thesis table's row of the algorithm (figure name -> (average, difference)).
+    """
     errors = {}
     for figure in FIGURES:
         if figure in thesis_row:
@@ -93,7 +105,15 @@ def bootstrap_score_interval(experiment: Experiment, curves, thesis_row: Mapping
                              resamples: int = BOOTSTRAP_RESAMPLES, confidence: float = 0.95,
                              seed: int = 0) -> tuple[float, float]:
     """Percentile interval of the score over seeds drawn with replacement (the figures recomputed from each resample's
-    mean curve): how far the ranking can be trusted. Resamples with an unmeasurable figure count as infinite."""
+    mean curve): how far the ranking can be trusted. Resamples with an unmeasurable figure count as infinite.
+
+    :param experiment: the experiment screened.
+    :param curves: the candidate's Sarsa(lambda) curves.
+    :param thesis_row: the thesis table's row of Sarsa(lambda).
+    :param resamples: bootstrap resamples (default 1000).
+    :param confidence: the interval's confidence level (default 0.95).
+    :param seed: the seed of the resampling (default 0).
+    """
     from sb3_er.experiments.metrics import summarize_curves
 
     rng = np.random.default_rng(seed)
@@ -130,7 +150,15 @@ def _checked_candidates(candidates) -> list[Candidate]:
 def screen_command(experiment_name: str, candidates, out_dir: Path, title: str, notes: str,
                    argv: list[str] | None = None) -> pd.DataFrame:
     """The command line of a screen script: ``[--only NAME ...] [--seeds N] [--summary-only]``. Runs (or resumes) the
-    candidates, seals their records and writes ``summary.md``; prints and returns the ranked table."""
+    candidates, seals their records and writes ``summary.md``; prints and returns the ranked table.
+
+    :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
+    :param candidates: the candidate readings (:class:`Candidate`).
+    :param out_dir: the screen's folder (a sub-folder per candidate).
+    :param title: the summary's title.
+    :param notes: text added under the summary's table (default "").
+    :param argv: the script's arguments (default None: ``sys.argv[1:]``).
+    """
     import argparse
 
     parser = argparse.ArgumentParser(description=title)
@@ -148,7 +176,16 @@ def screen_command(experiment_name: str, candidates, out_dir: Path, title: str, 
 
 def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10, budget: float | None = None,
                n_workers: int = 1, only: list[str] | None = None) -> None:
-    """Run (or resume) Sarsa(lambda) on every candidate in ``out_dir/<candidate>`` with `sb3-er reproduce`."""
+    """Run (or resume) Sarsa(lambda) on every candidate in ``out_dir/<candidate>`` with `sb3-er reproduce`.
+
+    :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
+    :param candidates: the candidate readings (:class:`Candidate`).
+    :param out_dir: the screen's folder (a sub-folder per candidate).
+    :param n_seeds: seeds per candidate (default 10).
+    :param budget: run length (default None: the experiment's).
+    :param n_workers: worker processes (default 1).
+    :param only: names of the candidates to run (default None: all).
+    """
     from sb3_er.experiments.reproduce import reproduce
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -166,7 +203,13 @@ def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 1
 def seal_finished_runs(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10) -> int:
     """Give the finished runs of every candidate folder (seeds below `n_seeds`) records with checksums, as a resume
     does (:func:`sb3_er.experiments.runner.check_run`: records that predate checksums are checked and sealed once;
-    damaged runs are moved aside). Returns how many records were sealed now."""
+    damaged runs are moved aside). Returns how many records were sealed now.
+
+    :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
+    :param candidates: the candidate readings (:class:`Candidate`).
+    :param out_dir: the screen's folder (a sub-folder per candidate).
+    :param n_seeds: seeds per candidate (default 10).
+    """
     import json
     import warnings
 
@@ -194,7 +237,13 @@ def seal_finished_runs(experiment_name: str, candidates, out_dir: Path, n_seeds:
 
 def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10) -> pd.DataFrame:
     """One row per candidate with finished runs: seeds, rise time, end performance, falls, relative errors, score,
-    ranked by score (best first)."""
+    ranked by score (best first).
+
+    :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
+    :param candidates: the candidate readings (:class:`Candidate`).
+    :param out_dir: the screen's folder (a sub-folder per candidate).
+    :param n_seeds: seeds per candidate (default 10).
+    """
     experiment = _experiment(experiment_name)
     thesis_row = experiment.thesis_table[CONTROL_ARM]
     rows = []
@@ -234,7 +283,11 @@ class Decision:
 
 def decide(table: pd.DataFrame, candidates) -> Decision:
     """Apply the readings rule to :func:`screen_table`'s rows of `candidates` (checks, and candidates with fewer than
-    :data:`MIN_SEEDS` seeds, excluded)."""
+    :data:`MIN_SEEDS` seeds, excluded).
+
+    :param table: the rows of :func:`screen_table`.
+    :param candidates: the candidate readings.
+    """
     by_name = {candidate.name: candidate for candidate in _checked_candidates(candidates)}
     rows = [row for row in table.itertuples() if not by_name[row.candidate].check and row.seeds >= MIN_SEEDS]
     labels = sorted(set().union(*(by_name[row.candidate].printed for row in rows))) if rows else []
@@ -282,7 +335,15 @@ def _percent(value: float) -> str:
 
 def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title: str, notes: str = "",
                          n_seeds: int = 10) -> pd.DataFrame:
-    """Write ``out_dir/summary.md`` and ``summary.csv`` (the ranking of :func:`screen_table`) and return the table."""
+    """Write ``out_dir/summary.md`` and ``summary.csv`` (the ranking of :func:`screen_table`) and return the table.
+
+    :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
+    :param candidates: the candidate readings (:class:`Candidate`).
+    :param out_dir: the screen's folder (a sub-folder per candidate).
+    :param title: the summary's title.
+    :param notes: text added under the summary's table (default "").
+    :param n_seeds: seeds per candidate (default 10).
+    """
     experiment = _experiment(experiment_name)
     out_dir = Path(out_dir)
     table = screen_table(experiment_name, candidates, out_dir, n_seeds)

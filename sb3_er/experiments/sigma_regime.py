@@ -78,6 +78,10 @@ READINGS = {
 
 
 def regime_experiment(name: str) -> Analysis:
+    """The runner's experiment of one reading: ER-σ on the reading's env, one row per replay phase.
+
+    :param name: the reading's name, a key of :data:`READINGS`.
+    """
     reading = READINGS[name]
     return Analysis(
         name=f"sigma-regime-{name}",
@@ -97,7 +101,12 @@ def regime_experiment(name: str) -> Analysis:
 
 def sigma_regime_run(job: RunJob, env, report) -> TaskOutput:
     """One (reading, seed): ER-σ with the env's zoo settings for ``job.budget`` episodes or seconds of learning,
-    one row per replay phase."""
+    one row per replay phase.
+
+    :param job: the run.
+    :param env: the env the runner made for it.
+    :param report: called with the run's finished fraction, for the progress bar.
+    """
     from sb3_er import DivergenceError
     from sb3_er.zoo import algorithm_classes
 
@@ -146,7 +155,13 @@ def sigma_regime_run(job: RunJob, env, report) -> TaskOutput:
 
 
 def regime_jobs(out_dir: Path, readings: Sequence[str], seeds: Sequence[int], budget: float | None) -> list[RunJob]:
-    """One job per (reading, seed): ``<out>/<reading>/runs/er_sigma/seed_<n>.csv``."""
+    """One job per (reading, seed): ``<out>/<reading>/runs/er_sigma/seed_<n>.csv``.
+
+    :param out_dir: the results folder.
+    :param readings: the readings' names.
+    :param seeds: the seeds.
+    :param budget: run length (None: each reading's own).
+    """
     jobs = []
     for name in readings:
         reading = READINGS[name]
@@ -160,7 +175,10 @@ def regime_jobs(out_dir: Path, readings: Sequence[str], seeds: Sequence[int], bu
 
 def summarize_regime(frames: dict[int, pd.DataFrame]) -> dict:
     """Per reading: the update-weighted mean shift and shares over every phase of every run, the runs whose values
-    left the possible returns, and the diverged runs."""
+    left the possible returns, and the diverged runs.
+
+    :param frames: one reading's run frames by seed.
+    """
     complete = [frame for frame in frames.values() if not frame.empty]
     if not complete:
         return {"runs": len(frames), "phases": 0}
@@ -199,7 +217,21 @@ def reproduce_sigma_regime(
 ):
     """`sb3-er reproduce sigma-regime`: the ER-σ runs of each reading, then ``summary.md`` and ``summary.csv`` with the
     regime figures. `budget` (episodes or seconds of learning) applies to readings of one unit only. Returns a
-    Reproduction."""
+    Reproduction.
+
+    :param n_seeds: seeds per reading (default 4).
+    :param out_dir: the results folder (default None: ``results/<name>``).
+    :param budget: run length in episodes or seconds of learning (default None: each reading's own).
+    :param n_workers: worker processes, or the local Ray instance's CPUs (default None: all CPUs).
+    :param first_seed: the first seed; the seeds are ``first_seed, ..., first_seed + n_seeds - 1`` (default 0).
+    :param show_progress: show a progress bar (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster's address (default None: a new local instance; only with ``backend="ray"``).
+    :param allow_mixed_versions: accept finished runs made by other code or settings (default False: refused).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
+        None).
+    :param readings: the readings' names (default None: all of :data:`READINGS`).
+    """
     from sb3_er.experiments.reproduce import Reproduction
 
     start = time.perf_counter()

@@ -45,13 +45,25 @@ THESIS_BEST = "average_worst"
 
 
 def run_label(definition: str) -> str:
-    """The run folder and key prefix of a definition's runs, e.g. ``"er_sigma-worst"``."""
+    """The run folder and key prefix of a definition's runs, e.g. ``"er_sigma-worst"``.
+
+    :param definition: sigma's definition, e.g. "worst".
+    """
     return f"{ALGO}-{definition}"
 
 
 def sigma_jobs(out_dir: Path, definitions: Sequence[str], seeds: Sequence[int], budget: float,
                env_kwargs: dict | None = None, algo_kwargs: dict | None = None) -> list[RunJob]:
-    """One walker run of ER-sigma per (definition, seed), ``sigma`` set to the definition on top of `algo_kwargs`."""
+    """One walker run of ER-sigma per (definition, seed), ``sigma`` set to the definition on top of `algo_kwargs`.
+
+    :param out_dir: the results folder.
+    :param definitions: sigma's definitions.
+    :param seeds: the seeds.
+    :param budget: learning time per run [s].
+    :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
+        None).
+    :param algo_kwargs: constructor overrides by parameter name (default None: the zoo config's).
+    """
     experiment = ANALYSES["sigma"]
     env_items = tuple(sorted((env_kwargs or {}).items()))
     return [RunJob(experiment, ALGO, seed, budget, run_csv_path(out_dir, run_label(definition), seed), env_items,
@@ -61,7 +73,10 @@ def sigma_jobs(out_dir: Path, definitions: Sequence[str], seeds: Sequence[int], 
 
 def run_score(frame: pd.DataFrame) -> float:
     """The thesis's score of one run: the mean distance of the evaluations after some learning (learning_time_s > 0);
-    NaN for a diverged run or one without such evaluations."""
+    NaN for a diverged run or one without such evaluations.
+
+    :param frame: one run's CSV.
+    """
     if frame.empty or frame["diverged"].any():
         return math.nan
     after = frame[frame["learning_time_s"] > 0]["distance"]
@@ -71,7 +86,10 @@ def run_score(frame: pd.DataFrame) -> float:
 def sigma_table(frames: dict[str, dict[int, pd.DataFrame]]) -> pd.DataFrame:
     """One row per definition (in the given order): the thesis's number and sigma, the mean score over its runs with
     the 95% CI, the runs counted and diverged, the mean final falls with the 95% CI, and the thesis's finding.
-    `frames` maps definitions to {seed: run frame}."""
+    `frames` maps definitions to {seed: run frame}.
+
+    :param frames: see above.
+    """
     rows = []
     for definition, runs in frames.items():
         number, formula, finding = DEFINITIONS[definition]
@@ -95,7 +113,10 @@ def _format(value: float, half_width: float) -> str:
 
 
 def verdict(table: pd.DataFrame) -> str:
-    """Our reading of the table against the thesis's finding, in one paragraph."""
+    """Our reading of the table against the thesis's finding, in one paragraph.
+
+    :param table: the table of :func:`sigma_table`.
+    """
     scored = table[np.isfinite(table["score"])]
     if scored.empty:
         return "No run finished without diverging: nothing to compare."
@@ -157,6 +178,20 @@ def reproduce_sigma(
     ``sigma_scores.png`` (Figure B.1: scores with 95 % CIs) and ``learning_curves.png`` into `out_dir` (default
     ``results/sigma``). Returns a Reproduction. ValueError for an unknown definition or argument, or a folder holding
     runs of other settings; MixedVersionsError / RunFailure as :func:`sb3_er.experiments.reproduce.reproduce`.
+
+    :param n_seeds: the number of seeds (default 20, the thesis's).
+    :param out_dir: the results folder (default None: ``results/<name>``).
+    :param budget: learning time per run [s] (default None: 5000).
+    :param n_workers: worker processes, or the local Ray instance's CPUs (default None: all CPUs).
+    :param first_seed: the first seed; the seeds are ``first_seed, ..., first_seed + n_seeds - 1`` (default 0).
+    :param show_progress: show a progress bar (default True).
+    :param backend: "local" (default) or "ray".
+    :param address: the Ray cluster's address (default None: a new local instance; only with ``backend="ray"``).
+    :param allow_mixed_versions: accept finished runs made by other code or settings (default False: refused).
+    :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
+        None).
+    :param algo_kwargs: further ER-sigma constructor arguments, not ``sigma`` (default None).
+    :param sigmas: the definitions to compare (default None: all five).
     """
     from sb3_er import ERSigma
     from sb3_er.experiments.plots import plot_mean_with_ci, plot_scores

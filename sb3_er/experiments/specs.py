@@ -163,7 +163,10 @@ class Analysis(Experiment):
         return self.unit
 
     def setting(self, name: str):
-        """The value of setting `name`; KeyError naming the known settings otherwise."""
+        """The value of setting `name`; KeyError naming the known settings otherwise.
+
+        :param name: the setting's name.
+        """
         settings = dict(self.settings)
         if name not in settings:
             raise KeyError(f"{self.name} has no setting {name!r}; it has {sorted(settings)}")

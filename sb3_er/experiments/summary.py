@@ -59,7 +59,10 @@ class Curves:
 
 def left_the_bounds(frame: pd.DataFrame) -> bool | None:
     """Whether a run's values left the possible returns (its last ``values_out_of_range`` is positive); None when the
-    run was not watched (a CSV made before the watch, or a learner without one: -1)."""
+    run was not watched (a CSV made before the watch, or a learner without one: -1).
+
+    :param frame: one run's CSV.
+    """
     if "values_out_of_range" not in frame.columns or frame.empty:
         return None
     last = float(frame["values_out_of_range"].iloc[-1])
@@ -67,7 +70,13 @@ def left_the_bounds(frame: pd.DataFrame) -> bool | None:
 
 
 def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curves | None:
-    """The finished runs of `algo` among `seeds`, or None when none has finished."""
+    """The finished runs of `algo` among `seeds`, or None when none has finished.
+
+    :param experiment: the experiment (its units and thesis table).
+    :param out_dir: the results folder.
+    :param algo: the algorithm's rl-zoo name.
+    :param seeds: the seeds to read.
+    """
     frames = {seed: read_run_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
     if not frames:
         return None
@@ -98,7 +107,11 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curv
 
 
 def summarize(experiment: Experiment, curves: Curves) -> CurveSummary | None:
-    """Rise time (in the table's unit), end performance and falls of one algorithm; None without a complete run."""
+    """Rise time (in the table's unit), end performance and falls of one algorithm; None without a complete run.
+
+    :param experiment: the experiment (its units and thesis table).
+    :param curves: one algorithm's curves.
+    """
     if not curves.seeds:
         return None
     return summarize_curves(
@@ -149,7 +162,12 @@ def _thesis_number(value) -> tuple[float, str]:
 def thesis_difference(experiment: Experiment, algo: str, metric: str) -> str:
     """The thesis's difference with Sarsa(lambda), computed from its own averages (percent of Sarsa(lambda)'s value),
     with the printed figure beside it where the two differ by more than rounding (e.g. walker falls of vanilla ER:
-    150 against 74 is +103 %, printed +51 %)."""
+    150 against 74 is +103 %, printed +51 %).
+
+    :param experiment: the experiment (its units and thesis table).
+    :param algo: the algorithm's rl-zoo name.
+    :param metric: the metric, a key of the thesis table's rows (e.g. "rise_time").
+    """
     entry = experiment.thesis_table.get(algo, {}).get(metric)
     reference = experiment.thesis_table.get(REFERENCE_ALGORITHM, {}).get(metric)
     if entry is None:
@@ -205,6 +223,10 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
     whose values left the possible returns, counted in a "Runs whose values left the possible returns" row ("not
     measured" where runs predate the value watch); where there are such runs, the rise time, end performance and falls
     averaged over all complete runs follow, marked "(all runs)".
+
+    :param experiment: the experiment (its units and thesis table).
+    :param curves: the curves by algorithm.
+    :param budget: the runs' length.
     """
     summaries = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
     reference = summaries.get(REFERENCE_ALGORITHM)
@@ -260,7 +282,11 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
 
 
 def markdown_table(experiment: Experiment, table: pd.DataFrame) -> str:
-    """The summary as a markdown table (algorithm named on its first row only, like the thesis's tables)."""
+    """The summary as a markdown table (algorithm named on its first row only, like the thesis's tables).
+
+    :param experiment: the experiment (its units and thesis table).
+    :param table: the table of :func:`summary_table`.
+    """
     lines = [
         "| Algorithm | Metric | Average (ours, ± 95% CI) | Difference with Sarsa(λ) | Thesis average | Thesis difference |",
         "|---|---|---|---|---|---|",

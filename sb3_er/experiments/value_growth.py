@@ -120,6 +120,16 @@ def self_affecting_model(variant: str, case: str = "a", n_tilings: int = 4, shar
     are then moved so that Q(s_k, a_k) is the case's initial value (case b: -10 at s_k against -5 at s_{k+1}). The
     transition is stored as a truncated trajectory: replay bootstraps from s_{k+1}, and no sample corrects
     Q(s_{k+1}, a_k). Exploration is off (epsilon 0), so every replay is deterministic.
+
+    :param variant: the algorithm, a key of :data:`VARIANTS`.
+    :param case: the reward and initial values, a key of :data:`CASES` (default "a").
+    :param n_tilings: the number of tilings N (default 4).
+    :param shared: tiles s_{k+1} shares with s_k (default 3).
+    :param learning_rate: the step size alpha (default 0.25).
+    :param gamma: the discount factor (default 0.98).
+    :param residual_zeta: zeta of the residual variants (default 1).
+    :param memory_size: the hashed weight table's size (default 2^16).
+    :param value_bound_action: the value watch's action (default "ignore": values grow here on purpose).
     """
     import sb3_er
 
@@ -163,7 +173,11 @@ def self_affecting_model(variant: str, case: str = "a", n_tilings: int = 4, shar
 
 def replay_values(sample: SelfAffectingSample, n_replays: int) -> np.ndarray:
     """Q(s_k, a_k) before and after each of `n_replays` replays of the stored sample (n_replays + 1 values), each a
-    replay phase of one trajectory through ``model.replay`` (the kernels' own update)."""
+    replay phase of one trajectory through ``model.replay`` (the kernels' own update).
+
+    :param sample: the model of :func:`self_affecting_model`.
+    :param n_replays: the number of replays.
+    """
     values = [sample.q_state()]
     for _ in range(n_replays):
         sample.model.replay(1)
@@ -174,7 +188,17 @@ def replay_values(sample: SelfAffectingSample, n_replays: int) -> np.ndarray:
 def closed_form(variant: str, case: str, n_replays: int, n_tilings: int = 4, shared: int = 3,
                 learning_rate: float = FIGURE_ALPHA, gamma: float = FIGURE_GAMMA,
                 residual_zeta: float = 1.0) -> np.ndarray:
-    """Q_n(s_k, a_k) for n = 0..n_replays by the closed form of the module docstring (the hand computation)."""
+    """Q_n(s_k, a_k) for n = 0..n_replays by the closed form of the module docstring (the hand computation).
+
+    :param variant: the algorithm, a key of :data:`VARIANTS`.
+    :param case: the reward and initial values, a key of :data:`CASES`.
+    :param n_replays: the number of replays.
+    :param n_tilings: the number of tilings N (default 4).
+    :param shared: tiles s_{k+1} shares with s_k (default 3).
+    :param learning_rate: the step size alpha (default 0.25).
+    :param gamma: the discount factor (default 0.98).
+    :param residual_zeta: zeta of the residual variants (default 1).
+    """
     _, sigma, residual = VARIANTS[variant]
     f = shared / n_tilings
     zeta = residual_zeta if residual else 0.0
@@ -189,7 +213,15 @@ def closed_form(variant: str, case: str, n_replays: int, n_tilings: int = 4, sha
 
 def limit_value(variant: str, case: str, n_tilings: int = 4, shared: int = 3, gamma: float = FIGURE_GAMMA,
                 residual_zeta: float = 1.0) -> float:
-    """lim Q_n(s_k, a_k) (where 0 < alpha kappa < 2): Q_0 + p delta_0 / kappa."""
+    """lim Q_n(s_k, a_k) (where 0 < alpha kappa < 2): Q_0 + p delta_0 / kappa.
+
+    :param variant: the algorithm, a key of :data:`VARIANTS`.
+    :param case: the reward and initial values, a key of :data:`CASES`.
+    :param n_tilings: the number of tilings N (default 4).
+    :param shared: tiles s_{k+1} shares with s_k (default 3).
+    :param gamma: the discount factor (default 0.98).
+    :param residual_zeta: zeta of the residual variants (default 1).
+    """
     _, sigma, residual = VARIANTS[variant]
     f = shared / n_tilings
     zeta = residual_zeta if residual else 0.0
@@ -249,7 +281,10 @@ def _compare_targets(theta, visits, slots, actions, rewards, next_slots, termina
 
 
 def stored_transitions(buffer) -> tuple[np.ndarray, ...]:
-    """(rows, tiles of s_{t+1}, terminal) of every stored transition, oldest first, the open trajectory included."""
+    """(rows, tiles of s_{t+1}, terminal) of every stored transition, oldest first, the open trajectory included.
+
+    :param buffer: the TrajectoryReplayBuffer.
+    """
     capacity = buffer.capacity
     rows, next_slots, terminal = [], [], []
     for i in range(buffer.n_trajectories):
@@ -274,7 +309,11 @@ def stored_transitions(buffer) -> tuple[np.ndarray, ...]:
 def target_comparison(model, sigma: str = "average_worst") -> dict[str, np.ndarray]:
     """Every stored transition's Q(s_t, a_t), vanilla target and ER-sigma target (with `sigma`'s definition) on the
     model's current weights and visits; columns :data:`COMPARISON_COLUMNS` as arrays. Targets are greedy
-    (max over a'), so nothing random enters; the model is not changed."""
+    (max over a'), so nothing random enters; the model is not changed.
+
+    :param model: the trained ER-family model.
+    :param sigma: sigma's definition (default "average_worst").
+    """
     from sb3_er.er import SIGMAS
 
     buffer, coder, policy = model.replay_buffer, model.policy.tile_coder, model.policy
@@ -296,7 +335,10 @@ def target_comparison(model, sigma: str = "average_worst") -> dict[str, np.ndarr
 def comparison_summary(comparison: dict[str, np.ndarray]) -> dict[str, float]:
     """Figures of one :func:`target_comparison` over the non-terminal transitions: mean Q(s, a), mean vanilla and
     sigma targets, the shares of targets sigma raises and lowers, the mean raise relative to mean |Q(s, a)|, the share
-    where sigma's a' is not fully visited, where no action at s' was visited, and the mean shared share of tiles."""
+    where sigma's a' is not fully visited, where no action at s' was visited, and the mean shared share of tiles.
+
+    :param comparison: a result of :func:`target_comparison`.
+    """
     keep = ~comparison["terminal"]
     if not keep.any():
         return {}
@@ -330,6 +372,13 @@ def replay_gain(model, n_phases: int = 30, n_trajectories: int | None = None, si
     rewards set to 0, ``sigma`` the model's own ("keep") or another definition (None: vanilla), unseen by the value
     watch; returns (m_end / m_skip)^(1 / (n_phases - skip)) for m the mean over stored states of max_a Q(s, a) in
     magnitude. The model's weights, sigma, rewards, generators, counters and watch are restored afterwards.
+
+    :param model: the trained ER-family model (restored afterwards).
+    :param n_phases: replay phases (default 30).
+    :param n_trajectories: trajectories per phase (default None: the model's own).
+    :param sigma: see above (default "keep").
+    :param skip: phases left out at the start (default 10).
+    :param seed: the seed of the replay generator (default 1).
     """
     buffer = model.replay_buffer
     rows, _, _ = stored_transitions(buffer)
