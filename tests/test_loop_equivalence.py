@@ -72,7 +72,9 @@ class Witness(BaseCallback):
         self.stop_at = stop_at
 
     def _on_step(self) -> bool:
-        infos = [{k: v for k, v in info.items() if k != "episode"} for info in self.locals["infos"]]
+        # info values as Python scalars: an env's flag may be a NumPy bool where the value is the same
+        infos = [{k: v.item() if isinstance(v, np.generic) else v for k, v in info.items() if k != "episode"}
+                 for info in self.locals["infos"]]
         episodes = [info["episode"]["r"] for info in self.locals["infos"] if "episode" in info]
         seen = (self.num_timesteps, self.n_calls, repr(np.asarray(self.locals["actions"]).tolist()),
                 repr(np.asarray(self.locals["new_obs"]).tolist()), repr(np.asarray(self.locals["rewards"]).tolist()),
