@@ -23,7 +23,7 @@ import json, sys
 kernels = {}
 for name in ("sb3_er.common.kernels", "sb3_er_envs.simplest_walker"):
     module = sys.modules.get(name)
-    for attribute, value in vars(module or object()).items():
+    for attribute, value in (vars(module) if module else {}).items():
         if getattr(value, "signatures", None):
             kernels[f"{name}.{attribute}"] = len(value.signatures)
 print(json.dumps({"modules": sorted(sys.modules), "kernels": kernels}))
