@@ -18,7 +18,7 @@ ZOO_COMMANDS = ("train", "enjoy", "optimize")
 ANALYSIS_NAMES = (*ANALYSES, "framework", "sigma-regime")
 FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
 FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
-SIGMA_REGIME_READINGS = ("gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-optimistic")
+SIGMA_REGIME_READINGS = ("gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-earlier", "walker-optimistic")
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -92,7 +92,7 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
         "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
         "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200); sigma-regime: episodes or "
-        "seconds of the chosen --readings, which must share a unit (defaults: 100 episodes, walker 2500 s)",
+        "seconds of the chosen --readings, which must share a unit (defaults: 100 episodes, walker 5000 s)",
     )
     parser.add_argument(
         "--jobs", type=int, default=None,
@@ -134,7 +134,7 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
     analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
                           help="framework: the methods to run (default all seven)")
     analyses.add_argument("--readings", nargs="+", default=None, choices=SIGMA_REGIME_READINGS,
-                          help="sigma-regime: the env readings to run (default all five)")
+                          help="sigma-regime: the env readings to run (default all six)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
         help="resume next to finished runs made by other code (version, git commit) or another configuration; "

@@ -99,25 +99,45 @@ def test_algorithm_pages_list_every_parameter(built):
 
 def test_verdicts_say_not_judged_yet_without_findings_and_read_them_when_present(tmp_path):
     measured = tmp_path / "measured"
-    (measured / "walker").mkdir(parents=True)
+    (measured / "table_6_2").mkdir(parents=True)
     (measured / "leo").mkdir()
     (measured / "extra").mkdir()
-    assert generator.verdict_rows(measured) == [("walker", generator.THESIS_RESULTS["walker"].thesis, "",
+    assert generator.verdict_rows(measured) == [("table_6_2", generator.THESIS_RESULTS["table_6_2"].thesis, "",
                                                  "not judged yet"),
                                                 ("leo", generator.THESIS_RESULTS["leo"].thesis, "", "not judged yet")]
-    (measured / "walker" / "findings.json").write_text(json.dumps({"findings": [
+    (measured / "table_6_2" / "findings.json").write_text(json.dumps({"findings": [
         {"claim": "ER-sigma rises faster than Sarsa(lambda)", "holds": False, "evidence": "2400 s against 1800 s"},
         {"claim": "vanilla ER walks", "holds": True}]}))
     (measured / "extra" / "findings.json").write_text(json.dumps({"thesis": "Figure 7.1", "findings": [
         {"claim": "a | b", "holds": None}]}))
     rows = generator.verdict_rows(measured)
-    assert rows[:2] == [("walker", "Table 6.2, Figures 6.1b and 6.2a", "ER-sigma rises faster than Sarsa(lambda)",
+    assert rows[:2] == [("table_6_2", "Table 6.2, Figures 6.1b and 6.2a", "ER-sigma rises faster than Sarsa(lambda)",
                          "does not hold"),
-                        ("walker", "Table 6.2, Figures 6.1b and 6.2a", "vanilla ER walks", "holds")]
+                        ("table_6_2", "Table 6.2, Figures 6.1b and 6.2a", "vanilla ER walks", "holds")]
     assert rows[2][3] == "not judged yet" and rows[3] == ("extra", "Figure 7.1", "a | b", "inconclusive")
     table = generator.verdict_table(lambda name: f"{name}.md", measured)
-    assert "| [Simplest walker](walker.md) | Table 6.2, Figures 6.1b and 6.2a | vanilla ER walks | holds |" in table
+    assert ("| [Simplest walker](table_6_2.md) | Table 6.2, Figures 6.1b and 6.2a | vanilla ER walks | holds | — |"
+            in table)
     assert "a \\| b" in table  # a bar in a claim cannot break the table
+
+
+def test_each_table_says_which_regime_er_sigma_was_in(tmp_path):
+    """The sigma-regime summary names the table folder of each reading: its page and verdict rows say which way σ
+    moved the targets there, from the committed figures."""
+    measured = tmp_path / "measured"
+    (measured / "table_6_1").mkdir(parents=True)
+    (measured / "table_6_1" / "findings.json").write_text(json.dumps({"findings": [{"claim": "c", "holds": True}]}))
+    (measured / "sigma_regime").mkdir()
+    (measured / "sigma_regime" / "summary.csv").write_text(
+        "reading,results,runs,phases,mean_shift,raised,lowered,left_bounds,diverged\n"
+        "pendulum-0.33,table_6_1,4,400,-20.6,0.003,0.125,0,0\n"
+        "walker-optimistic,,4,4275,1030000.0,0.23,0.072,3,0\n")
+    sentence = generator.sigma_regime("table_6_1", measured)
+    assert sentence.startswith("ER-σ's σ lowered its targets") and "-20.6 over 400 replay phases of 4 runs" in sentence
+    assert "raised 0.3%, lowered 12.5%" in sentence and "in 0 of 4 runs" in sentence
+    assert generator.sigma_regime("leo", measured) == ""
+    table = generator.verdict_table(lambda name: f"{name}.md", measured)
+    assert "| c | holds | lowered targets |" in table
 
 
 @pytest.mark.parametrize("content, problem", [
@@ -156,3 +176,10 @@ def test_nothing_in_the_package_cites_a_file_outside_the_repository():
         text = path.read_text(encoding="utf-8")
         for citation in outside:
             assert citation not in text, f"{name} cites {citation}"
+def test_the_readme_table_holds_the_default_readings_only(tmp_path):
+    measured = tmp_path / "measured"
+    for name in ("table_6_1", "table_6_1_earlier_default", "extra"):
+        (measured / name).mkdir(parents=True)
+        (measured / name / "findings.json").write_text(json.dumps({"findings": [{"claim": name, "holds": True}]}))
+    assert [row[0] for row in generator.verdict_rows(measured)] == ["table_6_1", "table_6_1_earlier_default", "extra"]
+    assert [row[0] for row in generator.verdict_rows(measured, defaults_only=True)] == ["table_6_1"]

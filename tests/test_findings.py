@@ -64,3 +64,35 @@ def test_the_findings_file_is_what_the_docs_read(tmp_path):
     assert data["thesis"] == "Table 6.1" and data["sigma_regime"].startswith("sigma lowers")
     assert all(set(f) >= {"claim", "holds", "evidence"} for f in data["findings"])
     assert data["findings"][0]["claim"].startswith("vanilla-ER's")
+
+
+def test_a_metric_undefined_in_most_resamples_states_no_interval(tmp_path):
+    """An algorithm that learns no gait has no end performance: the finding is inconclusive, its evidence says why
+    instead of printing a NaN interval, and findings.json stays strict JSON."""
+    walker = EXPERIMENTS["walker"]
+    x = np.linspace(200.0, 5000.0, 25)
+    walking = np.tile(np.linspace(0.0, 40.0, x.size), (5, 1))
+    curves = {"sarsa_lambda": Curves(x, walking, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ()),
+              "er_sigma": Curves(x, np.zeros_like(walking), np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())}
+    found = {f["metric"]: f for f in table_findings(walker, curves, budget=5000.0, n_resamples=200)
+             if f.get("algorithm") == "er_sigma"}
+    end = found["end_performance"]
+    assert end["holds"] is None and end["ci95"] == [None, None]
+    assert "no interval" in end["evidence"] and "200 bootstrap resamples" in end["evidence"]
+    path = write_findings(tmp_path, "Table 6.2", list(found.values()))
+    json.loads(path.read_text(), parse_constant=lambda name: (_ for _ in ()).throw(ValueError(name)))
+
+
+def test_a_printed_na_is_judged_as_learning_no_gait():
+    """Thesis Table 6.3 prints NA for vanilla ER's end performance on LEO: the finding "learns no gait" holds for
+    curves that never reach the success level, does not hold for curves that walk."""
+    leo = EXPERIMENTS["leo"]
+    x = np.linspace(200.0, 12000.0, 20)
+    walking = np.tile(np.linspace(0.0, 6.0, x.size), (5, 1))
+    reference = Curves(x, walking, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())
+    for performance, expected in ((np.full_like(walking, 0.1), True), (walking, False)):
+        ours = Curves(x, performance, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())
+        found = [f for f in table_findings(leo, {"sarsa_lambda": reference, "er": ours}, budget=12000.0,
+                                           n_resamples=200) if f["metric"] == "no_gait"]
+        assert len(found) == 1 and found[0]["holds"] is expected, found
+        assert found[0]["claim"].startswith("vanilla-ER learns no gait")

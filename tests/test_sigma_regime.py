@@ -17,7 +17,8 @@ def test_a_tiny_run_writes_phases_and_the_summary(tmp_path):
     assert frame["updates"].gt(0).all() and frame["phase"].tolist() == [1, 2, 3, 4]
     assert ((frame["sigma_raised"] + frame["sigma_lowered"]).between(0.0, 1.0)).all()
     text = result.table_markdown.read_text()
-    assert "| windy cliff grid world | 4 episodes | 4 |" in text and "pendulum, velocity tiles 3.3" in text
+    assert "| windy cliff grid world | results/measured/gridworld | 4 episodes | 4 |" in text
+    assert "pendulum, earlier default (velocity tiles 3.3 rad/s, goal 0.1 rad and 1 rad/s)" in text
     again = reproduce_sigma_regime(n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1,
                                    out_dir=tmp_path, show_progress=False)
     assert (again.runs_done, again.runs_skipped) == (0, 2)
@@ -40,3 +41,28 @@ def test_a_budget_for_readings_of_two_units_is_refused(tmp_path):
     with pytest.raises(SystemExit):
         main(["reproduce", "sigma-regime", "--readings", "nowhere"])
     assert set(READINGS) >= {"walker-optimistic", "pendulum-0.33"}
+
+
+def test_each_reading_is_its_tables_reading():
+    """A reading that names a table's results folder runs that table's env settings and length (the folder's pinned
+    settings.json when committed), and the CLI offers every reading."""
+    import json
+    from pathlib import Path
+
+    from sb3_er.cli import SIGMA_REGIME_READINGS
+    from sb3_er.experiments.specs import EXPERIMENTS
+
+    assert set(SIGMA_REGIME_READINGS) == set(READINGS)
+    measured = Path(__file__).resolve().parents[1] / "results" / "measured"
+    tables = {"table_6_1": "pendulum", "table_6_1_earlier_default": "pendulum", "table_6_2": "walker",
+              "table_6_2_earlier_default": "walker", "gridworld": "gridworld"}
+    for name, reading in READINGS.items():
+        if not reading.results:
+            continue
+        experiment = EXPERIMENTS[tables[reading.results]]
+        assert reading.env_id == experiment.env_id, name
+        assert reading.budget == experiment.default_budget, name
+        pinned = measured / reading.results / "settings.json"
+        if pinned.is_file():
+            settings = json.loads(pinned.read_text())
+            assert settings.get("env_kwargs", {}) == dict(reading.env_kwargs), name

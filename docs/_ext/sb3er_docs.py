@@ -49,15 +49,25 @@ class ThesisResult:
     title: str
     thesis: str
     command: str
+    #: False for a reading other than the default (an earlier default kept as a named reading): its verdicts are on
+    #: its page and in the docs' table, not in the README's.
+    default_reading: bool = True
 
 
 # The folders that reproduce a finding of the thesis (each gets a verdict row); every other folder gets a page too.
 THESIS_RESULTS = {
     "gridworld": ThesisResult("Windy cliff grid world", "Section 5.1, Figures 5.2-5.7, Tables 5.1-5.2",
                               "sb3-er reproduce gridworld --seeds 20"),
-    "pendulum": ThesisResult("Inverted pendulum", "Table 6.1, Figure 6.1a", "sb3-er reproduce pendulum --seeds 20"),
-    "walker": ThesisResult("Simplest walker", "Table 6.2, Figures 6.1b and 6.2a",
-                           "sb3-er reproduce walker --seeds 20"),
+    "table_6_1": ThesisResult("Inverted pendulum", "Table 6.1, Figure 6.1a", "sb3-er reproduce pendulum --seeds 20"),
+    "table_6_1_earlier_default": ThesisResult(
+        "Inverted pendulum, earlier default reading", "Table 6.1",
+        "sb3-er reproduce pendulum --seeds 20 --env-kwargs velocity_tile_width:3.3 goal_angle:0.1 goal_velocity:1.0",
+        default_reading=False),
+    "table_6_2": ThesisResult("Simplest walker", "Table 6.2, Figures 6.1b and 6.2a",
+                              "sb3-er reproduce walker --seeds 20"),
+    "table_6_2_earlier_default": ThesisResult(
+        "Simplest walker, earlier default reading", "Table 6.2",
+        "sb3-er reproduce walker --seeds 20 --env-kwargs fall:angles observation:grl start:grl", default_reading=False),
     "leo": ThesisResult("LEO", "Table 6.3, Figures 6.1c and 6.2b", "sb3-er reproduce leo --seeds 20"),
     "replay_order": ThesisResult("Replay orders", "Appendix A", "sb3-er reproduce replay-order --seeds 20"),
     "sigma": ThesisResult("Definitions of sigma", "Appendix B, Figure B.1", "sb3-er reproduce sigma --seeds 20"),
@@ -66,6 +76,9 @@ THESIS_RESULTS = {
     "framework": ThesisResult("Framework of sample re-use", "Table 3.1",
                               "sb3-er reproduce framework --seeds 20"),
 }
+
+#: The folder of ``sb3-er reproduce sigma-regime``: its summary.csv names, per reading, the table folder it explains.
+SIGMA_REGIME = "sigma_regime"
 
 
 class FindingsError(ValueError):
@@ -112,6 +125,27 @@ def read_findings(name: str, measured: Path = MEASURED) -> list[Finding] | None:
     return findings
 
 
+def sigma_regime(name: str, measured: Path = MEASURED) -> str:
+    """One sentence on the regime ER-σ was in under the reading of results folder `name`, from the committed
+    ``sigma_regime/summary.csv`` ("" when no reading there names the folder)."""
+    table = measured / SIGMA_REGIME / "summary.csv"
+    if not table.is_file():
+        return ""
+    import csv
+
+    with table.open(encoding="utf-8", newline="") as handle:
+        rows = [row for row in csv.DictReader(handle) if row.get("results") == name]
+    if not rows or not rows[0].get("mean_shift"):
+        return ""
+    row = rows[0]
+    shift, raised, lowered = float(row["mean_shift"]), float(row["raised"]), float(row["lowered"])
+    direction = "raised" if shift > 0 else "lowered"
+    return (f"ER-σ's σ {direction} its targets on average under this reading (mean T_σ − T {shift:+.3g} over "
+            f"{row['phases']} replay phases of {row['runs']} runs; raised {raised:.1%}, lowered {lowered:.1%} of "
+            f"the targets); its values left the possible returns in {row['left_bounds']} of {row['runs']} runs "
+            f"(`sb3-er reproduce sigma-regime`, reading `{row['reading']}`).")
+
+
 def verdict_word(holds: bool | None) -> str:
     return {True: "holds", False: "does not hold", None: "inconclusive"}[holds]
 
@@ -120,11 +154,15 @@ def _cell(text: str) -> str:
     return " ".join(text.split()).replace("|", "\\|")
 
 
-def verdict_rows(measured: Path = MEASURED) -> list[tuple[str, str, str, str]]:
-    """(folder, thesis, finding, verdict) per finding; one "not judged yet" row per thesis folder without findings."""
+def verdict_rows(measured: Path = MEASURED, defaults_only: bool = False) -> list[tuple[str, str, str, str]]:
+    """(folder, thesis, finding, verdict) per finding; one "not judged yet" row per thesis folder without findings.
+    With `defaults_only`, only the folders of the default readings (no other reading of THESIS_RESULTS, no folder
+    outside it)."""
     names = sorted(set(THESIS_RESULTS) | {p.parent.name for p in measured.glob("*/findings.json")},
                    key=lambda name: (name not in THESIS_RESULTS, list(THESIS_RESULTS).index(name)
                                      if name in THESIS_RESULTS else 0, name))
+    if defaults_only:
+        names = [name for name in names if name in THESIS_RESULTS and THESIS_RESULTS[name].default_reading]
     rows = []
     for name in names:
         if not (measured / name).is_dir():
@@ -140,12 +178,16 @@ def verdict_rows(measured: Path = MEASURED) -> list[tuple[str, str, str, str]]:
     return rows
 
 
-def verdict_table(link, measured: Path = MEASURED) -> str:
-    """The verdict table in Markdown; ``link(folder)`` gives the target of a folder's link."""
-    lines = ["| result | thesis | finding | verdict |", "|---|---|---|---|"]
-    for name, thesis, claim, verdict in verdict_rows(measured):
+def verdict_table(link, measured: Path = MEASURED, defaults_only: bool = False) -> str:
+    """The verdict table in Markdown; ``link(folder)`` gives the target of a folder's link; `defaults_only` as in
+    :func:`verdict_rows`."""
+    lines = ["| result | thesis | finding | verdict | ER-σ's σ |", "|---|---|---|---|---|"]
+    for name, thesis, claim, verdict in verdict_rows(measured, defaults_only):
         title = THESIS_RESULTS[name].title if name in THESIS_RESULTS else name
-        lines.append(f"| [{_cell(title)}]({link(name)}) | {_cell(thesis)} | {_cell(claim) or '—'} | {verdict} |")
+        regime = sigma_regime(name, measured)
+        moved = "—" if not regime else ("raised targets" if " raised its targets" in regime else "lowered targets")
+        lines.append(f"| [{_cell(title)}]({link(name)}) | {_cell(thesis)} | {_cell(claim) or '—'} | {verdict} | "
+                     f"{moved} |")
     return "\n".join(lines) + "\n"
 
 
@@ -183,6 +225,9 @@ def results_page(name: str) -> str:
             lines += [f"| {_cell(f.claim)} | {verdict_word(f.holds)} | {_cell(f.evidence) or '—'} |"
                       for f in findings]
             lines.append("")
+    regime = sigma_regime(name)
+    if regime:
+        lines += ["## ER-σ's regime", "", regime, ""]
     notes = NOTES / f"results_{name}.md"
     markdown = sorted((p for p in folder.rglob("*.md") if "runs" not in p.relative_to(folder).parts),
                       key=lambda p: (p.relative_to(folder).as_posix() != "summary.md", p.relative_to(folder).parts))
@@ -254,7 +299,7 @@ def readme_verdicts() -> str:
     def link(name):
         return f"results/measured/{name}/" + ("summary.md" if (MEASURED / name / "summary.md").is_file() else "")
 
-    return f"{README_START}\n{verdict_table(link)}{README_END}"
+    return f"{README_START}\n{verdict_table(link, defaults_only=True)}{README_END}"
 
 
 def update_readme(check: bool = False) -> bool:

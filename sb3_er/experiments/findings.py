@@ -12,9 +12,10 @@ our seeds with the fixed metrics of thesis 6.1, and its 95 % confidence interval
 - **inconclusive** (``holds: null``) when the interval includes zero.
 
 A rise time that the mean curve never reaches counts as the run's end (the thesis prints such rise times as ">");
-an algorithm that learns no gait has no end performance, and its difference is then undefined (inconclusive) unless
-the thesis also prints NA, in which case the finding "learns no gait" is judged on whether our mean curve reaches the
-success level. Runs whose values left the possible returns and diverged runs are left out, as in the tables.
+an algorithm that learns no gait has no end performance, and its difference is then undefined (inconclusive). Where
+the thesis prints NA (no gait learned), the finding is "learns no gait", judged on the same bootstrap: it holds when
+the resampled mean curve stays below the success level in at least 97.5 % of the resamples, does not hold when it
+stays below in at most 2.5 %, and is inconclusive in between. Runs whose values left the possible returns and diverged runs are left out, as in the tables.
 """
 
 from __future__ import annotations
@@ -65,8 +66,21 @@ def _resampled(curves: Curves, rows: np.ndarray) -> Curves:
 
 
 def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves, metric: str, run_end: float,
-                         rng: np.random.Generator, n_resamples: int = N_RESAMPLES) -> tuple[float, float, float]:
-    """(difference ours - reference on all seeds, its 2.5 and 97.5 bootstrap percentiles)."""
+                         rng: np.random.Generator, n_resamples: int = N_RESAMPLES) -> tuple[float, float, float, int]:
+    """(difference ours - reference on all seeds, its 2.5 and 97.5 bootstrap percentiles, the number of resamples in
+    which the metric is undefined).
+
+    The percentiles are NaN when the metric is undefined (an algorithm learns no gait on the resampled mean curve) in
+    more than 5 % of the resamples: no interval is then stated, and the finding is inconclusive.
+
+    :param experiment: the table's experiment (its metrics and units).
+    :param ours: the curves of the algorithm judged.
+    :param reference: Sarsa(λ)'s curves.
+    :param metric: "rise_time", "end_performance" or "falls".
+    :param run_end: the run's end in the table's rise-time unit (a rise time never reached counts as it).
+    :param rng: the generator of the resamples.
+    :param n_resamples: the number of bootstrap resamples (default :data:`N_RESAMPLES`).
+    """
     difference = (metric_value(experiment, ours, metric, run_end)
                   - metric_value(experiment, reference, metric, run_end))
     samples = np.empty(n_resamples)
@@ -75,11 +89,12 @@ def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves
         b = rng.integers(0, len(reference.seeds), len(reference.seeds))
         samples[i] = (metric_value(experiment, _resampled(ours, a), metric, run_end)
                       - metric_value(experiment, _resampled(reference, b), metric, run_end))
+    undefined = int(np.count_nonzero(~np.isfinite(samples)))
     samples = samples[np.isfinite(samples)]
     if samples.size < 0.95 * n_resamples:  # the metric is undefined in too many resamples (no gait learned)
-        return difference, math.nan, math.nan
+        return difference, math.nan, math.nan, undefined
     low, high = np.percentile(samples, [2.5, 97.5])
-    return difference, float(low), float(high)
+    return difference, float(low), float(high), undefined
 
 
 def judge(sign: int, low: float, high: float) -> bool | None:
@@ -97,7 +112,41 @@ def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> 
         " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
     printed = f"thesis: {thesis_entry[0]} against {reference_entry[0]}, {thesis_entry[1]}"
     verb = "are" if metric == "falls" else "is"
-    return f"{label}'s {METRICS[metric]} {verb} {words}{better} than {reference}'s ({printed})"
+    than = "as" if sign == 0 else "than"
+    return f"{label}'s {METRICS[metric]} {verb} {words}{better} {than} {reference}'s ({printed})"
+
+
+def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng: np.random.Generator,
+                    n_resamples: int = N_RESAMPLES) -> dict[str, Any]:
+    """The finding "`algo` learns no gait" (the thesis prints NA as its end performance), judged on the share of
+    bootstrap resamples of our seeds whose mean curve never reaches the success level (module docstring).
+
+    :param experiment: the walking experiment (its success level).
+    :param algo: the algorithm judged.
+    :param ours: its curves (None or no seeds: inconclusive).
+    :param rng: the generator of the resamples.
+    :param n_resamples: the number of bootstrap resamples.
+    """
+    claim = f"{ALGORITHM_LABELS.get(algo, algo)} learns no gait (thesis: NA as its end performance)"
+    entry = {"claim": claim, "algorithm": algo, "metric": "no_gait", "thesis_sign": None}
+    if ours is None or not ours.seeds:
+        return {**entry, "holds": None, "evidence": "no complete run"}
+
+    def no_gait(curves: Curves) -> bool:
+        return math.isnan(metric_value(experiment, curves, "end_performance", math.nan))
+
+    share = float(np.mean([no_gait(_resampled(ours, rng.integers(0, len(ours.seeds), len(ours.seeds))))
+                           for _ in range(n_resamples)]))
+    holds = True if share >= 0.975 else (False if share <= 0.025 else None)
+    best = float(np.max(np.mean(ours.performance, axis=0)))
+    evidence = (f"our mean curve's best {best:.3g} against the success level {experiment.success_threshold:g}; no "
+                f"gait in {share:.1%} of {n_resamples} bootstrap resamples over {len(ours.seeds)} seeds")
+    return {**entry, "holds": holds, "evidence": evidence, "no_gait_share": share}
+
+
+def _finite(value: float) -> float | None:
+    """`value`, or None for NaN (findings.json is strict JSON: no NaN)."""
+    return None if math.isnan(value) else float(value)
 
 
 def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0,
@@ -112,6 +161,9 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
         if algo == REFERENCE or algo not in curves:
             continue
         for metric, entry in entries.items():
+            if metric == "end_performance" and entry[0] is None and experiment.success_threshold is not None:
+                findings.append(no_gait_finding(experiment, algo, curves[algo], rng, n_resamples))
+                continue
             sign = thesis_sign(str(entry[1]))
             if metric not in METRICS or sign is None:
                 continue
@@ -120,21 +172,28 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
                 findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]), "holds": None,
                                  "evidence": "no complete run of one of the two algorithms"})
                 continue
-            difference, low, high = bootstrap_difference(experiment, ours, reference, metric, run_end, rng,
-                                                         n_resamples)
+            difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
+                                                                    rng, n_resamples)
             unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
-            evidence = (f"ours {difference:+.3g}{unit}, 95 % bootstrap CI [{low:+.3g}, {high:+.3g}] over "
-                        f"{len(ours.seeds)} and {len(reference.seeds)} seeds")
+            seeds = f"over {len(ours.seeds)} and {len(reference.seeds)} seeds"
+            if math.isnan(low):
+                interval = (f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
+                            f"{n_resamples} bootstrap resamples {seeds}")
+            else:
+                interval = f"95 % bootstrap CI [{low:+.3g}, {high:+.3g}] {seeds}"
+            evidence = f"ours {difference:+.3g}{unit}, {interval}"
             findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
                              "holds": judge(sign, low, high), "evidence": evidence, "algorithm": algo,
-                             "metric": metric, "thesis_sign": sign, "difference": difference, "ci95": [low, high]})
+                             "metric": metric, "thesis_sign": sign, "difference": _finite(difference),
+                             "ci95": [_finite(low), _finite(high)]})
     return findings
 
 
 def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], regime: str = "") -> Path:
     """``<out_dir>/findings.json`` (the format the docs' verdict table reads), written atomically."""
     data = {"thesis": thesis, "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
-            "bootstrap CI over seeds excludes zero; inconclusive (null) when the CI includes zero",
+            "bootstrap CI over seeds excludes zero; inconclusive (null) when the CI includes zero; where the thesis "
+            "prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no gait",
             "findings": findings}
     if regime:
         data["sigma_regime"] = regime

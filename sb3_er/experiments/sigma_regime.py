@@ -8,8 +8,11 @@ phase, the mean shift T_σ - T of its targets over the same transitions' targets
 explored, the greedy one otherwise: :func:`sb3_er.common.kernels.next_state_value`), the shares of targets raised and
 lowered, and the value watch's count of values outside the possible returns.
 
-Readings (:data:`READINGS`): the grid world, the pendulum at the printed velocity tiles (0.33 rad/s) and at 3.3 rad/s,
-the simplest walker, and the walker with optimistic initial values (Q starting at 100).
+Readings (:data:`READINGS`): each is the reading of a table reproduction, with the same env settings and run length,
+and names that reproduction's results folder (:attr:`Reading.results`), so that the docs can say which regime ER-σ was
+in for each table: the grid world (Chapter 5), the pendulum's default (Table 6.1) and earlier default (velocity tiles
+3.3 rad/s, goal 0.1 rad and 1 rad/s), the simplest walker's default (Table 6.2) and earlier default (GRL's start, fall
+test and coordinates), and the walker with optimistic initial values (Q starting at 100, no table).
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ class Reading:
     :param unit: the unit of the run length, "episodes" (default) or seconds of learning time.
     :param budget: the default run length in that unit (default 100).
     :param title: the reading's name in tables (default "").
+    :param results: the ``results/measured/`` folder of the table reproduced under this reading ("" for none).
     """
 
     env_id: str
@@ -52,16 +56,23 @@ class Reading:
     unit: str = "episodes"
     budget: float = 100.0
     title: str = ""
+    results: str = ""
 
 
+WALKER_EARLIER_DEFAULT = (("fall", "angles"), ("observation", "grl"), ("start", "grl"))
 READINGS = {
-    "gridworld": Reading("sb3_er/WindyCliff-v0", title="windy cliff grid world"),
-    "pendulum-0.33": Reading("sb3_er/PendulumSwingup-v0", (("velocity_tile_width", 0.33),),
-                             title="pendulum, velocity tiles 0.33 rad/s (printed)"),
-    "pendulum-3.3": Reading("sb3_er/PendulumSwingup-v0", (("velocity_tile_width", 3.3),),
-                            title="pendulum, velocity tiles 3.3 rad/s"),
-    "walker": Reading("sb3_er/SimplestWalker-v0", unit="seconds", budget=2500.0, title="simplest walker"),
-    "walker-optimistic": Reading("sb3_er/SimplestWalker-v0", initial_value=100.0, unit="seconds", budget=2500.0,
+    "gridworld": Reading("sb3_er/WindyCliff-v0", title="windy cliff grid world", results="gridworld"),
+    "pendulum-0.33": Reading("sb3_er/PendulumSwingup-v0", title="pendulum, default (velocity tiles 0.33 rad/s as printed)", results="table_6_1"),
+    "pendulum-3.3": Reading("sb3_er/PendulumSwingup-v0",
+                            (("goal_angle", 0.1), ("goal_velocity", 1.0), ("velocity_tile_width", 3.3)),
+                            title="pendulum, earlier default (velocity tiles 3.3 rad/s, goal 0.1 rad and 1 rad/s)",
+                            results="table_6_1_earlier_default"),
+    "walker": Reading("sb3_er/SimplestWalker-v0", unit="seconds", budget=5000.0, title="simplest walker, default",
+                      results="table_6_2"),
+    "walker-earlier": Reading("sb3_er/SimplestWalker-v0", WALKER_EARLIER_DEFAULT, unit="seconds", budget=5000.0,
+                              title="simplest walker, earlier default (GRL's start, fall test and coordinates)",
+                              results="table_6_2_earlier_default"),
+    "walker-optimistic": Reading("sb3_er/SimplestWalker-v0", initial_value=100.0, unit="seconds", budget=5000.0,
                                  title="simplest walker, Q starting at 100"),
 }
 
@@ -219,7 +230,7 @@ def reproduce_sigma_regime(
     for name in readings:
         frames = {seed: read_run_csv(path) for seed in seeds
                   if (path := run_csv_path(out_dir / name, "er_sigma", seed)).is_file()}
-        rows.append({"reading": name, **summarize_regime(frames)})
+        rows.append({"reading": name, "results": READINGS[name].results, **summarize_regime(frames)})
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     lines = [
@@ -229,16 +240,18 @@ def reproduce_sigma_regime(
         "shares of targets σ raised and lowered; averaged over all phases of all runs, weighted by their updates. "
         "Values outside: runs whose value watch saw a target or Q-value outside the possible returns.",
         "",
-        "| Reading | Run length | Phases | Mean T_σ - T | Raised | Lowered | Values outside | Diverged |",
-        "|---|---|---|---|---|---|---|---|",
+        "| Reading | Its table's results | Run length | Phases | Mean T_σ - T | Raised | Lowered | Values outside | "
+        "Diverged |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         reading = READINGS[row["reading"]]
         length = f"{reading.budget if budget is None else budget:g} {reading.unit}"
+        folder = f"results/measured/{reading.results}" if reading.results else "—"
         if not row.get("phases"):
-            lines.append(f"| {reading.title} | {length} | 0 | — | — | — | — | — |")
+            lines.append(f"| {reading.title} | {folder} | {length} | 0 | — | — | — | — | — |")
             continue
-        lines.append(f"| {reading.title} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
+        lines.append(f"| {reading.title} | {folder} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
                      f"{row['raised']:.1%} | {row['lowered']:.1%} | {row['left_bounds']} of {row['runs']} | "
                      f"{row['diverged']} of {row['runs']} |")
     lines += ["", code_line(jobs)]
