@@ -619,8 +619,11 @@ class SimplestWalkerEnv(gym.Env):
 
     def _fell(self, state: np.ndarray, outcome: np.ndarray) -> bool:
         """The fall test on the state at the end of a control step (``fall=`` reading)."""
-        stance, hip = float(state[0]), float(state[1])
-        return outcome[FELL] != 0.0 or (
+        return self._fell_at(float(state[0]), float(state[1]), float(outcome[FELL]))
+
+    def _fell_at(self, stance: float, hip: float, hip_touched: float) -> bool:
+        """The fall test on the stance and hip angles at the end of a control step and the simulation's fall flag."""
+        return hip_touched != 0.0 or (
             self._angle_fall and (abs(stance) > FALL_STANCE_ANGLE or abs(hip - 2.0 * stance) > FALL_LEG_GAP)
         )
 
@@ -630,12 +633,12 @@ class SimplestWalkerEnv(gym.Env):
             raise ValueError(f"action must be an integer in [0, {len(self.hip_accelerations) - 1}], got {action!r}")
         if self._episode_over:
             raise RuntimeError("the episode has ended (fall or time limit); call reset() before step()")
-        outcome = self._outcome
-        simulate_control_step(self.state, self.hip_accelerations[index], self.slope, self.dt, self.substeps, outcome)
+        outcome, state = self._outcome, self.state
+        simulate_control_step(state, self.hip_accelerations[index], self.slope, self.dt, self.substeps, outcome)
         self._steps += 1
-        footsteps, step_length = float(outcome[FOOTSTEPS]), float(outcome[STEP_LENGTH])
-        stance, hip, stance_rate, hip_rate = self.state.tolist()
-        fell = self._fell(self.state, outcome)
+        footsteps, step_length, hip_touched, heel_strike_time = outcome.tolist()[:POST_IMPACT_STATE.start]
+        stance, hip, stance_rate, hip_rate = state.tolist()
+        fell = self._fell_at(stance, hip, hip_touched)
         footstep = footsteps != 0.0
         if fell:
             reward = self.fall_reward
@@ -660,7 +663,7 @@ class SimplestWalkerEnv(gym.Env):
             "swing_foot_height": math.cos(stance) - math.cos(stance - hip),
         }
         if footstep:
-            info["heel_strike_time"] = float(outcome[HEEL_STRIKE_TIME])
+            info["heel_strike_time"] = heel_strike_time
         return observation, reward, fell, truncated, info
 
     def _observe(self, stance: float, hip: float, stance_rate: float, hip_rate: float, footstep: bool) -> np.ndarray:

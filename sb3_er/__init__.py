@@ -2,35 +2,47 @@
 
 Sarsa(lambda), experience replay (ER), ER-sigma, residual-gradient ER and residual ER-sigma from "Sample-Efficient
 Reinforcement Learning for Walking Robots" (2013), as SB3 algorithms on the "TileQ" policy.
+
+The names below are imported when first used (PEP 562), so that ``import sb3_er`` costs nothing and a run imports only
+the modules it uses: ``from sb3_er import SarsaLambda`` loads neither Dyna's nearest-neighbour model (scipy.spatial)
+nor the least-squares solvers of FQI and LSPI (scipy.sparse).
 """
 
-from sb3_er.common.base_class import DivergenceError, ValueBoundWarning
-from sb3_er.common.buffers import TrajectoryReplayBuffer
-from sb3_er.common.policies import TileQPolicy
-from sb3_er.common.tile_coding import TileCoder
-from sb3_er.common.value_bounds import RewardBounds, ValueBoundError
-from sb3_er.dyna import Dyna
-from sb3_er.er import ER, ERSigma, ResidualER, ResidualERSigma
-from sb3_er.fqi import FQI
-from sb3_er.lspi import LSPI
-from sb3_er.sarsa_lambda import SarsaLambda
+import importlib
+from typing import Any
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "ER",
-    "DivergenceError",
-    "Dyna",
-    "ERSigma",
-    "FQI",
-    "LSPI",
-    "ResidualER",
-    "ResidualERSigma",
-    "RewardBounds",
-    "SarsaLambda",
-    "TileCoder",
-    "TileQPolicy",
-    "TrajectoryReplayBuffer",
-    "ValueBoundError",
-    "ValueBoundWarning",
-]
+#: public name -> the module that defines it
+_MODULES = {
+    "DivergenceError": "sb3_er.common.base_class",
+    "ValueBoundWarning": "sb3_er.common.base_class",
+    "TrajectoryReplayBuffer": "sb3_er.common.buffers",
+    "TileQPolicy": "sb3_er.common.policies",
+    "TileCoder": "sb3_er.common.tile_coding",
+    "RewardBounds": "sb3_er.common.value_bounds",
+    "ValueBoundError": "sb3_er.common.value_bounds",
+    "Dyna": "sb3_er.dyna",
+    "ER": "sb3_er.er",
+    "ERSigma": "sb3_er.er",
+    "ResidualER": "sb3_er.er",
+    "ResidualERSigma": "sb3_er.er",
+    "FQI": "sb3_er.fqi",
+    "LSPI": "sb3_er.lspi",
+    "SarsaLambda": "sb3_er.sarsa_lambda",
+}
+
+__all__ = sorted(_MODULES, key=str.lower)
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULES.get(name)
+    if module is None:
+        raise AttributeError(f"module 'sb3_er' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_MODULES})

@@ -1,9 +1,8 @@
 """Dyna: direct RL plus planning on a learned model (Sutton 1991; thesis 3.4 and Alg. 3-5), on tile-coded Q."""
 
-from typing import Literal, Optional, Union
+from typing import TYPE_CHECKING, Literal, Optional, Union
 
 import numpy as np
-from scipy.spatial import KDTree
 from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common import kernels
@@ -16,6 +15,9 @@ from sb3_er.common.tile_coding import TileCoder
 TARGETS = {"sarsa": kernels.TARGET_SARSA, "q_learning": kernels.TARGET_Q_LEARNING}
 PLANNING_ACTIONS = ("stored", "uniform")
 RNG_STREAM_PLANNING = kernels.RNG_STREAM_PLANNING  # spawn key of the planning generator
+
+if TYPE_CHECKING:
+    from scipy.spatial import KDTree
 
 
 class NearestNeighbourModel:
@@ -45,7 +47,7 @@ class NearestNeighbourModel:
         self.n_actions = coder.n_actions
         self.n_neighbors = n_neighbors
         self.radius = radius
-        self.trees: list[Optional[KDTree]] = [None] * self.n_actions
+        self.trees: list[Optional["KDTree"]] = [None] * self.n_actions
         self.rewards: list[np.ndarray] = []
         self.displacements: list[np.ndarray] = []
         self.terminal: list[np.ndarray] = []
@@ -78,6 +80,8 @@ class NearestNeighbourModel:
         :param next_observations: next states s', (n, D).
         :param terminal: whether each s' is terminal, (n,) bool.
         """
+        from scipy.spatial import KDTree  # imported when a model is first fit: Dyna alone needs it
+
         z = self._scaled(observations)
         displacement = self._difference(next_observations, observations)
         self.rewards, self.displacements, self.terminal = [], [], []

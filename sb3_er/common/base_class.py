@@ -16,7 +16,7 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import safe_mean
@@ -59,6 +59,11 @@ from sb3_er.common.value_bounds import (
     reward_changing_wrapper,
 )
 
+try:
+    from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule
+except ImportError:  # SB3 before 2.4 builds schedules as closures: read at every step
+    ConstantSchedule = FloatSchedule = None
+
 DEFAULT_TOTAL_TIMESTEPS = 100_000
 ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
 
@@ -72,6 +77,12 @@ def _to_builtin(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def _is_constant(schedule: Schedule) -> bool:
+    """Whether SB3's learning-rate schedule is a constant (a float ``learning_rate``), so that it is read once."""
+    return FloatSchedule is not None and isinstance(schedule, FloatSchedule) \
+        and isinstance(schedule.value_schedule, ConstantSchedule)
 
 
 def is_fall(info: dict[str, Any], terminated: bool) -> bool:
@@ -548,9 +559,8 @@ class TileQAlgorithm(BaseAlgorithm):
         self._single_env = self.env.envs[0] if type(self.env) is DummyVecEnv else None
         callback.on_training_start(locals(), globals())
         callback.on_rollout_start()
-        while self.num_timesteps < total_timesteps:
-            if not self._step_env(callback, log_interval):
-                break
+        given = not (isinstance(callback, ConvertCallback) and callback.callback is None)
+        self._interact(total_timesteps, callback if given else None, log_interval)
         callback.on_rollout_end()
         callback.on_training_end()
         return self
@@ -701,80 +711,128 @@ class TileQAlgorithm(BaseAlgorithm):
             raise ValueError(self.policy.tile_coder.bad_observation_message(obs, f" at step {self.num_timesteps}"))
         return action
 
-    def _step_env(self, callback: BaseCallback, log_interval: int) -> bool:
-        """One interaction step; False if a callback asked to stop.
+    def _env_action_table(self) -> tuple[list[Any], bool]:
+        """Each flat action in the env's format (what ``to_env_actions`` makes of it), built once per ``learn()``,
+        and whether an entry must be copied before each step (an array, which an env could change in place)."""
+        flat = np.arange(self.policy.tile_coder.n_actions)
+        table = list(self.policy.to_env_actions(flat))
+        return table, bool(table) and isinstance(table[0], np.ndarray)
 
-        The transition is learned and stored even when the callback stops training, so that the env, ``_last_obs``
-        and the stored trajectory stay in step and a later ``learn(reset_num_timesteps=False)`` continues the
-        episode exactly where it was.
+    def _interact(self, total_timesteps: int, callback: Optional[BaseCallback], log_interval: int) -> None:
+        """The interaction loop of ``learn()``: steps until ``total_timesteps`` or a callback's on_step returns False.
+
+        One step is: a_k (the pending a_{k+1} of the online update, else epsilon-greedy at s_k), the env step,
+        ``num_timesteps``, the callback (only when one is given), SB3's episode-info buffers, the online Sarsa(lambda)
+        update (one kernel call that also picks a_{k+1}), the subclass's ``_after_transition`` (storage, replay; only
+        when the subclass has one), the episode's end (counters, trace reset, log dump) and SB3's progress. A plain
+        one-env DummyVecEnv is stepped directly: the same results as its ``step`` without its per-step deep copy of
+        ``info`` and with the env's float64 reward (DummyVecEnv's buffer would round it to float32). The transition
+        is learned and stored even when the callback stops training, so that the env, ``_last_obs`` and the stored
+        trajectory stay in step and a later ``learn(reset_num_timesteps=False)`` continues the episode exactly where
+        it was.
         """
-        obs = np.asarray(self._last_obs[0], dtype=np.float64)
-        action = self._next_action if self._next_action >= 0 else self._select_action(obs)
-        actions = self.policy.to_env_actions(np.array([action]))  # the env's format, as SB3's callbacks read it
-        new_obs, rewards, dones, infos = self._vec_env_step(actions)
-        self.num_timesteps += 1
-        callback.update_locals(locals())
-        continue_training = callback.on_step()
-        self._update_info_buffer(infos, dones)
-        info, done, reward = infos[0], bool(dones[0]), float(rewards[0])
-        if not math.isfinite(reward):
-            raise ValueError(f"The environment returned a non-finite reward {reward} at step {self.num_timesteps}")
-        truncated = done and info.get("TimeLimit.truncated", False)
-        terminated = done and not truncated
-        if self._observing_rewards:
-            self._watch.observe(reward, terminated)
-        next_obs = np.asarray(info["terminal_observation"] if done else new_obs[0], dtype=np.float64)
-        self._next_action = self._online_update(action, reward, next_obs, terminated) if self.trace_lambda is not None else -1
-        self._after_transition(obs, action, reward, next_obs, terminated, done, info)
-        if done:
-            self._episode_num += 1
-            self.falls += is_fall(info, terminated)
-            self._next_action = -1
-            if self.trace_lambda is not None:
-                kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
-            if log_interval and self._episode_num % log_interval == 0:
-                self.dump_logs()
-        else:
-            self._slots, self._next_slots = self._next_slots, self._slots
-        self._last_obs = new_obs
-        self._update_current_progress_remaining(self.num_timesteps, self._total_timesteps)
-        return continue_training
-
-    def _vec_env_step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        """VecEnv.step; for a plain one-env DummyVecEnv the same results without its per-step deep copy of infos
-        (and with the env's float64 reward, where DummyVecEnv's buffer would round it to float32)."""
-        single = self._single_env
-        if single is None:
-            return self.env.step(actions)
-        obs, reward, terminated, truncated, info = single.step(actions[0])
-        done = terminated or truncated
-        info["TimeLimit.truncated"] = truncated and not terminated
-        if done:
-            info["terminal_observation"] = obs
-            obs, self.env.reset_infos[0] = single.reset()
-        return np.asarray(obs)[np.newaxis], np.array([reward], dtype=np.float64), np.array([done]), [info]
-
-    def _online_update(self, action: int, reward: float, next_obs: np.ndarray, terminated: bool) -> int:
-        """Sarsa(lambda) on (s_k, a_k, r_{k+1}, s_{k+1}) (Alg. 2); returns a_{k+1} (-1 if s_{k+1} is terminal)."""
+        single, vec_env = self._single_env, self.env
+        env_actions, copy_action = self._env_action_table()
+        after_transition = None if type(self)._after_transition is TileQAlgorithm._after_transition \
+            else self._after_transition
+        online = self.trace_lambda is not None
         coder = self.policy.tile_coder
-        next_action, delta, status = kernels.sarsa_lambda_step(
-            self.policy.theta_array, self._trace_index, self._trace_value, self._trace_position, self._trace_length,
-            self._slots, action, reward, terminated, next_obs, self._next_slots, self._q_scratch,
-            *coder.kernel_arguments, self.current_learning_rate / coder.n_tilings, self.gamma,
-            self.gamma * self.trace_lambda, self.trace_cutoff, self.exploration_rate, self.action_rng,
-            self._watch_array,
-        )
+        theta = self.policy.theta_array
+        trace = (self._trace_index, self._trace_value, self._trace_position, self._trace_length) if online else ()
+        kernel_arguments = coder.kernel_arguments
+        n_tilings, gamma, epsilon = coder.n_tilings, self.gamma, self.exploration_rate
+        trace_decay = gamma * self.trace_lambda if online else 0.0
+        trace_cutoff, action_rng, q_scratch = self.trace_cutoff, self.action_rng, self._q_scratch
+        constant_rate = _is_constant(self.lr_schedule)
+        step_size = self.current_learning_rate / n_tilings
+        sarsa_lambda_step, clear_trace, isfinite = kernels.sarsa_lambda_step, kernels.clear_trace, math.isfinite
+        observe = self._watch.observe if self._observing_rewards else None
+        ep_info_buffer, ep_success_buffer = self.ep_info_buffer, self.ep_success_buffer
+        total = float(total_timesteps)
+        obs = np.asarray(self._last_obs[0], dtype=np.float64)
+        while self.num_timesteps < total_timesteps:
+            action = self._next_action
+            if action < 0:
+                action = self._select_action(obs)
+            if single is not None:
+                env_action = env_actions[action].copy() if copy_action else env_actions[action]
+                new_obs, reward, terminated, truncated, info = single.step(env_action)
+                done = bool(terminated or truncated)
+                truncated = truncated and not terminated
+                info["TimeLimit.truncated"] = truncated
+                next_obs = np.asarray(new_obs, dtype=np.float64)
+                if done:
+                    info["terminal_observation"] = new_obs
+                    new_obs, vec_env.reset_infos[0] = single.reset()
+                terminated, truncated = bool(terminated), bool(truncated)
+                reward = float(reward)
+                new_obs = np.asarray(new_obs)[np.newaxis]
+            else:
+                new_obs, rewards, dones, infos = vec_env.step(self.policy.to_env_actions(np.array([action])))
+                info, done, reward = infos[0], bool(dones[0]), float(rewards[0])
+                truncated = done and bool(info.get("TimeLimit.truncated", False))
+                terminated = done and not truncated
+                next_obs = np.asarray(info["terminal_observation"] if done else new_obs[0], dtype=np.float64)
+            self.num_timesteps += 1
+            continue_training = True
+            if callback is not None:
+                actions = self.policy.to_env_actions(np.array([action]))  # the env's format, as SB3's callbacks read it
+                if single is not None:
+                    rewards, dones, infos = np.array([reward], dtype=np.float64), np.array([done]), [info]
+                callback.update_locals({"self": self, "callback": callback, "log_interval": log_interval, "obs": obs,
+                                        "action": action, "actions": actions, "new_obs": new_obs, "rewards": rewards,
+                                        "dones": dones, "infos": infos})
+                continue_training = callback.on_step()
+                theta, action_rng = self.policy.theta_array, self.action_rng  # a callback may have replaced them
+            if "episode" in info or "is_success" in info:
+                self._update_info_buffer([info], np.array([done]))
+            if not isfinite(reward):
+                raise ValueError(f"The environment returned a non-finite reward {reward} at step {self.num_timesteps}")
+            if observe is not None:
+                observe(reward, terminated)
+            next_action = -1
+            if online:
+                if not constant_rate:
+                    step_size = self.current_learning_rate / n_tilings
+                next_action, delta, status = sarsa_lambda_step(
+                    theta, *trace, self._slots, action, reward, terminated, next_obs, self._next_slots, q_scratch,
+                    *kernel_arguments, step_size, gamma, trace_decay, trace_cutoff, epsilon, action_rng,
+                    self._watch_array,
+                )
+                if status:
+                    self._online_update_status(status, next_obs)
+                if not isfinite(delta):
+                    self._raise_divergence(delta, "the Sarsa(lambda) update")
+                self._td_error_sum += abs(delta)
+                self._td_error_count += 1
+            self._next_action = next_action
+            if after_transition is not None:
+                after_transition(obs, action, reward, next_obs, terminated, done, info)
+            if done:
+                self._episode_num += 1
+                self.falls += is_fall(info, terminated)
+                self._next_action = -1
+                if online:
+                    clear_trace(self._trace_index, self._trace_position, self._trace_length)
+                if log_interval and self._episode_num % log_interval == 0:
+                    self.dump_logs()
+                obs = np.asarray(new_obs[0], dtype=np.float64)
+            else:
+                self._slots, self._next_slots = self._next_slots, self._slots
+                obs = next_obs
+            self._last_obs = new_obs
+            self._current_progress_remaining = 1.0 - float(self.num_timesteps) / total
+            if not continue_training:
+                break
+
+    def _online_update_status(self, status: int, next_obs: np.ndarray) -> None:
+        """React to a status of the Sarsa(lambda) kernel other than STATUS_OK."""
         if status == kernels.STATUS_OUT_OF_BOUNDS:
             self._value_out_of_bounds("the Sarsa(lambda) update")
         elif status == kernels.STATUS_BAD_OBSERVATION:
             raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
         if status == kernels.STATUS_TRACE_FULL:
             raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
-        if not math.isfinite(delta):
-            self._raise_divergence(delta, "the Sarsa(lambda) update")
-        self._td_error_sum += abs(delta)
-        self._td_error_count += 1
-        return next_action
 
     def _raise_divergence(self, delta: float, where: str) -> None:
         raise DivergenceError(
