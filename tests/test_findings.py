@@ -96,3 +96,12 @@ def test_a_printed_na_is_judged_as_learning_no_gait():
                                            n_resamples=200) if f["metric"] == "no_gait"]
         assert len(found) == 1 and found[0]["holds"] is expected, found
         assert found[0]["claim"].startswith("vanilla-ER learns no gait")
+
+
+def test_an_algorithm_whose_every_run_left_the_bounds_says_so():
+    reference = _curves([-500.0] * 5, [6] * 5)
+    empty = Curves(X, np.zeros((0, X.size)), np.zeros((0, X.size)), (), (), 1.0, out_of_bounds_seeds=(0, 1, 2, 3, 4))
+    found = table_findings(PENDULUM, {"sarsa_lambda": reference, "residual_er": empty}, budget=10, n_resamples=50)
+    residual = [f for f in found if "residual ER's" in f["claim"]]
+    assert residual and all(f["holds"] is None for f in residual)
+    assert all("5 left the possible returns and 0 diverged" in f["evidence"] for f in residual)

@@ -158,6 +158,19 @@ def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng:
     return {**entry, "holds": holds, "evidence": evidence, "no_gait_share": share}
 
 
+def _nothing_averaged(algo: str, curves: Curves | None) -> str:
+    """Why `algo` has no run to average ("" when it has one): no complete run, or every one left out."""
+    if curves is not None and curves.seeds:
+        return ""
+    label = ALGORITHM_LABELS.get(algo, algo)
+    left = len(curves.out_of_bounds_seeds) if curves is not None else 0
+    diverged = len(curves.diverged_seeds) if curves is not None else 0
+    if not left and not diverged:
+        return f"{label} has no complete run. "
+    return (f"{label} has no run to average: {left} left the possible returns and {diverged} diverged (left out, "
+            "as in the table). ")
+
+
 def _finite(value: float) -> float | None:
     """`value`, or None for NaN (findings.json is strict JSON: no NaN)."""
     return None if math.isnan(value) else float(value)
@@ -191,7 +204,8 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
             ours = curves[algo]
             if reference is None or not reference.seeds or ours is None or not ours.seeds:
                 findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]), "holds": None,
-                                 "evidence": "no complete run of one of the two algorithms"})
+                                 "evidence": (_nothing_averaged(algo, ours)
+                                              + _nothing_averaged(REFERENCE, reference)).strip()})
                 continue
             difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
                                                                     rng, n_resamples)
