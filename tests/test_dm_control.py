@@ -1,6 +1,7 @@
 """dm_control's suite through shimmy: the swing-up ids with every algorithm, flattened Dict observations, pixels
 refused, and learning on pendulum-swingup."""
 
+import importlib.util
 from collections import OrderedDict
 
 import gymnasium as gym
@@ -10,8 +11,10 @@ from gymnasium import spaces
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.monitor import Monitor
 
-pytest.importorskip("shimmy", reason="the dm_control ids need the dmc extra")
-pytest.importorskip("dm_control", reason="the dm_control ids need the dmc extra")
+# Skip without importing: dm_control picks its OpenGL backend once, when first imported, and sb3-er chooses it then
+# (as LEO does); an import here, at collection, would choose it for every test file of this worker.
+if importlib.util.find_spec("shimmy") is None or importlib.util.find_spec("dm_control") is None:
+    pytest.skip("the dm_control ids need the dmc extra", allow_module_level=True)
 
 from sb3_er import ERSigma, SarsaLambda  # noqa: E402
 from sb3_er.common.dict_observations import (  # noqa: E402

@@ -47,9 +47,9 @@ def register_dm_control_envs() -> None:
         return
     try:
         if "dm_control" not in sys.modules:
-            # dm_control picks its OpenGL backend once, at import: choose it as LEO does (envs/leo/_gl.py), so that a
+            # dm_control picks its OpenGL backend once, at import: choose it as LEO does (sb3_er_envs.leo._gl), so that a
             # suite env imported first does not leave a backend (GLFW without a display) that aborts LEO's rendering.
-            from envs.leo import _gl
+            from sb3_er_envs.leo import _gl
 
             user_choice = os.environ.get("MUJOCO_GL")
             _gl.prepare_backend()
