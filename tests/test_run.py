@@ -161,7 +161,8 @@ class ImageObsEnv(LineWalkEnv):
     "make_env, message",
     [
         (TupleActionEnv, "Discrete, MultiDiscrete or Box action space"),
-        (DictObsEnv, "Dict observation"),
+        # a single env's Dict observation is flattened (tests/test_dm_control.py); a VecEnv of them is refused
+        (lambda: make_vec_env(DictObsEnv, n_envs=1), "this VecEnv observes a Dict"),
         (ImageObsEnv, "image observations"),
         # made without its id: sb3-er's tiling for CartPole-v1 (sb3_er/data/tilings.yml) does not apply
         (CartPoleEnv, r"dimensions \[1, 3\] are unbounded"),
