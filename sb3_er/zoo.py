@@ -22,7 +22,7 @@ from typing import Any
 
 import yaml
 
-from sb3_er.common.dict_observations import register_if_dm_control_id
+from sb3_er.common.env_ids import register_env_id
 from sb3_er.er import REPLAY_ORDERS, SIGMAS
 
 ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma")
@@ -274,7 +274,7 @@ def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str
     parser = argparse.ArgumentParser(add_help=False)
     parser.add_argument("--env", default=None)
     known, _ = parser.parse_known_args(argv)
-    register_if_dm_control_id(known.env)  # shimmy's dm_control/ ids, in this process, before rl_zoo3 makes the env
+    register_env_id(known.env)  # sb3_er/ and shimmy's dm_control/ ids, in this process, before rl_zoo3 makes it
     saved = sys.argv
     sys.argv = [program, *argv]
     try:

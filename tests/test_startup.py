@@ -65,3 +65,26 @@ SarsaLambda("TileQ", "sb3_er/CompassWalker-v0", policy_kwargs=dict(initial_value
     assert kernels == {"fill_initial_weights", "select_action", "sarsa_lambda_step", "clear_trace",
                        "simulate_control_step"}
     assert set(state["kernels"].values()) == {1}, "a kernel compiled for two signatures"
+
+
+@pytest.mark.parametrize("algorithm", ["SarsaLambda", "ERSigma"])
+def test_an_sb3_er_id_needs_no_separate_import(tmp_path, algorithm):
+    # SB3 makes the id with gymnasium.make inside BaseAlgorithm: the sb3_er/ namespace must be registered by then,
+    # for a new model and for load(..., env=id), in an interpreter that never imported sb3_er_envs itself.
+    path = tmp_path / "model.zip"
+    run = f"""
+import sys
+from sb3_er import {algorithm}
+assert "sb3_er_envs" not in sys.modules
+model = {algorithm}("TileQ", "sb3_er/WindyCliff-v0", seed=0).learn(300)
+model.save({str(path)!r})
+loaded = {algorithm}.load({str(path)!r}, env="sb3_er/WindyCliff-v0")
+assert loaded.get_env().num_envs == 1
+"""
+    assert "sb3_er_envs" in imported_after(run)["modules"]
+
+
+def test_an_unknown_namespace_is_still_gymnasiums_error():
+    probe = "from sb3_er import SarsaLambda\nSarsaLambda('TileQ', 'sb3_er_typo/WindyCliff-v0')"
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600)
+    assert result.returncode != 0 and "Namespace sb3_er_typo not found" in result.stderr

@@ -30,8 +30,8 @@ from sb3_er.common.dict_observations import (
     flatten_dict_observation,
     flattened_dict_space,
     observation_keys,
-    register_if_dm_control_id,
 )
+from sb3_er.common.env_ids import register_env_id
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
 from sb3_er.common.serialization import (
     PLAIN_STATE_KEY,
@@ -115,9 +115,9 @@ class TileQAlgorithm(BaseAlgorithm):
     :param policy: "TileQ" (default) or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
         (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``). A single env with a Dict
-        observation of Box arrays (dm_control's suite) is flattened with Gymnasium's ``FlattenObservation``; the
-        ``dm_control/<domain>-<task>-v0`` ids register themselves (shimmy, the ``dmc`` extra; see
-        :mod:`sb3_er.common.dict_observations`).
+        observation of Box arrays (dm_control's suite) is flattened with Gymnasium's ``FlattenObservation``. The
+        ``sb3_er/...`` ids and the ``dm_control/<domain>-<task>-v0`` ids (shimmy, the ``dmc`` extra) register
+        themselves (see :mod:`sb3_er.common.env_ids`).
     :param learning_rate: alpha, the step on Q (each of the N active weights moves by alpha * delta / N); a float or a
         schedule of the remaining progress (default 0.2, the thesis's alpha for every experiment but LEO's).
     :param gamma: discount factor per control step (default 0.99, thesis sections 4.2 and 5.1).
@@ -168,7 +168,7 @@ class TileQAlgorithm(BaseAlgorithm):
         device: str = "cpu",
         _init_setup_model: bool = True,
     ):
-        register_if_dm_control_id(env)  # shimmy's ids exist once it is imported: only when one is used
+        register_env_id(env)  # sb3_er/ and (shimmy's, only when one is used) dm_control/ ids, before SB3 makes it
         try:
             super().__init__(
                 policy,
@@ -226,7 +226,7 @@ class TileQAlgorithm(BaseAlgorithm):
         """SB3's wrapping into a VecEnv, after flattening a single env's Dict observation (Gymnasium's
         ``FlattenObservation``; pixels refused). An env id is made first (``load(path, env="dm_control/...")``)."""
         if isinstance(env, str):
-            register_if_dm_control_id(env)
+            register_env_id(env)
             env = gym.make(env)
         if not isinstance(env, VecEnv):
             env = flatten_dict_observation(env)
