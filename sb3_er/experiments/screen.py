@@ -174,6 +174,49 @@ def screen_command(experiment_name: str, candidates, out_dir: Path, title: str, 
     return table
 
 
+def tiling_screen_command(description: str, candidates: Mapping[str, Mapping[str, dict]], run_one, summarize,
+                          default_seeds=(0,), seeds_outermost: bool = False, argv: list[str] | None = None) -> None:
+    """The command line of a tiling screen over env ids (the continuous-action and dm_control screens):
+    ``[--envs ID ...] [--candidates NAME ...] [--seeds N ...] [--summarize]``. Runs every chosen (env, candidate,
+    seed) through ``run_one``, which skips a finished run (so the command resumes), or only ``summarize()``.
+
+    :param description: the command's description (its script's first docstring paragraph).
+    :param candidates: env id -> candidate name -> the candidate's ``policy_kwargs``.
+    :param run_one: ``run_one(env_id, candidate_name, seed)`` runs one candidate on one seed, or skips it if finished.
+    :param summarize: ``summarize()`` writes the screen's summary from its finished runs.
+    :param default_seeds: the seeds run when ``--seeds`` is not given (default (0,)).
+    :param seeds_outermost: loop over seeds outermost, so that the first seed of every candidate finishes first
+        (default False: env, then candidate, then seed).
+    :param argv: the script's arguments (default None: ``sys.argv[1:]``).
+    """
+    import argparse
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--envs", nargs="+", default=list(candidates), choices=list(candidates),
+                        help="screen only these env ids (default: all)")
+    parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
+                        help="screen only these candidates (default: every candidate of each env)")
+    parser.add_argument("--seeds", nargs="+", type=int, default=list(default_seeds))
+    parser.add_argument("--summarize", action="store_true", help="write the summary from the finished runs")
+    arguments = parser.parse_args(argv)
+    if arguments.summarize:
+        summarize()
+        return
+    chosen = {env_id: [name for name in candidates[env_id] if arguments.candidates is None
+                       or name in arguments.candidates] for env_id in arguments.envs}
+    unknown = sorted(set(arguments.candidates or ()) - {name for names in chosen.values() for name in names})
+    if unknown:
+        parser.error(f"no candidate named {', '.join(unknown)} for {', '.join(arguments.envs)}; the candidates are "
+                     + "; ".join(f"{env_id}: {', '.join(candidates[env_id])}" for env_id in arguments.envs))
+    pairs = [(env_id, name) for env_id, names in chosen.items() for name in names]
+    if seeds_outermost:
+        jobs = [(env_id, name, seed) for seed in arguments.seeds for env_id, name in pairs]
+    else:
+        jobs = [(env_id, name, seed) for env_id, name in pairs for seed in arguments.seeds]
+    for env_id, name, seed in jobs:
+        run_one(env_id, name, seed)
+
+
 def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10, budget: float | None = None,
                n_workers: int = 1, only: list[str] | None = None) -> None:
     """Run (or resume) Sarsa(lambda) on every candidate in ``out_dir/<candidate>`` with `sb3-er reproduce`.

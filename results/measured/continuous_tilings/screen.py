@@ -12,7 +12,6 @@ the code version; a finished run is skipped, so the command resumes. ``--summari
 summary.md from the runs.
 """
 
-import argparse
 import json
 import os
 import statistics
@@ -30,6 +29,7 @@ from stable_baselines3.common.monitor import Monitor  # noqa: E402
 from sb3_er import SarsaLambda  # noqa: E402
 from sb3_er.common.atomic import write_atomically  # noqa: E402
 from sb3_er.experiments.records import code_version  # noqa: E402
+from sb3_er.experiments.screen import tiling_screen_command  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 STEPS = 100_000
@@ -103,21 +103,9 @@ def summarize(out: Path) -> None:
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--envs", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
-    parser.add_argument("--candidates", nargs="+", default=None)
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    parser.add_argument("--summarize", action="store_true")
-    args = parser.parse_args(argv)
     out = HERE / "runs"
-    if args.summarize:
-        summarize(out)
-        return
-    for env_id in args.envs:
-        for candidate in args.candidates or CANDIDATES[env_id]:
-            if candidate in CANDIDATES[env_id]:
-                for seed in args.seeds:
-                    run(env_id, candidate, seed, out)
+    tiling_screen_command(__doc__.split("\n\n")[0], CANDIDATES, lambda env_id, name, seed: run(env_id, name, seed, out),
+                          lambda: summarize(out), default_seeds=(0, 1, 2), argv=argv)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Screen tilings for dm_control's swing-up tasks on Sarsa(lambda) alone.
 
-    nice -n 5 python results/measured/dmc_tilings/screen.py [--tasks ...] [--candidates ...] [--seeds 0]
+    nice -n 5 python results/measured/dmc_tilings/screen.py [--envs ...] [--candidates ...] [--seeds 0]
     python results/measured/dmc_tilings/screen.py --summarize
 
 Each run is ``SarsaLambda("TileQ", env_id, seed=seed, policy_kwargs=<candidate>).learn(100_000)``: the class
@@ -10,7 +10,6 @@ each range. The runs are benchmarks/dmc_targets.py's (a greedy point every 50,00
 end, resumable); one JSON per (task, candidate, seed) under runs/. ``--summarize`` writes summary.md.
 """
 
-import argparse
 import statistics
 import sys
 from pathlib import Path
@@ -83,22 +82,16 @@ def summarize() -> None:
     print("\n".join(lines))
 
 
+def run_one(task: str, name: str, seed: int) -> None:
+    dmc_targets.run(task, "sarsa_lambda", seed, STEPS, 50_000, HERE, policy_kwargs=CANDIDATES[task][name], label=name,
+                    final_episodes=FINAL_EPISODES)
+
+
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--tasks", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
-    parser.add_argument("--candidates", nargs="+", default=None)
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0])
-    parser.add_argument("--summarize", action="store_true")
-    args = parser.parse_args(argv)
-    if args.summarize:
-        summarize()
-        return
-    for seed in args.seeds:
-        for task in args.tasks:
-            for name in args.candidates or CANDIDATES[task]:
-                if name in CANDIDATES[task]:
-                    dmc_targets.run(task, "sarsa_lambda", seed, STEPS, 50_000, HERE, policy_kwargs=CANDIDATES[task][name],
-                                    label=name, final_episodes=FINAL_EPISODES)
+    from sb3_er.experiments.screen import tiling_screen_command
+
+    tiling_screen_command(__doc__.split("\n\n")[0], CANDIDATES, run_one, summarize, default_seeds=(0,),
+                          seeds_outermost=True, argv=argv)
 
 
 if __name__ == "__main__":
