@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 from sb3_er.experiments.specs import ANALYSES, EXPERIMENTS
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
+from sb3_er.zoo import ALL_ALGORITHM_NAMES
 
 ZOO_COMMANDS = ("train", "enjoy", "optimize")
 # The analyses, and the framework experiment (thesis Table 3.1, sb3_er.experiments.framework), which runs three envs.
@@ -49,7 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sb3-er",
         description="Reproduce the thesis's experiments, or train, watch and tune sb3-er's algorithms with rl-zoo.",
-        epilog=f"algorithms: {', '.join(ALGORITHM_LABELS)}",
+        epilog=f"reproduce --algos (the thesis's tables): {', '.join(ALGORITHM_LABELS)}; train, enjoy and optimize "
+        f"--algo: {', '.join(ALL_ALGORITHM_NAMES)}",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="{reproduce,train,enjoy,optimize}")
     reproduce = commands.add_parser("reproduce", help="run a thesis experiment (gridworld, pendulum, walker, leo) or "
@@ -98,7 +100,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         "--jobs", type=int, default=None,
         help="worker processes, or the CPUs of the local Ray instance with --backend ray (default: number of CPUs)",
     )
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--no-progress", action="store_true",
+                        help="hide the progress bar (it is shown only when standard error is a terminal)")
     parser.add_argument(
         "--backend", choices=["local", "ray"], default="local",
         help="local: worker processes on this machine (default); ray: one Ray task per run, on a local Ray instance "

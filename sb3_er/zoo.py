@@ -23,7 +23,6 @@ from typing import Any
 import yaml
 
 from sb3_er.common.env_ids import register_env_id
-from sb3_er.er import REPLAY_ORDERS, SIGMAS
 
 ALGORITHM_NAMES = ("sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma")
 # The other sample re-use methods of thesis chapter 3 (Dyna, FQI, LSPI): trainable through rl-zoo, not in the thesis's
@@ -33,9 +32,23 @@ ALL_ALGORITHM_NAMES = ALGORITHM_NAMES + FRAMEWORK_ALGORITHM_NAMES
 # The repository's top-level zoo_configs/, mapped into the package in pyproject.toml.
 CONFIG_PACKAGE = "sb3_er.zoo_configs"
 ENV_PACKAGE = "sb3_er_envs"
-SIGMA_DEFINITIONS = tuple(name for name in SIGMAS if name is not None)  # Appendix B, numbered 1-5 in this order
 # rl_zoo3 keys that configure the run rather than the algorithm's constructor.
 ZOO_ONLY_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "env_wrapper", "frame_stack", "callback", "env_kwargs")
+
+
+def sigma_definitions() -> tuple[str, ...]:
+    """The definitions of sigma (thesis Appendix B, numbered 1-5 in this order), as ERSigma's ``sigma`` names them.
+    (sb3_er.er is imported here, not with this module, so that the command line's parser stays light.)"""
+    from sb3_er.er import SIGMAS
+
+    return tuple(name for name in SIGMAS if name is not None)
+
+
+def replay_orders() -> tuple[str, ...]:
+    """The replay orders ER's ``replay_order`` accepts (thesis Appendix A and section 3.2)."""
+    from sb3_er.er import REPLAY_ORDERS
+
+    return tuple(REPLAY_ORDERS)
 
 
 def algorithm_classes() -> dict[str, type]:
@@ -136,7 +149,7 @@ def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) 
     """
     return {
         **_sample_common(trial),
-        "replay_order": trial.suggest_categorical("replay_order", list(REPLAY_ORDERS)),
+        "replay_order": trial.suggest_categorical("replay_order", list(replay_orders())),
     }
 
 
@@ -148,7 +161,7 @@ def sample_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: 
     :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
     :param additional_args: rl_zoo3's extra sampler arguments (unused).
     """
-    return {**_sample_common(trial), "sigma": trial.suggest_categorical("sigma", list(SIGMA_DEFINITIONS))}
+    return {**_sample_common(trial), "sigma": trial.suggest_categorical("sigma", list(sigma_definitions()))}
 
 
 def sample_residual_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
@@ -172,7 +185,7 @@ def sample_residual_er_sigma_params(trial, n_actions: int, n_envs: int, addition
     """
     return {
         **sample_residual_er_params(trial, n_actions, n_envs, additional_args),
-        "sigma": trial.suggest_categorical("sigma", list(SIGMA_DEFINITIONS)),
+        "sigma": trial.suggest_categorical("sigma", list(sigma_definitions())),
     }
 
 

@@ -84,7 +84,7 @@ def test_optuna_study_with_two_trials(tmp_path):
     (report,) = (tmp_path / "er_sigma").glob("report_*.csv")
     trials = pd.read_csv(report)
     assert len(trials) == 2
-    assert set(trials["params_sigma"]) <= set(zoo.SIGMA_DEFINITIONS)
+    assert set(trials["params_sigma"]) <= set(zoo.sigma_definitions())
     assert trials["params_learning_rate"].between(0.02, 0.6).all()
 
 

@@ -446,7 +446,8 @@ class _Driver:
         self.wall_times: dict[str, float] = {}
         self.failures: list[str] = []
         self.fractions = {job.key: 0.0 for job in jobs}
-        self.bar = tqdm(total=len(jobs), unit="run", desc="runs", disable=not show_progress or not jobs,
+        # disable=None: tqdm's own rule, no bar when stderr is not a terminal (a log file or CI would get every redraw)
+        self.bar = tqdm(total=len(jobs), unit="run", desc="runs", disable=True if not show_progress or not jobs else None,
                         smoothing=0.0)
         self.expected: dict[str, dict[str, Any]] = {}
         self.reaper: lifetime.Reaper | None = None
