@@ -19,6 +19,7 @@ if importlib.util.find_spec("shimmy") is None or importlib.util.find_spec("dm_co
 from sb3_er import ERSigma, SarsaLambda  # noqa: E402
 from sb3_er.common.dict_observations import (  # noqa: E402
     check_flat_dict,
+    flatten_dict_observation,
     is_dm_control_id,
     observation_keys,
     register_dm_control_envs,
@@ -75,6 +76,30 @@ def test_a_model_of_each_id_steps_saves_and_loads(env_id, tmp_path):
     np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], action)
     loaded.learn(100, reset_num_timesteps=False)
     assert loaded.num_timesteps == 1_300
+
+
+@pytest.mark.parametrize("make", ["id", "env", "load"])
+def test_the_value_watch_bounds_a_suite_task_by_the_suites_rewards(make, tmp_path):
+    # Rewards in [0, 1] a step (the suite's convention): the possible returns are [0, 1 / (1 - 0.99)] = [0, 100]
+    # from the first step, not the rewards seen so far (zero for most of a swing-up's first episodes).
+    source = "dm_control/cartpole-swingup-v0" if make == "id" else gym.make("dm_control/cartpole-swingup-v0")
+    model = SarsaLambda("TileQ", source, seed=0, policy_kwargs=dict(SMALL))
+    if make == "load":
+        model.save(tmp_path / "model.zip")
+        model = SarsaLambda.load(tmp_path / "model.zip", env=gym.make("dm_control/cartpole-swingup-v0"))
+    assert model._watch.source == "env" and model.value_bounds == pytest.approx((0.0, 100.0))
+    model.learn(200)  # observing rewards no wider than declared changes nothing
+    assert model.value_bounds == pytest.approx((0.0, 100.0))
+    # an env of the user's own with a Dict observation keeps the observed bounds: nothing declares its rewards
+    class DictCartPole(gym.ObservationWrapper):
+        def __init__(self):
+            super().__init__(gym.make("CartPole-v1"))
+            self.observation_space = spaces.Dict({"state": self.env.observation_space})
+
+        def observation(self, observation):
+            return {"state": observation}
+
+    assert type(flatten_dict_observation(DictCartPole())) is gym.wrappers.FlattenObservation
 
 
 @pytest.mark.parametrize("algo", sorted(algorithm_classes()))

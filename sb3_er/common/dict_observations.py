@@ -107,15 +107,33 @@ def check_flat_dict(space: spaces.Dict) -> None:
             )
 
 
+#: Where the suite's rewards lie: every task's reward is in the unit interval, on terminating transitions too
+#: (Tassa et al. 2018, "DeepMind Control Suite", arXiv:1801.00690), so its returns lie in [0, 1 / (1 - gamma)].
+DM_CONTROL_REWARD_BOUNDS = {"step": (0.0, 1.0), "terminal": (0.0, 1.0)}
+
+
+class FlattenSuiteObservation(gym.wrappers.FlattenObservation):
+    """Gymnasium's ``FlattenObservation`` of a dm_control suite task, declaring the suite's ``reward_bounds`` to the
+    value watch (:data:`DM_CONTROL_REWARD_BOUNDS`), which would otherwise bound the values by the rewards observed
+    so far: near zero for the many steps before a swing-up task first pays, so that possible values would be
+    reported as impossible."""
+
+    reward_bounds = DM_CONTROL_REWARD_BOUNDS
+
+
 def flatten_dict_observation(env: gym.Env) -> gym.Env:
-    """``env`` with its Dict observation flattened by Gymnasium's ``FlattenObservation``; other envs unchanged.
+    """``env`` with its Dict observation flattened by Gymnasium's ``FlattenObservation`` (for a ``dm_control/`` id,
+    :class:`FlattenSuiteObservation`, which declares the suite's reward bounds); other envs unchanged.
+
+    Raises ValueError for pixel observations (:func:`check_flat_dict`).
 
     :param env: a Gymnasium env.
-    Raises ValueError for pixel observations (:func:`check_flat_dict`).
     """
     if not isinstance(env.observation_space, spaces.Dict):
         return env
     check_flat_dict(env.observation_space)
+    if is_dm_control_id(getattr(env.spec, "id", None)):
+        return FlattenSuiteObservation(env)
     return gym.wrappers.FlattenObservation(env)
 
 
