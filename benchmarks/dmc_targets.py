@@ -15,7 +15,7 @@ Resumable per chunk: after every chunk the model (and ERSigma's replay buffer) i
 ``<out>/checkpoints/`` (not committed) and the run's JSON under ``<out>/runs/<task>/<algo>/seed_<n>.json`` holds the
 curve so far; a rerun skips finished runs and continues an unfinished one from its last chunk (the env then starts a
 new episode from a fresh reset, which the JSON records as ``resumed_at``). The JSON holds the code version of every
-chunk. ``--summarize`` writes summary.md, runs.json (the table's figures) and the curves (curves.png) from the runs. Runs go one after
+chunk and what the value watch saw (how many values left the possible returns, and the first). ``--summarize`` writes summary.md, runs.json (the table's figures) and the curves (curves.png) from the runs. Runs go one after
 another in this process, seeds outermost, so the first seeds of every task and algorithm finish first.
 """
 
@@ -146,8 +146,13 @@ def run(task: str, algo: str, seed: int, steps: int, every: int, out: Path, poli
     code = code_version()
     while model.num_timesteps < steps:
         cpu = time.process_time()
+        outside = model.values_out_of_range  # the watch's count, from 0 again after a resume's load
         model.learn(min(every, steps - model.num_timesteps), reset_num_timesteps=False)
         record["learn_cpu_s"] += time.process_time() - cpu
+        record["values_out_of_range"] = record.get("values_out_of_range", 0) + model.values_out_of_range - outside
+        record["value_bounds"] = list(model.value_bounds)
+        if model.value_excursion is not None and record.get("first_value_excursion") is None:
+            record["first_value_excursion"] = model.value_excursion
         last = model.num_timesteps >= steps
         returns = greedy_returns(model, task, seed, final_episodes if last else CURVE_EPISODES)
         record["curve"].append({"steps": int(model.num_timesteps), "mean_return": statistics.fmean(returns),
@@ -175,6 +180,15 @@ def records(out: Path) -> list[dict[str, Any]]:
     return [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*/*/seed_*.json"))]
 
 
+def _outside(record: dict[str, Any]) -> str:
+    """The summary's cell of a run's values outside the possible returns ("not recorded" for a run without them)."""
+    if "values_out_of_range" not in record:
+        return "not recorded"
+    count = record["values_out_of_range"]
+    first = record.get("first_value_excursion")
+    return f"{count:,}" + (f" (first: {first['value']:.4g} at step {first['step']:,})" if count and first else "")
+
+
 def summarize(out: Path) -> None:
     """summary.md, runs.json and curves.png from the runs under ``out``."""
     import matplotlib
@@ -191,8 +205,13 @@ def summarize(out: Path) -> None:
              f"reached: mean of {FINAL_EPISODES} greedy episodes after the last step (of 1,000); steps it took: the "
              f"first point of the curve (every {EVERY:,} steps, {CURVE_EPISODES} greedy episodes) at "
              f"{REACHED_FRACTION:.0%} of it. Unfinished runs show their last point.", "",
-             "| task | algorithm | seed | steps run | return reached | steps it took | learn CPU s |",
-             "|---|---|---:|---:|---:|---:|---:|"]
+             "Values outside the possible returns: how many targets and Q-values the value watch saw outside the "
+             "returns the rewards observed so far make possible (the suite's rewards lie in [0, 1], so at gamma 0.99 "
+             "within [0, 100]), widened by the initial values, and the first one with its step; a run with any has "
+             "left the regime its learner is meant for.", "",
+             "| task | algorithm | seed | steps run | return reached | steps it took | learn CPU s | values outside the "
+             "possible returns (first: value at step) |",
+             "|---|---|---:|---:|---:|---:|---:|---|"]
     findings = []
     for r in sorted(runs, key=lambda r: (r["task"], r["algo"], r["seed"])):
         last = r["curve"][-1] if r["curve"] else None
@@ -200,10 +219,11 @@ def summarize(out: Path) -> None:
                                                                     if last else "-")
         took = f"{r['steps_to_reach']:,}" if r.get("steps_to_reach") is not None else "-"
         lines.append(f"| {r['task'].split('/')[1]} | {r['algo']} | {r['seed']} | {last['steps'] if last else 0:,} | "
-                     f"{reached} | {took} | {r['learn_cpu_s']:.0f} |")
+                     f"{reached} | {took} | {r['learn_cpu_s']:.0f} | {_outside(r)} |")
         findings.append({"task": r["task"], "algo": r["algo"], "seed": r["seed"], "finished": bool(r.get("finished")),
                          "steps_run": last["steps"] if last else 0, "reached": r.get("reached"),
-                         "steps_to_reach": r.get("steps_to_reach")})
+                         "steps_to_reach": r.get("steps_to_reach"),
+                         "values_out_of_range": r.get("values_out_of_range")})
     lines += ["", "Published figures on the same tasks (state observations):", "",
               "| task | method | return | at steps | source |", "|---|---|---:|---:|---|"]
     for task, entries in PUBLISHED.items():
