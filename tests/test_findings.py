@@ -105,3 +105,20 @@ def test_an_algorithm_whose_every_run_left_the_bounds_says_so():
     residual = [f for f in found if "residual ER's" in f["claim"]]
     assert residual and all(f["holds"] is None for f in residual)
     assert all("5 left the possible returns and 0 diverged" in f["evidence"] for f in residual)
+
+
+def test_a_side_with_fewer_than_five_averaged_runs_gets_no_verdict():
+    # The clear win above, but only one of ER's runs left in (four left the possible returns): one run resamples to
+    # itself, so an interval that looks clear would show Sarsa(lambda)'s spread only.
+    reference = _curves([-500.0, -520.0, -480.0, -510.0, -490.0], [6, 6, 6, 6, 6])
+    for n, verdict in ((1, None), (4, None), (5, True)):
+        ours = _curves([-100.0, -110.0, -90.0, -105.0, -95.0][:n], [2] * n)
+        ours = Curves(ours.x, ours.performance, ours.cumulative_falls, ours.seeds, (), 1.0,
+                      out_of_bounds_seeds=tuple(range(n, 5)))
+        found = {f["metric"]: f for f in table_findings(PENDULUM, {"sarsa_lambda": reference, "er": ours}, budget=10,
+                                                        n_resamples=400)}
+        assert found["end_performance"]["holds"] is verdict, n
+        if verdict is None:
+            evidence = found["end_performance"]["evidence"]
+            assert f"vanilla-ER has {n} averaged run" in evidence and f"{5 - n} left the possible returns" in evidence
+            assert "bootstrap CI" in evidence  # the interval is still shown, for what it is

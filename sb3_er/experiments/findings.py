@@ -16,6 +16,12 @@ an algorithm that learns no gait has no end performance, and its difference is t
 the thesis prints NA (no gait learned), the finding is "learns no gait", judged on the same bootstrap: it holds when
 the resampled mean curve stays below the success level in at least 97.5 % of the resamples, does not hold when it
 stays below in at most 2.5 %, and is inconclusive in between. Runs whose values left the possible returns and diverged runs are left out, as in the tables.
+
+Each side needs at least ``MIN_AVERAGED_RUNS`` averaged runs (5) for a verdict, else the finding is inconclusive:
+resampling n runs with replacement gives C(2n - 1, n) distinct resamples, and a side's own 2.5 % tail needs at least
+40 of them (C(9, 5) = 126; C(7, 4) = 35 is too few), so with fewer runs the interval would show the other side's
+spread only (one run resamples to itself: a "clear" interval over one ER-σ run and 20 Sarsa(λ) runs says nothing
+about ER-σ's seeds).
 """
 
 from __future__ import annotations
@@ -37,6 +43,19 @@ METRICS = {"rise_time": "rise time", "end_performance": "end performance", "fall
 #: Lower is better for these metrics; higher for end performance.
 LOWER_IS_BETTER = {"rise_time": True, "end_performance": False, "falls": True}
 N_RESAMPLES = 2000
+#: The fewest averaged runs a side of a finding needs for a verdict (module docstring).
+MIN_AVERAGED_RUNS = 5
+
+
+def _too_few(algo: str, curves: Curves) -> str:
+    """Why `algo`'s averaged runs are too few for a verdict ("" when there are enough)."""
+    n = len(curves.seeds)
+    if n >= MIN_AVERAGED_RUNS:
+        return ""
+    left, diverged = len(curves.out_of_bounds_seeds), len(curves.diverged_seeds)
+    return (f"{ALGORITHM_LABELS.get(algo, algo)} has {n} averaged run{'s' if n != 1 else ''} "
+            f"({left} left the possible returns, {diverged} diverged), fewer than the {MIN_AVERAGED_RUNS} a bootstrap "
+            "verdict needs. ")
 
 
 def thesis_sign(text: str) -> int | None:
@@ -145,6 +164,8 @@ def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng:
     entry = {"claim": claim, "algorithm": algo, "metric": "no_gait", "thesis_sign": None}
     if ours is None or not ours.seeds:
         return {**entry, "holds": None, "evidence": "no complete run"}
+    if _too_few(algo, ours):
+        return {**entry, "holds": None, "evidence": _too_few(algo, ours).strip()}
 
     def no_gait(curves: Curves) -> bool:
         return math.isnan(metric_value(experiment, curves, "end_performance", math.nan))
@@ -219,8 +240,12 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
             ours_text = "undefined (no gait on the mean curve of all seeds)" if math.isnan(difference) else (
                 f"{difference:+.3g}{unit}")
             evidence = f"ours {ours_text}, {interval}"
+            too_few = (_too_few(algo, ours) + _too_few(REFERENCE, reference)).strip()
+            if too_few:
+                evidence = f"{too_few} ({evidence})"
             findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
-                             "holds": judge(sign, low, high), "evidence": evidence, "algorithm": algo,
+                             "holds": None if too_few else judge(sign, low, high), "evidence": evidence,
+                             "algorithm": algo,
                              "metric": metric, "thesis_sign": sign, "difference": _finite(difference),
                              "ci95": [_finite(low), _finite(high)]})
     return findings
