@@ -19,7 +19,8 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadfile -q
 
 # The main job in 30-60 s on 2 cores (after make test built the venv): Sarsa(lambda) and ER-sigma on the simplest
-# walker, 5 seeds (the fewest for which each side of a finding gets a verdict, sb3_er.experiments.findings), 2500 s
+# walker, 5 seeds (the fewest with which a side of a finding can get a verdict, sb3_er.experiments.findings; runs
+# whose values leave the possible returns are not averaged, so a demo finding may stay inconclusive), 2500 s
 # of learning each (half the thesis's 5000 s; whole-episode replay makes an ER-sigma run take 8-11 s against
 # Sarsa(lambda)'s 1-2 s).
 demo: $(STAMP)

@@ -260,8 +260,10 @@ def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], r
     :param regime: the reading's name, added to the file when given (default "").
     """
     data = {"thesis": thesis, "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
-            "bootstrap CI over seeds excludes zero; inconclusive (null) when the CI includes zero; where the thesis "
-            "prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no gait",
+            "bootstrap CI over seeds excludes zero; does not hold (false) when the CI excludes zero with the other "
+            "sign; inconclusive (null) when the CI includes zero or a side has fewer than 5 averaged runs (runs whose "
+            "values left the possible returns are not averaged); where the thesis prints NA, 'learns no gait' holds "
+            "when at least 97.5 % of the bootstrap resamples learn no gait",
             "findings": findings}
     if regime:
         data["sigma_regime"] = regime
