@@ -15,7 +15,8 @@ Resumable per chunk: after every chunk the model (and ERSigma's replay buffer) i
 ``<out>/checkpoints/`` (not committed) and the run's JSON under ``<out>/runs/<task>/<algo>/seed_<n>.json`` holds the
 curve so far; a rerun skips finished runs and continues an unfinished one from its last chunk (the env then starts a
 new episode from a fresh reset, which the JSON records as ``resumed_at``). The JSON holds the code version of every
-chunk and what the value watch saw (how many values left the possible returns, and the first). ``--summarize`` writes summary.md, runs.json (the table's figures) and the curves (curves.png) from the runs. Runs go one after
+chunk and what the value watch saw (how many values left the possible returns, and the first). ``--summarize``
+writes summary.md, runs.json (the table's figures) and the curves (curves.png) from the runs. Runs go one after
 another in this process, seeds outermost, so the first seeds of every task and algorithm finish first.
 """
 
@@ -206,9 +207,9 @@ def summarize(out: Path) -> None:
              f"first point of the curve (every {EVERY:,} steps, {CURVE_EPISODES} greedy episodes) at "
              f"{REACHED_FRACTION:.0%} of it. Unfinished runs show their last point.", "",
              "Values outside the possible returns: how many targets and Q-values the value watch saw outside the "
-             "returns the rewards observed so far make possible (the suite's rewards lie in [0, 1], so at gamma 0.99 "
-             "within [0, 100]), widened by the initial values, and the first one with its step; a run with any has "
-             "left the regime its learner is meant for.", "",
+             "returns the suite's rewards make possible ([0, 1] a step, which sb3-er's flattening of a dm_control/ id "
+             "declares: [0, 100] at gamma 0.99, widened by the initial values), and the first one with its step; a "
+             "run with any has left the regime its learner is meant for.", "",
              "| task | algorithm | seed | steps run | return reached | steps it took | learn CPU s | values outside the "
              "possible returns (first: value at step) |",
              "|---|---|---:|---:|---:|---:|---:|---|"]

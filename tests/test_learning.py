@@ -67,8 +67,8 @@ ALGORITHMS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma, Dyna, FQI, 
 SETTINGS_BEYOND_DEFAULTS = {LSPI: {"policy_kwargs": {"n_tilings": 4}, "fit_every": 20}}
 RESIDUAL_ON_ACROBOT = pytest.mark.xfail(
     strict=True,
-    reason="zeta = 1 (Eq. 5.7) nearly cancels the update where successive states share most tiles (docs/algorithms/residual_er.md); the zoo "
-           "entries use zeta = 0.5",
+    reason="zeta = 1 (Eq. 5.7) nearly cancels the update where successive states share most tiles "
+           "(docs/algorithms/residual_er.md); the zoo entries use zeta = 0.5",
 )
 
 

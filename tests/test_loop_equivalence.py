@@ -154,7 +154,7 @@ def test_the_loop_reproduces_the_recorded_runs(name, mode, expected):
         for (step, values), (want_step, want_values) in zip(got["dumps"], want["dumps"]):
             assert step == want_step and values.keys() == want_values.keys(), f"the log dump at step {want_step}"
             for key, value in values.items():
-                assert close_reprs(value, want_values[key]), f"{key} at step {want_step}: {value} for {want_values[key]}"
+                assert close_reprs(value, want_values[key]), f"{key} at {want_step}: {value} for {want_values[key]}"
         summary, want_summary = got.pop("weights_summary"), want.pop("weights_summary")
         assert np.allclose(summary[:2], want_summary[:2], rtol=SOLVER_RTOL, atol=0) and summary[2] == want_summary[2]
         for key in ("weights_sha256", "dumps"):
@@ -177,8 +177,9 @@ def close_reprs(value: str, want: str) -> bool:
         return False
 
 
-@pytest.mark.parametrize("value, want, same", [("1.0", "1.0", True), ("0.09723489597709245", "0.09723489597709244", True),
-                                               ("0.0972349", "0.0972348", False), ("3", "4", False), ("nan", "1", False)])
+@pytest.mark.parametrize("value, want, same", [
+    ("1.0", "1.0", True), ("0.09723489597709245", "0.09723489597709244", True), ("0.0972349", "0.0972348", False),
+    ("3", "4", False), ("nan", "1", False)])
 def test_close_reprs(value, want, same):
     assert close_reprs(value, want) is same
 

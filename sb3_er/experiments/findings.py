@@ -164,8 +164,9 @@ def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng:
     entry = {"claim": claim, "algorithm": algo, "metric": "no_gait", "thesis_sign": None}
     if ours is None or not ours.seeds:
         return {**entry, "holds": None, "evidence": "no complete run"}
-    if _too_few(algo, ours):
-        return {**entry, "holds": None, "evidence": _too_few(algo, ours).strip()}
+    too_few = _too_few(algo, ours)
+    if too_few:
+        return {**entry, "holds": None, "evidence": too_few.strip()}
 
     def no_gait(curves: Curves) -> bool:
         return math.isnan(metric_value(experiment, curves, "end_performance", math.nan))
@@ -261,9 +262,10 @@ def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], r
     """
     data = {"thesis": thesis, "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
             "bootstrap CI over seeds excludes zero; does not hold (false) when the CI excludes zero with the other "
-            "sign; inconclusive (null) when the CI includes zero or a side has fewer than 5 averaged runs (runs whose "
-            "values left the possible returns are not averaged); where the thesis prints NA, 'learns no gait' holds "
-            "when at least 97.5 % of the bootstrap resamples learn no gait",
+            "sign; inconclusive (null) when the CI includes zero or a side has fewer than "
+            f"{MIN_AVERAGED_RUNS} averaged runs (runs whose values left the possible returns are not averaged); where "
+            "the thesis prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no "
+            "gait",
             "findings": findings}
     if regime:
         data["sigma_regime"] = regime

@@ -447,8 +447,8 @@ class _Driver:
         self.failures: list[str] = []
         self.fractions = {job.key: 0.0 for job in jobs}
         # disable=None: tqdm's own rule, no bar when stderr is not a terminal (a log file or CI would get every redraw)
-        self.bar = tqdm(total=len(jobs), unit="run", desc="runs", disable=True if not show_progress or not jobs else None,
-                        smoothing=0.0)
+        disable = True if not show_progress or not jobs else None
+        self.bar = tqdm(total=len(jobs), unit="run", desc="runs", disable=disable, smoothing=0.0)
         self.expected: dict[str, dict[str, Any]] = {}
         self.reaper: lifetime.Reaper | None = None
         code = records.code_version()
