@@ -1,6 +1,6 @@
 """Replay, Sarsa(lambda) and learn() throughput, and the value watch's cost; prints the figures recorded in the docs.
 
-    python benchmarks/replay_throughput.py [--quick]
+    python benchmarks/replay_throughput.py [--quick] [--baseline CHECKOUT]
 
 (a) the walker setup: 4-D state, 15 actions, 16 tilings; (b) the LEO setup: 10-D state, 343 actions (voltages tiled),
 16 tilings. Each ER variant replays a buffer of random-action trajectories recorded in the real env (sb3_er_envs; LEO
@@ -8,11 +8,22 @@ needs the dmc extra) with one kernel call per phase; the reference is a plain-Nu
 called once per update. Rates are per second of this process's CPU time (single-threaded), so other load on
 the machine does not count against them. "watch cost" is the kernel's time per update with the value watch (every
 target and Q(s, a) folded into the watch array, ER-sigma's target shift too) over its time without it, in one run:
-the median of alternating timed calls with and without.
+the median of alternating timed calls with and without. The weights are allocated and touched once, before any
+timing, so that the operating system's first-touch page faults are not counted as kernel work.
+
+On a shared or virtual machine the rate of one process moves by up to 2x between runs, which hides any change
+smaller than that. ``--baseline CHECKOUT`` (another checkout of this repository, or its ``sb3_er/common/kernels.py``)
+loads that version's kernels into the same process and alternates its replay phases with the current ones on the
+same buffer; the ``vs baseline`` column is the median of the per-round rate ratios, current over baseline, which
+the machine's drift affects far less. Use it to check that a change keeps the replay kernels' speed.
 """
 
 import argparse
+import importlib.util
+import inspect
+import sys
 import time
+from pathlib import Path
 
 import gymnasium as gym
 import numba as nb
@@ -76,25 +87,73 @@ def _alternate(rate, size, watch, rounds) -> tuple[float, float]:
     return float(np.median(without)), float(np.median(ratios))
 
 
+def load_kernels(checkout: str):
+    """The kernels module of another checkout (a directory holding ``sb3_er/common/kernels.py``, or that file), loaded
+    under its own module name beside the current one; numba caches it next to that file."""
+    path = Path(checkout)
+    if path.is_dir():
+        path = path / "sb3_er" / "common" / "kernels.py"
+    if not path.is_file():
+        raise SystemExit(f"--baseline: no kernels module at {path}")
+    spec = importlib.util.spec_from_file_location("baseline_kernels", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # numba's cache finds a module by name when it loads a cached kernel
+    spec.loader.exec_module(module)
+    current = [name for name in inspect.signature(kernels.replay_phase.py_func).parameters if name != "watch"]
+    theirs = [name for name in inspect.signature(module.replay_phase.py_func).parameters if name != "watch"]
+    if current != theirs:
+        raise SystemExit(f"--baseline: {path}'s replay_phase takes ({', '.join(theirs)}), this version's "
+                         f"({', '.join(current)}) besides the watch; only versions with the same arguments compare")
+    return module
+
+
+class ReplayTimer:
+    """Times one replay phase of ``n`` trajectories from all-zero weights, in CPU seconds, with a given kernels module
+    (the current one, or a baseline's: a version without the value watch gets no watch argument)."""
+
+    def __init__(self, coder, buffer, sigma, zeta):
+        self.coder, self.buffer, self.sigma, self.zeta = coder, buffer, sigma, zeta
+        self.theta = np.ones(coder.n_weights)  # touched once, so that no timed phase pays first-touch page faults
+        self.q_scratch, self.w_scratch = np.zeros(coder.n_actions), np.zeros(coder.n_actions)
+
+    def rate(self, module, n, watch_array) -> float:
+        """Updates per CPU second of one phase of ``n`` replays with ``module``'s kernels."""
+        coder = self.coder
+        self.theta.fill(0.0)
+        arguments = [
+            self.theta, self.buffer.visits, *self.buffer.replay_arguments(), coder.stride, coder.action_columns,
+            coder.columns_are_actions, n, module.ORDER_REVERSED, module.TARGET_SARSA, self.sigma, self.zeta, False,
+            ALPHA / coder.n_tilings, GAMMA, EPSILON, module.new_rng_state(1, 1), module.new_rng_state(1, 0),
+            self.q_scratch, self.w_scratch, *getattr(module, "ZERO_INITIAL", ()),
+        ]
+        if hasattr(module, "NO_WATCH"):
+            arguments.append(watch_array if module is kernels else module.NO_WATCH)
+        start = time.process_time()
+        updates = module.replay_phase(*arguments)[0]
+        return updates / (time.process_time() - start)
+
+
 def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays, rounds=5) -> tuple[float, float]:
     """(updates per CPU second without the value watch, time per update with it over time without it): the median
     of ``rounds`` alternating pairs of phases from the same weights and generators."""
-    q_scratch, w_scratch = np.zeros(coder.n_actions), np.zeros(coder.n_actions)
-    watch = kernels.new_watch(-1e6, 1e6)
+    timer = ReplayTimer(coder, buffer, sigma, zeta)
+    return _alternate(lambda n, watch: timer.rate(kernels, n, watch), n_replays, kernels.new_watch(-1e6, 1e6),
+                      rounds)
 
-    def phase(n, watch_array):
-        theta = np.zeros(coder.n_weights)
-        start = time.process_time()
-        updates = kernels.replay_phase(
-            theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
-            coder.columns_are_actions, n,
-            kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, zeta, False, ALPHA / coder.n_tilings, GAMMA, EPSILON,
-            kernels.new_rng_state(1, 1), kernels.new_rng_state(1, 0), q_scratch, w_scratch, *kernels.ZERO_INITIAL,
-            watch_array,
-        )[0]
-        return updates / (time.process_time() - start)
 
-    return _alternate(phase, n_replays, watch, rounds)
+def against_baseline(baseline, coder, buffer, sigma, zeta, n_replays, rounds=9) -> tuple[float, float]:
+    """(the baseline's median updates per CPU second, median of the per-round ratios current / baseline), both
+    without the value watch, alternating phases of the two versions on the same buffer."""
+    timer = ReplayTimer(coder, buffer, sigma, zeta)
+    for module in (kernels, baseline):
+        timer.rate(module, 1, kernels.NO_WATCH)
+    rates, ratios = [], []
+    for _ in range(rounds):
+        current = timer.rate(kernels, n_replays, kernels.NO_WATCH)
+        before = timer.rate(baseline, n_replays, kernels.NO_WATCH)
+        rates.append(before)
+        ratios.append(current / before)
+    return float(np.median(rates)), float(np.median(ratios))
 
 
 def numpy_updates_per_second(coder, buffer, sigma_on, zeta, n_updates) -> float:
@@ -186,22 +245,30 @@ def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="smaller runs, for a smoke test")
+    parser.add_argument("--baseline", metavar="CHECKOUT",
+                        help="another checkout (or its sb3_er/common/kernels.py) to time in the same process")
     args = parser.parse_args()
     scale = 0.1 if args.quick else 1.0
+    baseline = load_kernels(args.baseline) if args.baseline else None
 
     import sb3_er_envs  # noqa: F401  (registers the env ids)
 
-    print(f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s} "
-          f"{'watch cost':>10s}")
+    header = (f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s} "
+              f"{'watch cost':>10s}")
+    print(header + (f" {'baseline upd/s':>15s} {'vs baseline':>11s}" if baseline else ""))
     for name, setup in SETUPS.items():
         env = gym.make(setup["env_id"])
         coder = env_coder(env, setup["memory_size"])
         buffer = recorded_buffer(env, coder, int(setup["transitions"] * max(scale, 0.2)))
+        n_replays = max(20, int(1000 * scale))
         for variant, (sigma, zeta) in VARIANTS.items():
-            fast, cost = kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays=max(20, int(1000 * scale)))
+            fast, cost = kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays)
             slow = numpy_updates_per_second(coder, buffer, sigma != kernels.SIGMA_NONE, zeta, int(3000 * scale) + 100)
-            print(f"{name:32s} {variant:18s} {fast:14,.0f} {slow:12,.0f} {fast / slow:8.0f}x {cost - 1:+10.1%}",
-                  flush=True)
+            line = f"{name:32s} {variant:18s} {fast:14,.0f} {slow:12,.0f} {fast / slow:8.0f}x {cost - 1:+10.1%}"
+            if baseline:
+                before, ratio = against_baseline(baseline, coder, buffer, sigma, zeta, n_replays)
+                line += f" {before:15,.0f} {ratio:10.2f}x"
+            print(line, flush=True)
 
     walker = TileCoder([0.1, 0.1, 0.11, 0.21], [15], n_tilings=16)
     rate, cost = sarsa_lambda_steps_per_second(walker, int(1_000_000 * scale))

@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sb3_er.common import kernels
 from sb3_er.common.buffers import TrajectoryReplayBuffer
@@ -251,3 +253,32 @@ def test_colliding_tilings_update_like_the_gradient():
     trace = empty_trace(coder)
     sarsa_lambda_step(coder, theta, trace, 0.3, 1, 1.0, 0.3, True, 0.9)
     assert theta[i[0]] == pytest.approx(2 * ALPHA / 2 * 1.0)  # replacing trace e_i = phi_i = 2
+
+
+# Q_v and W (Eq. 5.1-5.2) against a dense reference on both layouts (actions as columns; actions tiled, as LEO's
+# voltages), with unvisited weights that are zero (every weight the non-residual variants leave unvisited) or not
+# (initial values, the residual term): Q_v sums the visited features' weights only, W counts them.
+@settings(max_examples=60, deadline=None)
+@given(tiled=st.booleans(), written=st.sampled_from(["none", "some", "all"]), seed=st.integers(0, 2**16))
+def test_visited_values_and_counts_match_a_dense_sum(tiled, written, seed):
+    rng = np.random.default_rng(seed)
+    if tiled:
+        coder = TileCoder([0.5, 0.5], [5, 5], n_tilings=4, memory_size=2**12, action_tile_widths=[2.0, 2.0])
+    else:
+        coder = TileCoder([0.5, 0.5], [6], n_tilings=4, memory_size=2**12)
+    assert coder.columns_are_actions is not tiled
+    visits = (rng.random(coder.n_weights) < 0.5).astype(np.uint8)
+    theta = np.where(visits == 1, rng.normal(size=coder.n_weights), 0.0)
+    if written != "none":
+        unvisited = np.flatnonzero(visits == 0)
+        chosen = unvisited if written == "all" else rng.choice(unvisited, size=max(1, len(unvisited) // 50))
+        theta[chosen] = rng.normal(size=len(chosen)) * 10.0
+    obs = rng.uniform(-3.0, 3.0, 2)
+    slots = coder.slots(obs)
+    out_q, out_w = np.full(coder.n_actions, np.nan), np.full(coder.n_actions, np.nan)
+    kernels.all_q_values_and_visit_counts(theta, visits, slots, coder.stride, coder.action_columns,
+                                          coder.columns_are_actions, out_q, out_w, *kernels.ZERO_INITIAL)
+    for a in range(coder.n_actions):
+        features = coder.feature_indices(obs, a)
+        assert out_w[a] == visits[features].sum()
+        assert out_q[a] == pytest.approx(float((theta[features] * visits[features]).sum()), rel=1e-12, abs=1e-12)

@@ -281,12 +281,25 @@ def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, 
                 out_q[a] += row[a] * visited[a]
                 out_w[a] += visited[a]
         else:
+            # Only non-zero initial values and the residual term of Eq. 5.7-5.9 make an unvisited weight non-zero. A
+            # row without such a weight takes the plain sums (leaving out 0.0 is adding it); in the others each
+            # weight is added and the unvisited ones are taken out again, branch-free.
+            written = False
+            for c in range(stride):
+                written |= (visited[c] == 0) & (row[c] != 0.0)
+            if not written:
+                for a in range(n_actions):
+                    column = np.uint64(a) if columns_are_actions else np.uint64(action_columns[k, a])
+                    out_q[a] += row[column]
+                    out_w[a] += visited[column]
+                continue
             for a in range(n_actions):
                 column = np.uint64(a) if columns_are_actions else np.uint64(action_columns[k, a])
-                out_q[a] += row[column]
-                out_w[a] += visited[column]
-                if visited[column] == 0:
-                    out_q[a] -= row[column]
+                value = row[column]
+                seen = visited[column]
+                out_q[a] += value
+                out_w[a] += seen
+                out_q[a] -= value * np.float64(seen == 0)
 
 
 @nb.njit(inline="always", cache=True)
