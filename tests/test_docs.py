@@ -220,6 +220,7 @@ REFERENCE = re.compile(r"(?:Tables?|Figures?|Fig\.|Eqs?\.|Alg\.|Algorithms?|Appe
 NOT_MEASURED = {
     "docs/benchmarks/performance.md": {"1.25": "a target ratio of whole-process wall times, not a measurement"},
     "docs/continuous_actions.md": {"-1.33": "a torque level, 2 * (k / 3 - 1)", "-0.67": "a torque level",
+                                   "1.33": "a torque level", "1.71": "the outermost bin centre of 7 bins of [-2, 2]",
                                    "-1627.4": "Pendulum-v1's return bound, computed",
                                    "105.5": "MountainCarContinuous-v0's watch limit, 100 + 5 % of 110, computed"},
     "docs/envs/dm_control.md": {"1801.00690": "the arXiv number of Tassa et al. 2018"},
@@ -227,7 +228,8 @@ NOT_MEASURED = {
     "docs/guide/install.md": {"3.11": "the Python version tested"},
     "docs/guide/distributed.md": {"2.59": "a Ray release", "2.61": "a Ray release"},
     "docs/guide/zoo.md": {"5432": "PostgreSQL's port in an example URL"},
-    "docs/readings.md": {"162000": "5 * 180^2, a cost in degrees", "8.04": "m l^2 of Table 4.1, computed"},
+    "docs/readings.md": {"162000": "5 * 180^2, a cost in degrees", "8.04": "m l^2 of Table 4.1, computed",
+                         "3.77": "Table 4.1's J (3.773e-3), printed and rounded"},
     "docs/value_growth.md": {"0.265": "a closed-form factor", "0.60": "a closed-form overlap"},
     "docs/value_watch.md": {"-209.7": "a reward bound, computed", "-0.96": "a reward bound, computed",
                             "-10485": "a return bound, computed", "65900": "a return bound, computed",
@@ -263,12 +265,12 @@ def measured_looking_numbers(text: str) -> list[str]:
 
 def source_numbers(folders: set[str] | None = None) -> list[float]:
     """Every number of the results files the pages show (of `folders` of results/measured only, when given), and of
-    the package's code and configuration (parameters, the thesis's printed figures in sb3_er/experiments/thesis.py),
-    sorted."""
+    the package's code and configuration (parameters, the thesis's printed figures in sb3_er/experiments/thesis.py,
+    the Makefile's commands), sorted."""
     shown = [path for path in generator.shown_results_files()
              if folders is None or path.relative_to(generator.MEASURED).parts[0] in folders]
-    paths = shown + [path for folder in ("sb3_er", "envs", "zoo_configs")
-                     for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
+    paths = shown + [ROOT / "Makefile"] + [path for folder in ("sb3_er", "envs", "zoo_configs")
+                                           for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
     numbers = set()
     for path in paths:
         numbers.update(re.findall(r"[-−]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", path.read_text(encoding="utf-8")))
@@ -315,21 +317,22 @@ def named_folders(text: str) -> set[str]:
 
 
 def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file():
-    """A figure of a page must be in a results file the docs show; a folder's analysis (shown on the folder's page)
-    must take its figures from that folder's files or from the folders it names, so that a figure left over from
-    an earlier run does not pass by matching some other file."""
-    sources = source_numbers()
+    """A figure of a page must be in a results file of the folders that page names (``results/measured/<dir>`` or a
+    link to its results page; a folder's analysis note also its own folder), so that a figure left over from an
+    earlier run does not pass by matching some other folder's file: each figure is traceable from its page."""
     for path in [ROOT / "README.md", *hand_written_pages()]:
         name = path.relative_to(ROOT).as_posix()
         allowed = NOT_MEASURED.get(name, {})
         text = path.read_text(encoding="utf-8")
-        own = sources
+        folders = named_folders(text)
         if path.parent == DOCS / "_notes" and path.stem.startswith("results_"):
-            own = source_numbers({path.stem.removeprefix("results_")} | named_folders(text))
+            folders.add(path.stem.removeprefix("results_"))
+        own = source_numbers(folders)
         figures = [number for number in measured_looking_numbers(text)
                    if number not in allowed and not appears_in(number, own)]
-        assert not figures, (f"{name} quotes figures that no results file the docs show holds: {figures[:12]}; "
-                             "include the results file (or generate the table from it) instead of copying")
+        assert not figures, (f"{name} quotes figures that no results file of the folders it names "
+                             f"({', '.join(sorted(folders)) or 'none'}) holds: {figures[:12]}; name the folder the "
+                             "figure comes from, and include the file (or generate the table from it) instead of copying")
     for name, numbers in NOT_MEASURED.items():  # the exceptions stay true to the pages
         text = (ROOT / name).read_text(encoding="utf-8")
         assert all(number in map(_plain, re.findall(NUMBER, text)) for number in numbers), name
