@@ -52,19 +52,11 @@ def replay_orders() -> tuple[str, ...]:
 
 
 def algorithm_classes() -> dict[str, type]:
-    """Our algorithm classes under their rl-zoo names."""
+    """Our algorithm classes under their rl-zoo names (:data:`ALL_ALGORITHM_NAMES`, in its order)."""
     from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
 
-    return {
-        "sarsa_lambda": SarsaLambda,
-        "er": ER,
-        "er_sigma": ERSigma,
-        "residual_er": ResidualER,
-        "residual_er_sigma": ResidualERSigma,
-        "dyna": Dyna,
-        "fqi": FQI,
-        "lspi": LSPI,
-    }
+    classes = (SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma, Dyna, FQI, LSPI)
+    return dict(zip(ALL_ALGORITHM_NAMES, classes, strict=True))
 
 
 _EXTRACTED = contextlib.ExitStack()  # config files extracted from a zipped install, removed at exit

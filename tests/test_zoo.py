@@ -32,6 +32,15 @@ def test_registration_adds_every_algorithm_to_rl_zoo():
         assert hyperparams_opt.HYPERPARAMS_CONVERTER[name]({"sigma": "worst"}) == {"sigma": "worst"}
 
 
+def test_each_zoo_name_is_its_class_name_in_snake_case():
+    import re
+
+    classes = zoo.algorithm_classes()
+    assert list(classes) == list(zoo.ALL_ALGORITHM_NAMES)
+    for name, cls in classes.items():  # SarsaLambda -> sarsa_lambda, ResidualERSigma -> residual_er_sigma, FQI -> fqi
+        assert re.sub(r"(?<=[a-z])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z])", "_", cls.__name__).lower() == name
+
+
 @pytest.mark.parametrize("algo", zoo.ALGORITHM_NAMES)
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_zoo_configs_hold_the_thesis_hyperparameters(algo, env_id):
