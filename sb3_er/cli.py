@@ -19,7 +19,9 @@ ZOO_COMMANDS = ("train", "enjoy", "optimize")
 ANALYSIS_NAMES = (*ANALYSES, "framework", "sigma-regime")
 FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
 FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
-SIGMA_REGIME_READINGS = ("gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-earlier", "walker-optimistic")
+SIGMA_REGIME_READINGS = (
+    "gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-earlier", "walker-optimistic", "leo",
+)
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -137,7 +139,7 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
     analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
                           help="framework: the methods to run (default all seven)")
     analyses.add_argument("--readings", nargs="+", default=None, choices=SIGMA_REGIME_READINGS,
-                          help="sigma-regime: the env readings to run (default all six)")
+                          help="sigma-regime: the env readings to run (default all seven)")
     parser.add_argument(
         "--allow-mixed-versions", action="store_true",
         help="resume next to finished runs made by other code (version, git commit) or another configuration; "

@@ -55,7 +55,7 @@ def test_each_reading_is_its_tables_reading():
     assert set(SIGMA_REGIME_READINGS) == set(READINGS)
     measured = Path(__file__).resolve().parents[1] / "results" / "measured"
     tables = {"table_6_1": "pendulum", "table_6_1_earlier_default": "pendulum", "table_6_2": "walker",
-              "table_6_2_earlier_default": "walker", "gridworld": "gridworld"}
+              "table_6_2_earlier_default": "walker", "gridworld": "gridworld", "table_6_3": "leo"}
     for name, reading in READINGS.items():
         if not reading.results:
             continue
@@ -66,3 +66,19 @@ def test_each_reading_is_its_tables_reading():
         if pinned.is_file():
             settings = json.loads(pinned.read_text())
             assert settings.get("env_kwargs", {}) == dict(reading.env_kwargs), name
+
+
+def test_running_one_reading_keeps_the_rows_of_the_others(tmp_path):
+    """The summary covers the folder: a later command for one reading keeps the earlier readings' rows, lengths and
+    runs, and says how many runs each row has when they differ."""
+    reproduce_sigma_regime(n_seeds=2, budget=3, readings=["gridworld"], n_workers=1, out_dir=tmp_path,
+                           show_progress=False)
+    result = reproduce_sigma_regime(n_seeds=1, budget=2, readings=["pendulum-3.3"], n_workers=1, out_dir=tmp_path,
+                                    show_progress=False)
+    text = result.table_markdown.read_text()
+    gridworld = next(line for line in text.splitlines() if line.startswith("| windy cliff grid world"))
+    assert "| 3 episodes | 6 |" in gridworld and gridworld.endswith("of 2 |")  # 2 runs of 3 episodes
+    pendulum = next(line for line in text.splitlines() if line.startswith("| pendulum, earlier default"))
+    assert "| 2 episodes |" in pendulum and pendulum.endswith("of 1 |")
+    assert "the runs per reading are counted" in text.splitlines()[0]
+    assert list(pd.read_csv(tmp_path / "summary.csv")["reading"]) == ["gridworld", "pendulum-3.3"]

@@ -12,7 +12,8 @@ Readings (:data:`READINGS`): each is the reading of a table reproduction, with t
 and names that reproduction's results folder (:attr:`Reading.results`), so that the docs can say which regime ER-σ was
 in for each table: the grid world (Chapter 5), the pendulum's default (Table 6.1) and earlier default (velocity tiles
 3.3 rad/s, goal 0.1 rad and 1 rad/s), the simplest walker's default (Table 6.2) and earlier default (GRL's start, fall
-test and coordinates), and the walker with optimistic initial values (Q starting at 100, no table).
+test and coordinates), the walker with optimistic initial values (Q starting at 100, no table), and LEO's default
+(Table 6.3; a run is about 7 CPU minutes).
 """
 
 from __future__ import annotations
@@ -74,6 +75,7 @@ READINGS = {
                               results="table_6_2_earlier_default"),
     "walker-optimistic": Reading("sb3_er/SimplestWalker-v0", initial_value=100.0, unit="seconds", budget=5000.0,
                                  title="simplest walker, Q starting at 100"),
+    "leo": Reading("sb3_er/Leo-v0", unit="seconds", budget=12000.0, title="LEO, default", results="table_6_3"),
 }
 
 
@@ -258,15 +260,34 @@ def reproduce_sigma_regime(
     jobs = regime_jobs(out_dir, readings, seeds, budget)
     done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions,
                                       settings=settings)
+    # The summary covers the folder: the readings run now (their requested seeds) and every other reading whose runs
+    # an earlier command left in it (all their finished seeds), so that running one reading keeps the others' rows.
+    summarized = {name: seeds for name in READINGS if name in readings}
+    lengths = {folder.name: pinned["budget"] for folder, pinned in settings.items()}
+    for name in READINGS:
+        if name not in summarized and (out_dir / name / "settings.json").is_file():
+            found = sorted(int(path.stem.removeprefix("seed_"))
+                           for path in (out_dir / name / "runs" / "er_sigma").glob("seed_*.csv"))
+            if found:
+                summarized[name] = found
+                pinned = files.read_json(out_dir / name / "settings.json",
+                                         f"rerun the reading with --readings {name} into a new --out")
+                lengths[name] = float(pinned["budget"])
+    summarized = {name: summarized[name] for name in READINGS if name in summarized}  # the readings' order
+    summary_jobs = [job for name, its_seeds in summarized.items()
+                    for job in regime_jobs(out_dir, [name], its_seeds, lengths[name])]
     rows = []
-    for name in readings:
-        frames = {seed: read_run_csv(path) for seed in seeds
+    for name, its_seeds in summarized.items():
+        frames = {seed: read_run_csv(path) for seed in its_seeds
                   if (path := run_csv_path(out_dir / name, "er_sigma", seed)).is_file()}
         rows.append({"reading": name, "results": READINGS[name].results, **summarize_regime(frames)})
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
+    counts = {len(its_seeds) for its_seeds in summarized.values()}
+    per_reading = (f"{n_seeds} seed{'s' if n_seeds != 1 else ''} per reading" if counts == {n_seeds}
+                   else "the runs per reading are counted in the last two columns")
     lines = [
-        f"# Which way ER-σ moves its targets: {n_seeds} seed{'s' if n_seeds != 1 else ''} per reading",
+        f"# Which way ER-σ moves its targets: {per_reading}",
         "",
         "Per replay phase, the mean of T_σ - T over its updates (T the same transition's target without σ), and the "
         "shares of targets σ raised and lowered; averaged over all phases of all runs, weighted by their updates. "
@@ -278,7 +299,7 @@ def reproduce_sigma_regime(
     ]
     for row in rows:
         reading = READINGS[row["reading"]]
-        length = f"{reading.budget if budget is None else budget:g} {reading.unit}"
+        length = f"{lengths[row['reading']]:g} {reading.unit}"
         folder = f"results/measured/{reading.results}" if reading.results else "—"
         if not row.get("phases"):
             lines.append(f"| {reading.title} | {folder} | {length} | 0 | — | — | — | — | — |")
@@ -286,7 +307,7 @@ def reproduce_sigma_regime(
         lines.append(f"| {reading.title} | {folder} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
                      f"{row['raised']:.1%} | {row['lowered']:.1%} | {row['left_bounds']} of {row['runs']} | "
                      f"{row['diverged']} of {row['runs']} |")
-    lines += ["", code_line(jobs)]
+    lines += ["", code_line(summary_jobs)]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(lines) + "\n")
     return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=[],
                         runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
