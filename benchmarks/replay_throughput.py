@@ -94,7 +94,8 @@ def load_kernels(checkout: str):
     if path.is_dir():
         path = path / "sb3_er" / "common" / "kernels.py"
     if not path.is_file():
-        raise SystemExit(f"--baseline: no kernels module at {path}")
+        raise SystemExit(f"--baseline: {path} does not exist; give a checkout of this repository (a folder holding "
+                         "sb3_er/common/kernels.py) or that file")
     spec = importlib.util.spec_from_file_location("baseline_kernels", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # numba's cache finds a module by name when it loads a cached kernel

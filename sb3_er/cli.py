@@ -96,7 +96,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
         "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
         "of every problem (defaults: gridworld 100, pendulum 100, mountaincar 200); sigma-regime: episodes or "
-        "seconds of the chosen --readings, which must share a unit (defaults: 100 episodes, walker 5000 s)",
+        "seconds of the chosen --readings, which must share a unit, so --budget needs --readings of one unit "
+        "(defaults: gridworld and pendulum 100 episodes, walker 5000 s, leo 12000 s)",
     )
     parser.add_argument(
         "--jobs", type=int, default=None,

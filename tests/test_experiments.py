@@ -49,9 +49,17 @@ def _assert_well_formed(result, algos, seeds, columns, n_records):
 
 
 def test_gridworld_reproduction_with_value_maps(tmp_path):
+    import warnings
+
+    from sb3_er.common.base_class import ValueBoundWarning
+
     algos = ["sarsa_lambda", "er_sigma"]
-    result = reproduce("gridworld", n_seeds=2, algos=algos, out_dir=tmp_path, budget=15, n_workers=1,
-                       show_progress=False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ValueBoundWarning)
+        result = reproduce("gridworld", n_seeds=2, algos=algos, out_dir=tmp_path, budget=15, n_workers=1,
+                           show_progress=False)
+    # the table's runs and the value maps count the values outside the possible returns instead of warning
+    assert not [warning for warning in caught if issubclass(warning.category, ValueBoundWarning)]
     table, markdown = _assert_well_formed(result, algos, [0, 1], ["episode", "return", "length"], 15)
     assert {"Rise time [episodes]", "Settling time [episodes]", "End performance", "Falls",
             "Runs whose values left the possible returns"} <= set(table["metric"])
@@ -61,7 +69,8 @@ def test_gridworld_reproduction_with_value_maps(tmp_path):
     assert len(statistics) == 2 * 2 * 5
     replayed = statistics[statistics.algorithm != "sarsa_lambda"].groupby(["situation", "case"])
     assert (replayed["replayed_trajectories"].nunique() == 1).all()
-    assert "Tables 5.1-5.2" in markdown
+    assert (statistics["values_out_of_range"] >= 0).all()
+    assert "Tables 5.1-5.2" in markdown and "| Values outside the possible returns |" in markdown
 
 
 def test_pendulum_reproduction_in_two_worker_processes(tmp_path):

@@ -90,11 +90,13 @@ def map_statistics(values: np.ndarray, first_windy_row: int) -> dict[str, float]
 
 
 def _new_model(algo: str, env, policy_kwargs: dict, seed: int):
+    """A model of `algo` with the grid world's thesis settings whose value watch counts the values outside the possible
+    returns without warning: the studies report the count (``values_out_of_range``) beside each value map."""
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
     kwargs = model_kwargs(algo, ENV_ID)
     kwargs["policy_kwargs"] = {**kwargs.get("policy_kwargs", {}), **policy_kwargs}
-    return algorithm_classes()[algo]("TileQ", env, seed=seed, **kwargs)
+    return algorithm_classes()[algo]("TileQ", env, seed=seed, value_bound_action="ignore", **kwargs)
 
 
 def learn_until_goal(algo: str, env, policy_kwargs: dict, seed: int, max_episodes: int = 1000):
@@ -190,7 +192,8 @@ def same_data_value_maps(
                 maps[situation][case] = {"sarsa_lambda": value_map(sarsa, env)}
                 rows.append(
                     {"situation": situation, "case": case, "algorithm": "sarsa_lambda", "episodes": sarsa_episodes,
-                     "replayed_trajectories": 0, **map_statistics(maps[situation][case]["sarsa_lambda"], first_windy_row)}
+                     "replayed_trajectories": 0, **map_statistics(maps[situation][case]["sarsa_lambda"], first_windy_row),
+                     "values_out_of_range": sarsa.values_out_of_range}
                 )
                 for name, (algo, extra_policy_kwargs) in variants.items():
                     model = replay_model(algo, env, {**policy_kwargs, **extra_policy_kwargs}, seed, buffer_path)
@@ -200,7 +203,8 @@ def same_data_value_maps(
                     rows.append(
                         {"situation": situation, "case": case, "algorithm": name, "episodes": episodes,
                          "replayed_trajectories": phases * REPLAYS_PER_TRAJECTORY * n_trajectories,
-                         **map_statistics(maps[situation][case][name], first_windy_row)}
+                         **map_statistics(maps[situation][case][name], first_windy_row),
+                         "values_out_of_range": model.values_out_of_range}
                     )
     env.close()
     return maps, pd.DataFrame(rows)

@@ -126,7 +126,8 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
                                  "replayed_trajectories": phase * REPLAYS_PER_TRAJECTORY * n_trajectories,
                                  **positive_cells(values, first_windy_row), **map_statistics(values, first_windy_row),
                                  "calm_mean": float(values[:first_windy_row].mean()), "q_min": q_min, "q_max": q_max,
-                                 **database, "diverged": diverged, "wall_time_s": time.perf_counter() - start})
+                                 **database, "diverged": diverged, "values_out_of_range": model.values_out_of_range,
+                                 "wall_time_s": time.perf_counter() - start})
                     if job.figure_run and phase in (1, phases):
                         map_rows += [{"case": case, "variant": variant, "phase": phase, "y": y, "x": x,
                                       "value": value} for (y, x), value in np.ndenumerate(values)]
@@ -317,7 +318,8 @@ def reproduce_pessimistic(
                                            out_dir / f"value_maps_pessimistic_{situation}.png"))
     figures.append(_plot_positive_cells(frames, initial_value, out_dir / "positive_cells.png", plt))
     sections = [
-        f"# {experiment.title}: {len(frames)} seeds, pessimistic Q₀ = {initial_value:g}, {phases} replay phases",
+        f"# {experiment.title}: {len(frames)} seed{'s' if len(frames) != 1 else ''}, "
+        f"pessimistic Q₀ = {initial_value:g}, {phases} replay phases",
         "",
         "Per seed and case: the data of a vanilla-ER run stopped after its first positive goal payout, replayed by "
         "vanilla ER and ER-σ from zero weights and by vanilla ER from Q₀ everywhere, with the same trajectory picks "

@@ -397,7 +397,8 @@ def reproduce_replay_order(
     )
     mismatched = _check_orders_saw_one_database(frames)
     sections = [
-        f"# {experiment.title}: {len(frames)} seeds, horizon {budget:,.0f} replayed updates",
+        f"# {experiment.title}: {len(frames)} seed{'s' if len(frames) != 1 else ''}, "
+        f"horizon {budget:,.0f} replayed updates",
         "",
         f"Per seed one database of {database_episodes} Sarsa(λ) episodes (ER with online_lambda 0.92 and no replay; "
         "α 0.2, γ 0.98, ε 0.1, 16 tilings), replayed by fresh ER models in each order from zero weights (ε-greedy "

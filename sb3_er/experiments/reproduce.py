@@ -188,7 +188,8 @@ def reproduce(
     figures += _per_run_figures(experiment, out_dir, curves, first_seed)
     reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
     sections = [
-        f"# {experiment.title}: {n_seeds} seeds, {budget:g} {experiment.budget_unit} per run{reading}",
+        f"# {experiment.title}: {n_seeds} seed{'s' if n_seeds != 1 else ''}, "
+        f"{budget:g} {experiment.budget_unit} per run{reading}",
         "",
         markdown_table(experiment, table),
         "",
@@ -288,12 +289,16 @@ def _gridworld_value_maps(out_dir: Path, seed: int) -> tuple[list[Path], str]:
     lines = [
         "## Value functions on the same data and the same replays (thesis Tables 5.1-5.2, Figures 5.2-5.7)",
         "",
-        "| Situation | Case | Algorithm | Windy max | Windy mean | Windy cells > 0 | Calm max | Calm min |",
-        "|---|---|---|---|---|---|---|---|",
+        "| Situation | Case | Algorithm | Windy max | Windy mean | Windy cells > 0 | Calm max | Calm min | "
+        "Values outside the possible returns |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in statistics.itertuples():
         lines.append(
             f"| {row.situation} | {row.case} | {ALGORITHM_LABELS[row.algorithm]} | {row.windy_max:.1f} | "
-            f"{row.windy_mean:.1f} | {row.windy_positive_fraction:.0%} | {row.calm_max:.1f} | {row.calm_min:.1f} |"
+            f"{row.windy_mean:.1f} | {row.windy_positive_fraction:.0%} | {row.calm_max:.1f} | {row.calm_min:.1f} | "
+            f"{row.values_out_of_range:,} |"
         )
+    lines += ["", "Values outside the possible returns: the targets and Q-values the value watch saw outside them, "
+              "counted over the model's learning and replays (the maps are made outside the table's runs)."]
     return figures, "\n".join(lines)
