@@ -229,7 +229,9 @@ class ValueWatch:
             + ("" if rewards.terminal is None else
                f", terminal rewards in [{rewards.terminal[0]:.4g}, {rewards.terminal[1]:.4g}]")
         )
-        return (f"[{self.bounds[0]:.4g}, {self.bounds[1]:.4g}] (gamma {self.gamma:g}; {detail} from {where}; initial "
+        source = (f"{detail} from {where}" if detail else
+                  "no reward observed yet" + (f" ({self.reason})" if self.reason else ""))
+        return (f"[{self.bounds[0]:.4g}, {self.bounds[1]:.4g}] (gamma {self.gamma:g}; {source}; initial "
                 f"values in [{self.initial[0]:.4g}, {self.initial[1]:.4g}])")
 
     def period_figures(self) -> dict[str, float]:

@@ -194,7 +194,8 @@ def reproduce(
         markdown_table(experiment, table),
         "",
         experiment.thesis_caption,
-        "Averages leave out diverged runs (counted in their own row); rise time is measured on the mean curve.",
+        "Averages leave out diverged runs and runs whose values left the possible returns (their counts have rows "
+        "of their own; rows marked (all runs) average every run); rise time is measured on the mean curve.",
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
