@@ -13,7 +13,7 @@ and names that reproduction's results folder (:attr:`Reading.results`), so that 
 in for each table: the grid world (Chapter 5), the pendulum's default (Table 6.1) and earlier default (velocity tiles
 3.3 rad/s, goal 0.1 rad and 1 rad/s), the simplest walker's default (Table 6.2) and earlier default (GRL's start, fall
 test and coordinates), the walker with optimistic initial values (Q starting at 100, no table), and LEO's default
-(Table 6.3; a run is about 7 CPU minutes).
+(Table 6.3; a run is about 4 CPU minutes).
 """
 
 from __future__ import annotations
@@ -262,18 +262,17 @@ def reproduce_sigma_regime(
                                       settings=settings)
     # The summary covers the folder: the readings run now (their requested seeds) and every other reading whose runs
     # an earlier command left in it (all their finished seeds), so that running one reading keeps the others' rows.
-    summarized = {name: seeds for name in READINGS if name in readings}
-    lengths = {folder.name: pinned["budget"] for folder, pinned in settings.items()}
+    summarized, lengths = {}, {}  # reading -> its seeds, its run length; in READINGS' order
     for name in READINGS:
-        if name not in summarized and (out_dir / name / "settings.json").is_file():
+        if name in readings:
+            summarized[name], lengths[name] = seeds, settings[out_dir / name]["budget"]
+        elif (out_dir / name / "settings.json").is_file():
             found = sorted(int(path.stem.removeprefix("seed_"))
                            for path in (out_dir / name / "runs" / "er_sigma").glob("seed_*.csv"))
             if found:
-                summarized[name] = found
                 pinned = files.read_json(out_dir / name / "settings.json",
                                          f"rerun the reading with --readings {name} into a new --out")
-                lengths[name] = float(pinned["budget"])
-    summarized = {name: summarized[name] for name in READINGS if name in summarized}  # the readings' order
+                summarized[name], lengths[name] = found, float(pinned["budget"])
     summary_jobs = [job for name, its_seeds in summarized.items()
                     for job in regime_jobs(out_dir, [name], its_seeds, lengths[name])]
     rows = []

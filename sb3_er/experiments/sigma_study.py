@@ -245,7 +245,8 @@ def reproduce_sigma(
                                      out_dir / "learning_curves.png"))
     reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
     sections = [
-        f"# {experiment.title}: {n_seeds} seed{'s' if n_seeds != 1 else ''}, {budget:g} s of learning per run{reading}",
+        f"# {experiment.title}: {n_seeds} seed{'s' if n_seeds != 1 else ''}, "
+        f"{budget:g} s of learning per run{reading}",
         "",
         "Score of a run: the mean of its recorded walking distances (every 100 s of learning, 10 greedy runs of 100 s; "
         "the evaluation at 0 s, the same for every definition, left out). Mean over runs ± 95 % CI; rows from the "
