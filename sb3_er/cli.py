@@ -190,7 +190,7 @@ def reproduce_command(argv: Sequence[str]) -> None:
     import threading
 
     from sb3_er.experiments.files import DamagedFileError, FolderLockedError
-    from sb3_er.experiments.records import MixedVersionsError
+    from sb3_er.experiments.records import MixedVersionsError, counted
     from sb3_er.experiments.reproduce import reproduce
     from sb3_er.experiments.runner import RUNNER_ARGUMENTS
 
@@ -252,15 +252,16 @@ def reproduce_command(argv: Sequence[str]) -> None:
     print(result.table_markdown.read_text())
     findings = result.out_dir / "findings.json"
     if findings.is_file():  # the thesis's findings of this table, judged by the rule (sb3_er.experiments.findings)
-        import json
+        from sb3_er.experiments.files import read_json
 
-        data = json.loads(findings.read_text(encoding="utf-8"))
+        data = read_json(findings, "run the same command again: it rewrites findings.json from the finished runs")
         words = {True: "holds", False: "does not hold", None: "inconclusive"}
         print(f"The findings of thesis {data['thesis']} on these runs ({data['rule']}):")
         for finding in data["findings"]:
             print(f"  {words[finding['holds']]:>14}: {finding['claim']}; {finding['evidence']}")
         print()
-    print(f"{result.runs_done} runs done, {result.runs_skipped} already finished, {result.wall_time_s:.0f} s wall time")
+    print(f"{counted(result.runs_done, 'run')} done, {result.runs_skipped} already finished, "
+          f"{result.wall_time_s:.0f} s wall time")
     print(f"table:      {result.table_markdown}  and  {result.table_csv}")
     for figure in result.figures:
         print(f"{'animation:' if figure.suffix == '.gif' else 'figure:   '} {figure}")

@@ -40,4 +40,8 @@ def test_other_missing_modules_are_not_hidden():
 def test_runs_outside_a_checkout_say_so():
     record = {"sb3_er_version": "0.1.0", "code_sha256": "ab" * 32, "git_commit": None}
     line = code_versions_line([record])
-    assert "not a git checkout" in line and "no git" not in line.replace("not a git checkout", "")
+    assert line == "Code: sb3-er 0.1.0, code hash ababababab (1 run, not from a git checkout)."
+    from_a_checkout = [dict(record, git_commit="c" * 40, git_dirty=dirty) for dirty in (False, True, False)]
+    assert code_versions_line(from_a_checkout + [record]) == (
+        "Code: sb3-er 0.1.0, code hash ababababab (4 runs from commit ccccccc with uncommitted changes and outside a "
+        "git checkout).")

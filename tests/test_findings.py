@@ -2,10 +2,14 @@
 zero (issue: each finding judged by one rule)."""
 
 import json
+import math
+import re
 
 import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
 
-from sb3_er.experiments.findings import judge, table_findings, thesis_sign, write_findings
+from sb3_er.experiments.findings import format_signed, judge, table_findings, thesis_sign, write_findings
 from sb3_er.experiments.specs import EXPERIMENTS
 from sb3_er.experiments.summary import Curves
 
@@ -22,6 +26,22 @@ def _curves(ends, rise_at):
 
 def test_printed_signs():
     assert [thesis_sign(t) for t in ("-67 %", "+76 %", ">+25 %", "0 %", "-")] == [-1, 1, 1, 0, None]
+
+
+def test_signed_figures_in_one_notation():
+    assert [format_signed(v, s) for v, s in ((-700, 2800), (2800, 2800), (14_912, 15_031), (-3.4352, 4.7))] == [
+        "-700", "+2800", "+14,900", "-3.44"]
+
+
+@given(st.floats(-1e8, 1e8), st.floats(0, 1e8))
+def test_a_signed_figure_is_its_value_at_the_precision_of_its_scale(value, scale):
+    text = format_signed(value, scale)
+    assert re.fullmatch(r"[+-](\d{1,3}(,\d{3})+|\d+)(\.\d+)?", text), text  # no exponent, one sign
+    shown = max(abs(value), scale)
+    # the largest figure keeps three significant digits: the rounding error is under half a unit of its third
+    step = 10.0 ** (math.floor(math.log10(shown)) - 2) if shown >= 1e4 else (1.0 if shown >= 100 else (
+        0.1 if shown >= 10 else 0.01))
+    assert abs(float(text.replace(",", "")) - value) <= step / 2 * (1 + 1e-9)
 
 
 def test_the_rule():

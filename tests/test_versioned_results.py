@@ -30,7 +30,7 @@ needs_git = pytest.mark.skipif(shutil.which("git") is None, reason="git is not i
 def _fake_commit(monkeypatch, commit, dirty=False, diff=None, code="from the commit"):
     """Pretend the code is at `commit`; its code hash is the commit's letter repeated, or `code` (None: unknown)."""
     state = {"git_commit": commit, "git_dirty": dirty, "git_diff_sha256": diff}
-    monkeypatch.setattr(records, "git_state", lambda root=records.PACKAGE_ROOT: dict(state))
+    monkeypatch.setattr(records, "git_state", lambda root=records.PACKAGE_ROOT, paths=(): dict(state))
     monkeypatch.setattr(records, "code_hash", lambda: commit[0] * 64 if code == "from the commit" else code)
 
 
@@ -55,6 +55,17 @@ def test_git_state_of_a_checkout_a_dirty_tree_and_no_checkout(tmp_path):
     (repository / "package" / "new_module.py").write_text("y = 1\n")  # an untracked file changes the code too
     assert records.git_state(repository)["git_diff_sha256"] not in (None, edited["git_diff_sha256"])
 
+    # only the given paths count: results written into the checkout leave its code clean
+    _git(repository, "checkout", "-q", "--", "package")
+    (repository / "package" / "new_module.py").unlink()
+    (repository / "results").mkdir()
+    (repository / "results" / "seed_0.csv").write_text("t,return\n")
+    assert records.git_state(repository, ["package"]) == {
+        "git_commit": commit, "git_dirty": False, "git_diff_sha256": None}
+    assert records.git_state(repository)["git_dirty"] is True  # the whole tree: the results are a change
+    (repository / "package" / "module.py").write_text("x = 3\n")
+    assert records.git_state(repository, ["package"])["git_dirty"] is True
+
     unknown = {"git_commit": None, "git_dirty": None, "git_diff_sha256": None}
     assert records.git_state(tmp_path / "not_a_checkout") == unknown
     # a package below a checkout's top level (a wheel in a virtual environment inside a repository) is no checkout
@@ -70,7 +81,9 @@ def test_record_holds_version_commit_and_resolved_configuration(tmp_path):
     top_level = records.PACKAGE_ROOT
     if shutil.which("git") and (top_level / ".git").exists():
         assert record["git_commit"] == _git(top_level, "rev-parse", "HEAD")
-        changed = _git(top_level, "status", "--porcelain")
+        # the code's folders of this repository (pyproject.toml's package-dir) and pyproject.toml itself
+        assert records.checkout_code_paths() == ["envs", "pyproject.toml", "sb3_er", "zoo_configs"]
+        changed = _git(top_level, "status", "--porcelain", "--", "envs", "pyproject.toml", "sb3_er", "zoo_configs")
         assert record["git_dirty"] == bool(changed) and (record["git_diff_sha256"] is None) == (not changed)
     else:  # an installed wheel: no commit to record
         assert record["git_commit"] is None and record["git_dirty"] is None
@@ -127,12 +140,12 @@ def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_p
 
     with pytest.warns(MixedVersionsWarning, match="kept because mixed versions are allowed"):
         main([*arguments, "--allow-mixed-versions"])
-    assert "1 runs done, 1 already finished" in capsys.readouterr().out
+    assert "1 run done, 1 already finished" in capsys.readouterr().out
     assert records.read_record(run_csv_path(tmp_path, "er", 0))["git_commit"] == "a" * 40
     assert records.read_record(run_csv_path(tmp_path, "er", 1))["git_commit"] == "b" * 40
     summary = (tmp_path / "summary.md").read_text()
-    assert "code aaaaaaaaaa (1 runs; commit aaaaaaa)" in summary
-    assert "code bbbbbbbbbb (1 runs; commit bbbbbbb)" in summary
+    assert "code hash aaaaaaaaaa (1 run from commit aaaaaaa)" in summary
+    assert "code hash bbbbbbbbbb (1 run from commit bbbbbbb)" in summary
     assert "Mixed versions" in summary
 
 
@@ -145,7 +158,7 @@ def test_a_commit_that_leaves_the_code_alone_mixes_freely(tmp_path, monkeypatch)
         resumed = reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
     assert (resumed.runs_done, resumed.runs_skipped) == (1, 1)
     summary = (tmp_path / "summary.md").read_text()  # one code version made both runs, whatever the commits
-    assert "code cccccccccc (2 runs; commits aaaaaaa, bbbbbbb)" in summary
+    assert "code hash cccccccccc (2 runs from commits aaaaaaa, bbbbbbb)" in summary
     assert "Mixed versions" not in summary
 
 

@@ -121,8 +121,8 @@ def run_analysis_jobs(
 
 
 def code_line(jobs: list[RunJob]) -> str:
-    """Which code made the finished runs of `jobs`, e.g. ``"Code: sb3-er 0.1.0, code 1f4d0e44dc (60 runs; commit
-    91bd149)."`` (`records.code_versions_line`).
+    """Which code made the finished runs of `jobs`, e.g. ``"Code: sb3-er 0.1.0, code hash 1f4d0e44dc (60
+    runs from commit 91bd149)."`` (`records.code_versions_line`).
 
     :param jobs: the analysis's runs.
     """

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from sb3_er.experiments import files
+from sb3_er.experiments.records import counted
 from sb3_er.experiments.specs import Experiment
 from sb3_er.experiments.summary import Curves, summarize
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
@@ -53,9 +54,28 @@ def _too_few(algo: str, curves: Curves) -> str:
     if n >= MIN_AVERAGED_RUNS:
         return ""
     left, diverged = len(curves.out_of_bounds_seeds), len(curves.diverged_seeds)
-    return (f"{ALGORITHM_LABELS.get(algo, algo)} has {n} averaged run{'s' if n != 1 else ''} "
+    return (f"{ALGORITHM_LABELS.get(algo, algo)} has {counted(n, 'averaged run')} "
             f"({left} left the possible returns, {diverged} diverged), fewer than the {MIN_AVERAGED_RUNS} a bootstrap "
-            "verdict needs. ")
+            "verdict needs")
+
+
+def format_signed(value: float, scale: float) -> str:
+    """`value` with its sign, in the notation `scale` (the largest magnitude it is shown beside) calls for, so that a
+    difference and its interval share one notation: ``format_signed(-700, 2800)`` -> ``"-700"``,
+    ``format_signed(14_912, 15_031)`` -> ``"+14,900"``, ``format_signed(-3.4352, 4.7)`` -> ``"-3.44"``.
+
+    The digits are the summary table's: three significant figures of `scale` from 10,000 on (digits grouped by
+    commas), whole numbers from 100, one decimal from 10, two below.
+
+    :param value: the number.
+    :param scale: the largest magnitude shown beside it (its own magnitude when alone).
+    """
+    scale = max(abs(scale), abs(value))
+    if scale >= 1e4:
+        digits = math.floor(math.log10(scale)) - 2
+        return f"{round(value, -digits):+,.0f}"
+    decimals = 0 if scale >= 100 else (1 if scale >= 10 else 2)
+    return f"{value:+.{decimals}f}"
 
 
 def thesis_sign(text: str) -> int | None:
@@ -166,7 +186,7 @@ def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng:
         return {**entry, "holds": None, "evidence": "no complete run"}
     too_few = _too_few(algo, ours)
     if too_few:
-        return {**entry, "holds": None, "evidence": too_few.strip()}
+        return {**entry, "holds": None, "evidence": too_few}
 
     def no_gait(curves: Curves) -> bool:
         return math.isnan(metric_value(experiment, curves, "end_performance", math.nan))
@@ -176,7 +196,7 @@ def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng:
     holds = True if share >= 0.975 else (False if share <= 0.025 else None)
     best = float(np.max(np.mean(ours.performance, axis=0)))
     evidence = (f"our mean curve's best {best:.3g} against the success level {experiment.success_threshold:g}; no "
-                f"gait in {share:.1%} of {n_resamples} bootstrap resamples over {len(ours.seeds)} seeds")
+                f"gait in {share:.1%} of {n_resamples} bootstrap resamples over {counted(len(ours.seeds), 'seed')}")
     return {**entry, "holds": holds, "evidence": evidence, "no_gait_share": share}
 
 
@@ -232,16 +252,18 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
             difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
                                                                     rng, n_resamples)
             unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
-            seeds = f"over {len(ours.seeds)} and {len(reference.seeds)} seeds"
+            scale = max((abs(value) for value in (difference, low, high) if not math.isnan(value)), default=0.0)
+            seeds = (f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"
+                     if len(ours.seeds) != 1 or len(reference.seeds) != 1 else "over 1 seed each")
             if math.isnan(low):
                 interval = (f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
                             f"{n_resamples} bootstrap resamples {seeds}")
             else:
-                interval = f"95 % bootstrap CI [{low:+.3g}, {high:+.3g}] {seeds}"
+                interval = f"95 % bootstrap CI [{format_signed(low, scale)}, {format_signed(high, scale)}] {seeds}"
             ours_text = "undefined (no gait on the mean curve of all seeds)" if math.isnan(difference) else (
-                f"{difference:+.3g}{unit}")
+                f"{format_signed(difference, scale)}{unit}")
             evidence = f"ours {ours_text}, {interval}"
-            too_few = (_too_few(algo, ours) + _too_few(REFERENCE, reference)).strip()
+            too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
             if too_few:
                 evidence = f"{too_few} ({evidence})"
             findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),

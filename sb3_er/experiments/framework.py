@@ -43,6 +43,7 @@ from sb3_er.experiments.analyses import (
 )
 from sb3_er.experiments.metrics import mean_confidence_interval
 from sb3_er.experiments.protocols import EpisodeReturnProtocol
+from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
 from sb3_er.experiments.summary import _format_number, _format_with_ci
@@ -340,10 +341,6 @@ def summarize_runs(frames: dict[int, pd.DataFrame], level: float) -> dict:
     }
 
 
-def _count(n: int, noun: str) -> str:
-    return f"{n} {noun}" + ("" if n == 1 else "s")
-
-
 def thesis_table_markdown() -> str:
     """Thesis Table 3.1 with a column saying which sb3-er class stands for each row."""
     lines = ["| Method | " + " | ".join(TABLE_3_1_COLUMNS) + " | sb3-er |",
@@ -470,15 +467,16 @@ def reproduce_framework(
         rows += table_rows
         if curves:
             figures.append(plot_mean_with_ci(curves, "learning episode", "return of the learning episode",
-                                             f"{problem.title}: sample re-use methods, mean of {n_seeds} seeds, "
-                                             "95% CI", out_dir / name / "learning_curves.png"))
-        sections += [(f"## {problem.title} ({problem.env_id}): {_count(n_seeds, 'seed')}, {episodes} episodes per "
-                     "run"), "",
+                                             f"{problem.title}: sample re-use methods, mean of "
+                                             f"{counted(n_seeds, 'seed')}, 95% CI",
+                                             out_dir / name / "learning_curves.png"))
+        sections += [(f"## {problem.title} ({problem.env_id}): {counted(n_seeds, 'seed')}, "
+                      f"{counted(episodes, 'episode')} per run"), "",
                      measured_table_markdown(problem, pd.DataFrame(table_rows)), ""]
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     text = [
-        f"# The framework of sample re-use (thesis Table 3.1), measured: {_count(n_seeds, 'seed')}",
+        f"# The framework of sample re-use (thesis Table 3.1), measured: {counted(n_seeds, 'seed')}",
         "",
         "Thesis Table 3.1 (Algorithm properties) and the sb3-er class of each row:",
         "",

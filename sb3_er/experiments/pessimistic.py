@@ -39,6 +39,7 @@ import pandas as pd
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
+from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, artifact_path, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import ANALYSES, Analysis
 
@@ -318,7 +319,7 @@ def reproduce_pessimistic(
                                            out_dir / f"value_maps_pessimistic_{situation}.png"))
     figures.append(_plot_positive_cells(frames, initial_value, out_dir / "positive_cells.png", plt))
     sections = [
-        f"# {experiment.title}: {len(frames)} seed{'s' if len(frames) != 1 else ''}, "
+        f"# {experiment.title}: {counted(len(frames), 'seed')}, "
         f"pessimistic Q₀ = {initial_value:g}, {phases} replay phases",
         "",
         "Per seed and case: the data of a vanilla-ER run stopped after its first positive goal payout, replayed by "
@@ -370,7 +371,8 @@ def _plot_positive_cells(frames: dict[int, pd.DataFrame], initial_value: float, 
         panel.grid(alpha=0.3)
         panel.legend(fontsize="small")
     figure.suptitle(f"Windy cliff: spread of the goal's reward on the same data and replays "
-                    f"(pessimistic Q₀ = {initial_value:g}), mean of {len(frames)} seeds, 95% CI", fontsize="medium")
+                    f"(pessimistic Q₀ = {initial_value:g}), mean of {counted(len(frames), 'seed')}, 95% CI",
+                    fontsize="medium")
     figure.tight_layout()
     files.save_figure(figure, path, dpi=120)
     plt.close(figure)

@@ -8,7 +8,8 @@ made where the run ran (a worker process or a Ray worker on another machine) and
   ``sb3_er.zoo_configs``) and ``sb3_er_envs`` as imported (see :func:`code_hash`; a checkout and the wheel built from
   it give the same hash);
 - ``git_commit``, ``git_dirty`` and ``git_diff_sha256``: the commit of the checkout the package was imported from,
-  whether the work tree differed from that commit, and a hash of the differences (see :func:`git_state`; all three
+  whether the checkout's code (its package folders and ``pyproject.toml``; results and docs do not count) differed
+  from that commit, and a hash of the differences (see :func:`git_state`; all three
   None when the package is not a git checkout, e.g. an installed wheel, or git is missing);
 - ``config``: what the driver asked for, so that it can be recomputed before running anything: experiment, algorithm
   name, class and constructor keyword arguments (the zoo config entry without rl-zoo's run-level keys, plus policy and
@@ -63,18 +64,21 @@ DEPENDENCIES = ("stable-baselines3", "gymnasium", "numpy", "numba", "torch", "mu
 _NOT_CONSTRUCTOR = {"self", "policy", "env", "_init_setup_model"}
 
 
-def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
+def git_state(root: str | Path = PACKAGE_ROOT, paths: Iterable[str] = ()) -> dict[str, Any]:
     """Commit, dirtiness and a hash of the uncommitted changes of the git checkout whose top level is `root`.
 
     Returns ``{"git_commit": str | None, "git_dirty": bool | None, "git_diff_sha256": str | None}``: the full commit
-    hash of HEAD; whether the work tree differs from HEAD (changed tracked files, or untracked files that are not
-    ignored: a new module changes the code as much as an edited one); and the SHA-256 hex digest of ``git diff HEAD
-    --binary`` followed by the path and content of every untracked, not ignored file (name and size only above 1 MB),
-    None when clean. All three are None when `root` is not the top level of a git work tree (so a wheel installed in a
-    virtual environment inside some other repository gets None, not that repository's commit), when git is not
-    installed, or when git fails (e.g. "dubious ownership").
+    hash of HEAD; whether the work tree differs from HEAD under `paths` (changed tracked files, or untracked files that
+    are not ignored: a new module changes the code as much as an edited one); and the SHA-256 hex digest of ``git diff
+    HEAD --binary -- <paths>`` followed by the path and content of every untracked, not ignored file under `paths`
+    (name and size only above 1 MB), None when clean. All three are None when `root` is not the top level of a git
+    work tree (so a wheel installed in a virtual environment inside some other repository gets None, not that
+    repository's commit), when git is not installed, or when git fails (e.g. "dubious ownership").
 
     :param root: the checkout's top level (default: the folder holding the imported package).
+    :param paths: the paths (relative to `root`) whose changes count; empty: the whole work tree. A run's record
+        passes the code's folders (:func:`checkout_code_paths`), so the results a reproduction writes into the checkout
+        do not make the next run's record "dirty".
     """
     unknown = {"git_commit": None, "git_dirty": None, "git_diff_sha256": None}
     root = Path(root).resolve()
@@ -89,8 +93,10 @@ def git_state(root: str | Path = PACKAGE_ROOT) -> dict[str, Any]:
         if top_level != root:
             return unknown
         commit = git("rev-parse", "HEAD").decode().strip()
-        digest = hashlib.sha256(git("diff", "HEAD", "--binary"))
-        untracked = sorted(name for name in git("ls-files", "--others", "--exclude-standard", "-z").split(b"\0") if name)
+        pathspec = ["--", *paths] if paths else []
+        digest = hashlib.sha256(git("diff", "HEAD", "--binary", *pathspec))
+        untracked = sorted(name for name in git("ls-files", "--others", "--exclude-standard", "-z", *pathspec)
+                           .split(b"\0") if name)
         changed = digest.digest() != hashlib.sha256(b"").digest() or bool(untracked)
         for name in untracked:
             path = root / os.fsdecode(name)
@@ -145,11 +151,32 @@ def code_hash() -> str:
     return digest.hexdigest()
 
 
+def checkout_code_paths(root: str | Path = PACKAGE_ROOT) -> list[str]:
+    """The paths of a checkout that hold the code, relative to `root`: the folders of CODE_PACKAGES that lie inside
+    it (``sb3_er``, ``zoo_configs``, ``envs`` in this repository) and ``pyproject.toml`` (which maps them and pins the
+    dependencies), sorted. Documentation, tests and results are not code: editing them leaves a run's record clean.
+
+    :param root: the checkout's top level (default: the folder holding the imported package).
+    """
+    import importlib
+
+    root = Path(root).resolve()
+    paths = {"pyproject.toml"}
+    for name in CODE_PACKAGES:
+        folder = Path(importlib.import_module(name).__file__).resolve().parent
+        if folder.is_relative_to(root):
+            paths.add(folder.relative_to(root).as_posix())
+    # a subpackage inside a listed folder is covered by it
+    return sorted(path for path in paths if not any(path.startswith(other + "/") for other in paths))
+
+
 def code_version() -> dict[str, Any]:
-    """``sb3_er_version``, :func:`code_hash` and :func:`git_state` of the imported package's checkout."""
+    """``sb3_er_version``, :func:`code_hash` and :func:`git_state` of the code's paths in the imported package's
+    checkout (:func:`checkout_code_paths`)."""
     import sb3_er
 
-    return {"sb3_er_version": sb3_er.__version__, "code_sha256": code_hash(), **git_state()}
+    return {"sb3_er_version": sb3_er.__version__, "code_sha256": code_hash(),
+            **git_state(PACKAGE_ROOT, checkout_code_paths())}
 
 
 def _jsonable(value: Any) -> Any:
@@ -589,24 +616,40 @@ def grouped(reasons_by_run: dict[str, list[str]]) -> list[str]:
     return [f"  {compact_runs(runs)}: {'; '.join(reasons)}" for reasons, runs in groups.items()]
 
 
+def counted(n: float, noun: str) -> str:
+    """`n` and `noun`, the noun plural unless `n` is 1: ``counted(1, "run")`` -> ``"1 run"``, ``"20 runs"``,
+    ``counted(2.5, "episode")`` -> ``"2.5 episodes"``."""
+    return (f"{n:g}" if isinstance(n, float) else str(n)) + f" {noun}{'' if n == 1 else 's'}"
+
+
 def describe_code(record: dict[str, Any] | None) -> str:
-    """One-line description of the code version in `record`, e.g. ``"sb3-er 0.1.0, commit 91bd149ab1 (dirty)"``.
+    """One-line description of the code version in `record`, e.g. ``"sb3-er 0.1.0, commit 91bd149ab1 with
+    uncommitted changes"`` or ``"sb3-er 0.1.0, not a git checkout"``.
 
     :param record: a run's record, or None ("no record").
     """
     if record is None:
         return "unknown version (no record)"
+    return f"sb3-er {record.get('sb3_er_version')}, {_where(record, 10)}"
+
+
+def _where(record: dict[str, Any], digits: int) -> str:
+    """The record's commit (`digits` of it) and whether the checkout had uncommitted changes, or "not a git
+    checkout"."""
     commit = record.get("git_commit")
-    where = f"commit {commit[:10]}" + (" (dirty)" if record.get("git_dirty") else "") if commit else "no git commit"
-    return f"sb3-er {record.get('sb3_er_version')}, {where}"
+    if not commit:
+        return "not a git checkout"
+    return f"commit {commit[:digits]}" + (" with uncommitted changes" if record.get("git_dirty") else "")
 
 
 def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
     """The summary's line saying which code made the runs, grouped by the package's code hash (``code_sha256``),
     which is what decides whether runs may be mixed: commits that change only documentation or results share it.
 
-    e.g. ``"Code: sb3-er 0.1.0, code 1f4d0e44dc (100 runs; commits dc32abd, 294af56 (dirty))."``; runs without a
-    record count as their own version, and more than one version adds a bold warning.
+    e.g. ``"Code: sb3-er 0.1.0, code hash 1f4d0e44dc (100 runs from commits dc32abd, 294af56 with uncommitted
+    changes)."``: each commit once, marked when any of its runs was made with uncommitted changes to the code, the
+    first four commits of a group named. Runs without a record count as their own version, and more than one version
+    adds a bold warning.
 
     :param run_records: the records of the runs summarized (None for a run without one).
     """
@@ -615,21 +658,31 @@ def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
         if record is None:
             key = "no record"
         elif record.get("code_sha256"):
-            key = f"code {record['code_sha256'][:10]}"
+            key = f"code hash {record['code_sha256'][:10]}"
         else:  # an older record without a code hash: its commit and uncommitted changes stand for the code
-            key = f"{describe_code(record).split(', ', 1)[1]}{(record.get('git_diff_sha256') or '')[:10]}"
+            diff = record.get("git_diff_sha256")
+            key = (f"code of commit {record['git_commit'][:10]}" if record.get("git_commit") else "code unknown")
+            key += f" with changes {diff[:10]}" if diff else ""
         groups.setdefault(key, []).append(record)
     parts = []
     for key, members in groups.items():
         if key == "no record":
-            parts.append(f"unknown version (no record) ({len(members)} runs)")
+            parts.append(f"unknown version (no record): {counted(len(members), 'run')}")
             continue
-        commits = list(dict.fromkeys(describe_code(record).split(", ", 1)[1] for record in members))
-        shown = ", ".join("none (not a git checkout)" if c == "no git commit" else
-                          c.removeprefix("commit ")[:7] + (" (dirty)" if c.endswith("(dirty)") else "")
-                          for c in commits[:4]) + (", ..." if len(commits) > 4 else "")
-        parts.append(f"sb3-er {members[0].get('sb3_er_version')}, {key} ({len(members)} runs; "
-                     f"{'commit' if len(commits) == 1 else 'commits'} {shown})")
+        dirty_by_commit: dict[str, bool] = {}
+        for record in members:
+            if record.get("git_commit"):
+                commit = record["git_commit"][:7]
+                dirty_by_commit[commit] = dirty_by_commit.get(commit, False) or bool(record.get("git_dirty"))
+        named = [commit + (" with uncommitted changes" if dirty else "") for commit, dirty in dirty_by_commit.items()]
+        outside = any(not record.get("git_commit") for record in members)
+        runs = counted(len(members), "run")
+        if named:
+            origin = (f" from {'commit' if len(named) == 1 else 'commits'} {', '.join(named[:4])}"
+                      + (", ..." if len(named) > 4 else "") + (" and outside a git checkout" if outside else ""))
+        else:
+            origin = ", not from a git checkout"
+        parts.append(f"sb3-er {members[0].get('sb3_er_version')}, {key} ({runs}{origin})")
     mixed = " **Mixed versions: the runs were made by different code.**" if len(groups) > 1 else ""
     return f"Code: {'; '.join(parts)}.{mixed}"
 

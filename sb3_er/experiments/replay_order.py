@@ -42,6 +42,7 @@ import pandas as pd
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
+from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import ANALYSES, Analysis
 
@@ -390,14 +391,14 @@ def reproduce_replay_order(
     figure = plot_mean_with_error_bars(
         series, "replayed updates (samples)", "return of a greedy episode from the start",
         f"Pendulum, replay orders on the same {database_episodes}-episode Sarsa(λ) databases\n"
-        f"(Figure A.1): mean of {len(frames)} seeds, 95% CI",
+        f"(Figure A.1): mean of {counted(len(frames), 'seed')}, 95% CI",
         out_dir / "replay_orders.png",
         references={f"the Sarsa(λ) collectors, greedy (mean of {len(collectors)})":
                     float(collectors["collector_greedy_return"].mean())},
     )
     mismatched = _check_orders_saw_one_database(frames)
     sections = [
-        f"# {experiment.title}: {len(frames)} seed{'s' if len(frames) != 1 else ''}, "
+        f"# {experiment.title}: {counted(len(frames), 'seed')}, "
         f"horizon {budget:,.0f} replayed updates",
         "",
         f"Per seed one database of {database_episodes} Sarsa(λ) episodes (ER with online_lambda 0.92 and no replay; "

@@ -74,7 +74,7 @@ def _check_finished_runs(finished: list[RunJob], out_dir: Path, allow_mixed_vers
 
 
 def _code_versions_line(out_dir: Path, algos: Sequence[str], seeds: Sequence[int]) -> str:
-    """Which code made the runs, e.g. "Code: sb3-er 0.1.0, commit 91bd149ab1 (40 runs)"."""
+    """Which code made the runs, e.g. "Code: sb3-er 0.1.0, code hash 1f4d0e44dc (40 runs from commit 91bd149)"."""
     from sb3_er.experiments.runner import run_csv_path
 
     paths = [run_csv_path(out_dir, algo, seed) for algo in algos for seed in seeds]
@@ -171,7 +171,7 @@ def reproduce(
             {algo: (curve.x, curve.performance) for algo, curve in plotted.items()},
             experiment.x_label,
             experiment.performance_label,
-            f"{experiment.title}: mean of {n_seeds} runs, 95% CI",
+            f"{experiment.title}: mean of {records.counted(n_seeds, 'run')}, 95% CI",
             out_dir / "learning_curves.png",
         )
     ]
@@ -181,15 +181,17 @@ def reproduce(
                 {algo: (curve.x, curve.cumulative_falls) for algo, curve in plotted.items()},
                 experiment.x_label,
                 "cumulative falls while learning",
-                f"{experiment.title}: falls, mean of {n_seeds} runs, 95% CI",
+                f"{experiment.title}: falls, mean of {records.counted(n_seeds, 'run')}, 95% CI",
                 out_dir / "cumulative_falls.png",
             )
         )
     figures += _per_run_figures(experiment, out_dir, curves, first_seed)
     reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
+    length = (records.counted(budget, "episode") if experiment.protocol == "episodes"
+              else f"{budget:g} {experiment.budget_unit}")
     sections = [
-        f"# {experiment.title}: {n_seeds} seed{'s' if n_seeds != 1 else ''}, "
-        f"{budget:g} {experiment.budget_unit} per run{reading}",
+        f"# {experiment.title}: {records.counted(n_seeds, 'seed')}, "
+        f"{length} per run{reading}",
         "",
         markdown_table(experiment, table),
         "",

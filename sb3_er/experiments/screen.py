@@ -238,7 +238,7 @@ def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 1
             continue
         result = reproduce(experiment_name, n_seeds=n_seeds, algos=[CONTROL_ARM], out_dir=Path(out_dir) / candidate.name,
                            budget=budget, n_workers=n_workers, show_progress=False, env_kwargs=dict(candidate.env_kwargs))
-        print(f"{candidate.name}: {result.runs_done} runs done, {result.runs_skipped} resumed, "
+        print(f"{candidate.name}: {records.counted(result.runs_done, 'run')} done, {result.runs_skipped} resumed, "
               f"{result.wall_time_s:.0f} s", flush=True)
 
 

@@ -29,6 +29,7 @@ import pandas as pd
 
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, run_analysis_jobs
+from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
 
@@ -283,7 +284,7 @@ def reproduce_sigma_regime(
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     counts = {len(its_seeds) for its_seeds in summarized.values()}
-    per_reading = (f"{n_seeds} seed{'s' if n_seeds != 1 else ''} per reading" if counts == {n_seeds}
+    per_reading = (f"{counted(n_seeds, 'seed')} per reading" if counts == {n_seeds}
                    else "the runs per reading are counted in the last two columns")
     lines = [
         f"# Which way ER-σ moves its targets: {per_reading}",

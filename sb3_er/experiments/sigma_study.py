@@ -28,6 +28,7 @@ import pandas as pd
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
+from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import ANALYSES
 
@@ -230,7 +231,7 @@ def reproduce_sigma(
     scores = {labels[definition]: np.array([score for frame in runs.values() if math.isfinite(score := run_score(frame))])
               for definition, runs in frames.items()}
     figures = [plot_scores(scores, "score: mean distance [m per 100 s]",
-                           f"Simplest walker, ER-σ per σ definition (Figure B.1)\n{n_seeds} runs each of "
+                           f"Simplest walker, ER-σ per σ definition (Figure B.1)\n{counted(n_seeds, 'run')} each of "
                            f"{budget:g} s, mean and 95% CI", out_dir / "sigma_scores.png")]
     curves = {}
     for definition, runs in frames.items():
@@ -241,11 +242,12 @@ def reproduce_sigma(
                                           np.stack([frame["distance"].to_numpy(dtype=float)[:length]
                                                     for frame in complete]))
     figures.append(plot_mean_with_ci(curves, experiment.x_label, experiment.performance_label,
-                                     f"Simplest walker, ER-σ per σ definition: mean of {n_seeds} runs, 95% CI",
+                                     "Simplest walker, ER-σ per σ definition: mean of "
+                                     f"{counted(n_seeds, 'run')}, 95% CI",
                                      out_dir / "learning_curves.png"))
     reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
     sections = [
-        f"# {experiment.title}: {n_seeds} seed{'s' if n_seeds != 1 else ''}, "
+        f"# {experiment.title}: {counted(n_seeds, 'seed')}, "
         f"{budget:g} s of learning per run{reading}",
         "",
         "Score of a run: the mean of its recorded walking distances (every 100 s of learning, 10 greedy runs of 100 s; "
