@@ -31,6 +31,7 @@ def test_printed_signs():
 def test_signed_figures_in_one_notation():
     assert [format_signed(v, s) for v, s in ((-700, 2800), (2800, 2800), (14_912, 15_031), (-3.4352, 4.7))] == [
         "-700", "+2800", "+14,900", "-3.44"]
+    assert [format_signed(v, 33, whole=True) for v in (-8, -33, 1)] == ["-8", "-33", "+1"]  # episodes
 
 
 @given(st.floats(-1e8, 1e8), st.floats(0, 1e8))

@@ -59,18 +59,22 @@ def _too_few(algo: str, curves: Curves) -> str:
             "verdict needs")
 
 
-def format_signed(value: float, scale: float) -> str:
+def format_signed(value: float, scale: float, whole: bool = False) -> str:
     """`value` with its sign, in the notation `scale` (the largest magnitude it is shown beside) calls for, so that a
     difference and its interval share one notation: ``format_signed(-700, 2800)`` -> ``"-700"``,
     ``format_signed(14_912, 15_031)`` -> ``"+14,900"``, ``format_signed(-3.4352, 4.7)`` -> ``"-3.44"``.
 
     The digits are the summary table's: three significant figures of `scale` from 10,000 on (digits grouped by
-    commas), whole numbers from 100, one decimal from 10, two below.
+    commas), whole numbers from 100, one decimal from 10, two below; whole numbers throughout with `whole` (counts
+    such as episodes, when every figure shown beside it is one).
 
     :param value: the number.
     :param scale: the largest magnitude shown beside it (its own magnitude when alone).
+    :param whole: the figures shown together are all whole numbers: no decimals below 10,000.
     """
     scale = max(abs(scale), abs(value))
+    if whole and scale < 1e4:
+        return f"{value:+.0f}"
     if scale >= 1e4:
         digits = math.floor(math.log10(scale)) - 2
         return f"{round(value, -digits):+,.0f}"
@@ -252,16 +256,18 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
             difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
                                                                     rng, n_resamples)
             unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
-            scale = max((abs(value) for value in (difference, low, high) if not math.isnan(value)), default=0.0)
+            shown = [value for value in (difference, low, high) if not math.isnan(value)]
+            scale, whole = max(map(abs, shown), default=0.0), all(float(value).is_integer() for value in shown)
             seeds = (f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"
                      if len(ours.seeds) != 1 or len(reference.seeds) != 1 else "over 1 seed each")
             if math.isnan(low):
                 interval = (f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
                             f"{n_resamples} bootstrap resamples {seeds}")
             else:
-                interval = f"95 % bootstrap CI [{format_signed(low, scale)}, {format_signed(high, scale)}] {seeds}"
+                ends = ", ".join(format_signed(end, scale, whole) for end in (low, high))
+                interval = f"95 % bootstrap CI [{ends}] {seeds}"
             ours_text = "undefined (no gait on the mean curve of all seeds)" if math.isnan(difference) else (
-                f"{format_signed(difference, scale)}{unit}")
+                f"{format_signed(difference, scale, whole)}{unit}")
             evidence = f"ours {ours_text}, {interval}"
             too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
             if too_few:
