@@ -618,7 +618,11 @@ def grouped(reasons_by_run: dict[str, list[str]]) -> list[str]:
 
 def counted(n: float, noun: str) -> str:
     """`n` and `noun`, the noun plural unless `n` is 1: ``counted(1, "run")`` -> ``"1 run"``, ``"20 runs"``,
-    ``counted(2.5, "episode")`` -> ``"2.5 episodes"``."""
+    ``counted(2.5, "episode")`` -> ``"2.5 episodes"``.
+
+    :param n: the count (a float is written with ``:g``).
+    :param noun: the noun in the singular; the plural adds an "s".
+    """
     return (f"{n:g}" if isinstance(n, float) else str(n)) + f" {noun}{'' if n == 1 else 's'}"
 
 
