@@ -247,6 +247,7 @@ class Dyna(BufferedTileQAlgorithm):
         n = len(data)
         if n == 0:
             return None
+        self._observe_stored_rewards()
         coder = self.policy.tile_coder
         if self.dynamics_model is not None and self._added_since_fit > 0:
             held_out = slice(max(n - self._added_since_fit, 0), n)

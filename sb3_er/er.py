@@ -223,6 +223,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         buffer = self.replay_buffer
         if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}
+        self._observe_stored_rewards()
         coder = self.policy.tile_coder
         watch = self._watch_array
         updates_before = watch[kernels.WATCH_UPDATES] if watch.shape[0] else 0.0

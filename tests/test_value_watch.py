@@ -354,3 +354,38 @@ def test_the_first_excursion_survives_save_and_load(tmp_path):
     loaded = SarsaLambda.load(tmp_path / "m", env=gym.make("sb3_er/WindyCliff-v0"))
     assert loaded.value_excursion == model.value_excursion
     assert loaded.value_bounds == pytest.approx((-100.0, 50.0))  # gamma 0.99: -1 / 0.01
+
+
+@pytest.mark.parametrize("bounds, value, margin, share", [
+    ((-100.0, 0.0), 7.0, "5", "5% of their width"),
+    ((-math.inf, 0.0), 0.44, "0.05", "5% of the size of their finite end, at least 0.05"),
+    ((-math.inf, -40.0), -1.0, "2", "5% of the size of their finite end, at least 0.05"),
+])
+def test_the_warning_states_the_margin_it_applied(bounds, value, margin, share):
+    """The margin beyond which a value is flagged, as the message states it, is the one the kernels apply
+    (value_bounds.widened): 5 % of a finite width; 5 % of the finite end's size, at least 0.05, for a half-infinite
+    interval, whose width says nothing."""
+    model = SarsaLambda("TileQ", "CartPole-v1", seed=0)
+    model._watch.bounds = bounds
+    model._watch.array[kernels.WATCH_FIRST_VALUE] = value
+    with pytest.warns(ValueBoundWarning) as caught:
+        model._value_out_of_bounds("a hand-made excursion")
+    message = str(caught[0].message)
+    assert f"by more than {margin} ({share})" in message, message
+    low, high = widened(bounds)
+    assert float(margin) == pytest.approx(high - bounds[1] if value > bounds[1] else bounds[0] - low, rel=1e-6)
+
+
+@pytest.mark.parametrize("algo", [ER, ERSigma])
+def test_a_buffer_assigned_directly_is_observed_before_it_is_replayed(algo):
+    """CartPole declares no reward bounds: a learner handed another learner's buffer has seen none of its rewards (+1
+    each), and without observing them would flag the first replayed value above its initial [0, 0]."""
+    source = algo("TileQ", "CartPole-v1", seed=0).learn(400)
+    model = algo("TileQ", "CartPole-v1", seed=1)
+    assert model.value_bounds == (0.0, 0.0)
+    model.replay_buffer = source.replay_buffer
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ValueBoundWarning)
+        assert model.replay(20)["updates"] > 0
+    assert model.value_bounds == source.value_bounds
+    assert model.value_bounds == pytest.approx((0.0, 100.0))  # 1 / (1 - 0.99)

@@ -57,6 +57,7 @@ from sb3_er.common.value_bounds import (
     ValueBoundError,
     ValueWatch,
     reward_changing_wrapper,
+    widened,
 )
 
 try:
@@ -405,6 +406,16 @@ class TileQAlgorithm(BaseAlgorithm):
         self._watch = watch
         self._watch_array = watch.array
 
+    def _observe_stored_rewards(self) -> None:
+        """With observed bounds (an env that declares none), widen them with every reward the learner holds before it
+        learns from them again: a buffer assigned directly (``model.replay_buffer = other.replay_buffer``) or filled
+        by hand is then covered as well as the transitions this learner collected. Called once per replay phase or
+        fit; declared bounds need nothing."""
+        if self._observing_rewards and self._watch is not None:
+            stored = self._stored_rewards()
+            if stored is not None and stored[0].size:
+                self._watch.observe_many(*stored)
+
     def _stored_rewards(self) -> Optional[tuple[np.ndarray, np.ndarray]]:
         """The rewards the learner holds (and whether each terminated), for observed bounds; None without storage."""
         buffer = getattr(self, "replay_buffer", None)
@@ -440,9 +451,13 @@ class TileQAlgorithm(BaseAlgorithm):
         if self.value_bound_action == "ignore":
             return
         side = f"above {high:.6g}" if value > high else f"below {low:.6g}"
+        flagged_low, flagged_high = widened(watch.bounds)
+        margin = flagged_high - high if value > high else low - flagged_low
+        share = (f"{TOLERANCE:.0%} of their width" if math.isfinite(high - low) else
+                 f"{TOLERANCE:.0%} of the size of their finite end, at least {TOLERANCE:g}")
         message = (
             f"{type(self).__name__}: at step {self.num_timesteps} ({where}) a value of {value:.6g} left the possible "
-            f"returns {watch.describe()}: it lies {side} by more than {TOLERANCE:.0%} of their width. Values outside "
+            f"returns {watch.describe()}: it lies {side} by more than {margin:.3g} ({share}). Values outside "
             "them are impossible; the run's results reflect a learner that has left the regime it is meant for. "
             "Set value_bound_action='ignore' to only count such values, 'raise' to stop."
         )

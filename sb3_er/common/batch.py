@@ -246,6 +246,7 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         data = stored_transitions(self.replay_buffer)
         if len(data) == 0:
             return {}
+        self._observe_stored_rewards()
         start = time.perf_counter()
         with single_threaded_blas():
             stats = self._fit(data)

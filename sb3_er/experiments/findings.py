@@ -162,12 +162,17 @@ def judge(sign: int, low: float, high: float) -> bool | None:
     return sign != 0 and ours == sign
 
 
+def _printed(value) -> str:
+    """A thesis figure as the table prints it: a whole float without its ".0" (-1.673e4 -> "-16730"), text as is."""
+    return str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
+
+
 def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> str:
     label, reference = ALGORITHM_LABELS.get(algo, algo), ALGORITHM_LABELS[REFERENCE]
     words = {-1: "lower", 0: "the same", 1: "higher"}[sign]
     better = "" if sign == 0 else (
         " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
-    printed = f"thesis: {thesis_entry[0]} against {reference_entry[0]}, {thesis_entry[1]}"
+    printed = f"thesis: {_printed(thesis_entry[0])} against {_printed(reference_entry[0])}, {thesis_entry[1]}"
     verb = "are" if metric == "falls" else "is"
     than = "as" if sign == 0 else "than"
     return f"{label}'s {METRICS[metric]} {verb} {words}{better} {than} {reference}'s ({printed})"

@@ -123,11 +123,16 @@ def summarize(experiment: Experiment, curves: Curves) -> CurveSummary | None:
 
 
 def _format_number(value: float) -> str:
+    """A table figure: three significant figures from 10,000 on, digits grouped by commas (-49,300; 1,200,000) up to
+    a billion and in exponent notation beyond (a diverged value); whole numbers from 100, one decimal from 10, two
+    below; NA for a missing one."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "NA"
     magnitude = abs(value)
-    if magnitude >= 1e4:
+    if magnitude >= 1e9 or not math.isfinite(magnitude):
         return f"{value:.3g}"
+    if magnitude >= 1e4:
+        return f"{round(value, 2 - math.floor(math.log10(magnitude))):,.0f}"
     if magnitude >= 100:
         return f"{value:.0f}"
     if magnitude >= 10:
