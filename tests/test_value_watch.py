@@ -389,3 +389,9 @@ def test_a_buffer_assigned_directly_is_observed_before_it_is_replayed(algo):
         assert model.replay(20)["updates"] > 0
     assert model.value_bounds == source.value_bounds
     assert model.value_bounds == pytest.approx((0.0, 100.0))  # 1 / (1 - 0.99)
+    # read once per watch: later phases do not scan the buffer again
+    reads = []
+    original = model.replay_buffer.stored_rewards
+    model.replay_buffer.stored_rewards = lambda: reads.append(1) or original()
+    model.replay(5)
+    assert reads == []

@@ -407,14 +407,20 @@ class TileQAlgorithm(BaseAlgorithm):
         self._watch_array = watch.array
 
     def _observe_stored_rewards(self) -> None:
-        """With observed bounds (an env that declares none), widen them with every reward the learner holds before it
-        learns from them again: a buffer assigned directly (``model.replay_buffer = other.replay_buffer``) or filled
-        by hand is then covered as well as the transitions this learner collected. Called once per replay phase or
-        fit; declared bounds need nothing."""
-        if self._observing_rewards and self._watch is not None:
-            stored = self._stored_rewards()
-            if stored is not None and stored[0].size:
-                self._watch.observe_many(*stored)
+        """With observed bounds (an env that declares none), widen them with every reward of a buffer this watch has
+        not read yet before learning from it: a buffer assigned directly (``model.replay_buffer =
+        other.replay_buffer``) is then covered as well as the transitions this learner collected (which it observes
+        step by step). Called once per replay phase or fit; a buffer is read once per watch (it carries the watch's
+        token), so the phases after the first cost nothing. Declared bounds need nothing."""
+        buffer = getattr(self, "replay_buffer", None)
+        if not self._observing_rewards or self._watch is None or buffer is None:
+            return
+        if getattr(buffer, "observed_by_watch", None) == self._watch.token:
+            return
+        rewards, terminal = buffer.stored_rewards()
+        if rewards.size:
+            self._watch.observe_many(rewards, terminal)
+        buffer.observed_by_watch = self._watch.token
 
     def _stored_rewards(self) -> Optional[tuple[np.ndarray, np.ndarray]]:
         """The rewards the learner holds (and whether each terminated), for observed bounds; None without storage."""

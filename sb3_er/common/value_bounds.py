@@ -20,6 +20,7 @@ change rewards, from the rewards observed so far.
 from __future__ import annotations
 
 import math
+import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Optional
@@ -167,6 +168,8 @@ class ValueWatch:
         self.gamma = float(gamma)
         self.initial = (float(initial[0]), float(initial[1]))
         self.reason = reason
+        #: Names this watch to the buffers whose stored rewards it has read (``observed_by_watch``).
+        self.token = uuid.uuid4().hex
         self.array = kernels.new_watch()
         self._declared = bounds
         self._step = [math.inf, -math.inf]
