@@ -262,7 +262,7 @@ def reproduce_command(argv: Sequence[str]) -> None:
         print()
     print(f"{counted(result.runs_done, 'run')} done, {result.runs_skipped} already finished, "
           f"{result.wall_time_s:.0f} s wall time")
-    print(f"table:      {result.table_markdown}  and  {result.table_csv}")
+    print(f"table:     {result.table_markdown}  and  {result.table_csv}")
     for figure in result.figures:
         print(f"{'animation:' if figure.suffix == '.gif' else 'figure:   '} {figure}")
     runs = result.out_dir / "runs"

@@ -249,7 +249,7 @@ def test_records_from_before_checksums_are_checked_and_upgraded_once(finished, u
     csv_path = run_csv_path(finished, "er", 0)
     data = csv_path.read_bytes()
     old = _as_before_checksums(records.record_path(csv_path))
-    with pytest.warns(RecordUpgradeWarning, match=r"1 finished runs had records without checksums \(er/seed_0\)"):
+    with pytest.warns(RecordUpgradeWarning, match=r"1 finished run had a record without checksums \(er/seed_0\)"):
         result = reproduce("pendulum", out_dir=finished, n_workers=1, **SETTINGS)
     assert (result.runs_done, result.runs_skipped) == (0, 2)
     upgraded = records.read_record(csv_path)

@@ -357,9 +357,10 @@ def test_the_first_excursion_survives_save_and_load(tmp_path):
 
 
 @pytest.mark.parametrize("bounds, value, margin, share", [
-    ((-100.0, 0.0), 7.0, "5", "5% of their width"),
-    ((-math.inf, 0.0), 0.44, "0.05", "5% of the size of their finite end, at least 0.05"),
-    ((-math.inf, -40.0), -1.0, "2", "5% of the size of their finite end, at least 0.05"),
+    ((-100.0, 0.0), 7.0, "5", "5 % of their width"),
+    ((-math.inf, 0.0), 0.44, "0.05", "5 % of the size of their finite end, at least 0.05"),
+    ((-math.inf, -40.0), -1.0, "2", "5 % of the size of their finite end, at least 0.05"),
+    ((-20_000.0, 3000.0), 4165.5, "1150", "5 % of their width"),  # no exponent: the quickstart's walker
 ])
 def test_the_warning_states_the_margin_it_applied(bounds, value, margin, share):
     """The margin beyond which a value is flagged, as the message states it, is the one the kernels apply
@@ -371,7 +372,7 @@ def test_the_warning_states_the_margin_it_applied(bounds, value, margin, share):
     with pytest.warns(ValueBoundWarning) as caught:
         model._value_out_of_bounds("a hand-made excursion")
     message = str(caught[0].message)
-    assert f"by more than {margin} ({share})" in message, message
+    assert f"by more than {margin} ({share})" in message and "e+" not in message, message
     low, high = widened(bounds)
     assert float(margin) == pytest.approx(high - bounds[1] if value > bounds[1] else bounds[0] - low, rel=1e-6)
 

@@ -459,11 +459,12 @@ class TileQAlgorithm(BaseAlgorithm):
         side = f"above {high:.6g}" if value > high else f"below {low:.6g}"
         flagged_low, flagged_high = widened(watch.bounds)
         margin = flagged_high - high if value > high else low - flagged_low
-        share = (f"{TOLERANCE:.0%} of their width" if math.isfinite(high - low) else
-                 f"{TOLERANCE:.0%} of the size of their finite end, at least {TOLERANCE:g}")
+        percent = f"{TOLERANCE * 100:g} %"
+        share = (f"{percent} of their width" if math.isfinite(high - low) else
+                 f"{percent} of the size of their finite end, at least {TOLERANCE:g}")
         message = (
             f"{type(self).__name__}: at step {self.num_timesteps} ({where}) a value of {value:.6g} left the possible "
-            f"returns {watch.describe()}: it lies {side} by more than {margin:.3g} ({share}). Values outside "
+            f"returns {watch.describe()}: it lies {side} by more than {margin:.6g} ({share}). Values outside "
             "them are impossible; the run's results reflect a learner that has left the regime it is meant for. "
             "Set value_bound_action='ignore' to only count such values, 'raise' to stop."
         )

@@ -228,14 +228,14 @@ class ValueWatch:
         where = ("the env's reward_bounds" if self.source == "env"
                  else f"the rewards observed so far ({self.reason})" if self.reason else "the rewards observed so far")
         detail = "" if rewards is None else (
-            f"step rewards in [{rewards.step[0]:.4g}, {rewards.step[1]:.4g}]"
+            f"step rewards in [{rewards.step[0]:.6g}, {rewards.step[1]:.6g}]"
             + ("" if rewards.terminal is None else
-               f", terminal rewards in [{rewards.terminal[0]:.4g}, {rewards.terminal[1]:.4g}]")
+               f", terminal rewards in [{rewards.terminal[0]:.6g}, {rewards.terminal[1]:.6g}]")
         )
         source = (f"{detail} from {where}" if detail else
                   "no reward observed yet" + (f" ({self.reason})" if self.reason else ""))
-        return (f"[{self.bounds[0]:.4g}, {self.bounds[1]:.4g}] (gamma {self.gamma:g}; {source}; initial "
-                f"values in [{self.initial[0]:.4g}, {self.initial[1]:.4g}])")
+        return (f"[{self.bounds[0]:.6g}, {self.bounds[1]:.6g}] (gamma {self.gamma:g}; {source}; initial "
+                f"values in [{self.initial[0]:.6g}, {self.initial[1]:.6g}])")
 
     def period_figures(self) -> dict[str, float]:
         """The logging period's figures (NaN where nothing was seen), then a new period."""

@@ -261,6 +261,8 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
             difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
                                                                     rng, n_resamples)
             unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
+            if unit == " episodes" and abs(difference) == 1:
+                unit = " episode"
             shown = [value for value in (difference, low, high) if not math.isnan(value)]
             scale, whole = max(map(abs, shown), default=0.0), all(float(value).is_integer() for value in shown)
             seeds = (f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"

@@ -400,9 +400,10 @@ def split_finished(jobs: list[RunJob]) -> tuple[list[RunJob], list[RunJob]]:
             warnings.warn(f"{problem}; moved aside as {', '.join(moved)} and done again", DamagedRunWarning,
                           stacklevel=2)
     if upgraded:
-        warnings.warn(f"{len(upgraded)} finished runs had records without checksums ({records.compact_runs(upgraded)})"
-                      ": their CSVs were checked (well-formed, the protocol's number of rows) and their records "
-                      "given checksums", RecordUpgradeWarning, stacklevel=2)
+        warnings.warn(f"{records.counted(len(upgraded), 'finished run')} had "
+                      f"{'a record' if len(upgraded) == 1 else 'records'} without checksums "
+                      f"({records.compact_runs(upgraded)}): their CSVs were checked (well-formed, the protocol's "
+                      "number of rows) and their records given checksums", RecordUpgradeWarning, stacklevel=2)
     return to_run, finished
 
 
