@@ -9,9 +9,9 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sb3_er.experiments.findings import format_signed, judge, table_findings, thesis_sign, write_findings
+from sb3_er.experiments.findings import judge, table_findings, thesis_sign, write_findings
 from sb3_er.experiments.specs import EXPERIMENTS
-from sb3_er.experiments.summary import Curves
+from sb3_er.experiments.summary import Curves, format_figure
 
 PENDULUM = EXPERIMENTS["pendulum"]
 X = np.arange(1, 11, dtype=float)
@@ -29,14 +29,17 @@ def test_printed_signs():
 
 
 def test_signed_figures_in_one_notation():
-    assert [format_signed(v, s) for v, s in ((-700, 2800), (2800, 2800), (14_912, 15_031), (-3.4352, 4.7))] == [
-        "-700", "+2800", "+14,900", "-3.44"]
-    assert [format_signed(v, 33, whole=True) for v in (-8, -33, 1)] == ["-8", "-33", "+1"]  # episodes
+    shown_with = ((-700, 2800), (2800, 2800), (14_912, 15_031), (-3.4352, 4.7))
+    signed = [format_figure(v, s, signed=True) for v, s in shown_with]
+    assert signed == ["-700", "+2800", "+14,900", "-3.44"]
+    assert [format_figure(v, 33, signed=True, whole=True) for v in (-8, -33, 1)] == ["-8", "-33", "+1"]  # episodes
+    assert [format_figure(v) for v in (-49_312.0, 1_234_567.0, 3e12, 512.4, 12.34, 1.234, float("nan"))] == [
+        "-49,300", "1,230,000", "3e+12", "512", "12.3", "1.23", "NA"]  # the tables' figures, unsigned
 
 
 @given(st.floats(-1e8, 1e8), st.floats(0, 1e8))
 def test_a_signed_figure_is_its_value_at_the_precision_of_its_scale(value, scale):
-    text = format_signed(value, scale)
+    text = format_figure(value, scale, signed=True)
     assert re.fullmatch(r"[+-](\d{1,3}(,\d{3})+|\d+)(\.\d+)?", text), text  # no exponent, one sign
     shown = max(abs(value), scale)
     # the largest figure keeps three significant digits: the rounding error is under half a unit of its third

@@ -395,37 +395,30 @@ class TileQAlgorithm(BaseAlgorithm):
                       else f"{changer} may change the rewards the env declares")
             watch = ValueWatch("observed", None, self.gamma, initial, reason)
             self._observing_rewards = True
-        if self._observing_rewards:
-            stored = self._stored_rewards()
-            if stored is not None:
-                watch.observe_many(*stored)
         if earlier is not None:
             for entry in (kernels.WATCH_UPDATES, kernels.WATCH_OUT_OF_RANGE, kernels.WATCH_FIRST_UPDATE,
                           kernels.WATCH_FIRST_VALUE):
                 watch.array[entry] = earlier.array[entry]
         self._watch = watch
         self._watch_array = watch.array
+        self._observe_stored_rewards()
 
     def _observe_stored_rewards(self) -> None:
         """With observed bounds (an env that declares none), widen them with every reward of a buffer this watch has
         not read yet before learning from it: a buffer assigned directly (``model.replay_buffer =
         other.replay_buffer``) is then covered as well as the transitions this learner collected (which it observes
-        step by step). Called once per replay phase or fit; a buffer is read once per watch (it carries the watch's
-        token), so the phases after the first cost nothing. Declared bounds need nothing."""
-        buffer = getattr(self, "replay_buffer", None)
+        step by step). Called when the watch is set up, when a buffer is loaded and before each replay phase or fit; a
+        buffer is read once per watch (it carries the watch's token, ``observed_by_watch``), so later calls cost
+        nothing. Declared bounds need nothing."""
+        buffer = getattr(self, "replay_buffer", None)  # None in learners without storage (Sarsa(lambda))
         if not self._observing_rewards or self._watch is None or buffer is None:
             return
-        if getattr(buffer, "observed_by_watch", None) == self._watch.token:
+        if buffer.observed_by_watch == self._watch.token:
             return
         rewards, terminal = buffer.stored_rewards()
         if rewards.size:
             self._watch.observe_many(rewards, terminal)
         buffer.observed_by_watch = self._watch.token
-
-    def _stored_rewards(self) -> Optional[tuple[np.ndarray, np.ndarray]]:
-        """The rewards the learner holds (and whether each terminated), for observed bounds; None without storage."""
-        buffer = getattr(self, "replay_buffer", None)
-        return None if buffer is None else buffer.stored_rewards()
 
     def _reward_changing_wrapper(self) -> Optional[str]:
         """The wrapper that may change the env's rewards (VecNormalize with norm_reward, a reward wrapper), or None."""

@@ -92,6 +92,9 @@ class TrajectoryReplayBuffer:
         self.open_new_features = np.zeros(16 * tile_coder.n_tilings if prune else 0, dtype=np.int64)
         self.n_open_new = 0
         self.open_covered = 0
+        # The token of the value watch that has read this buffer's stored rewards (ValueWatch.token); None: none has.
+        # Not saved: a loaded buffer is read again by the watch it meets.
+        self.observed_by_watch: Optional[str] = None
         self.n_closed_total = 0
         self.n_pruned_trajectories = 0
         self.n_pruned_transitions = 0
@@ -653,8 +656,7 @@ class TrajectoryBufferIO:
             buffer.truncate_open_trajectory()
         self.replay_buffer = buffer
         self._on_buffer_replaced()
-        if self._observing_rewards:  # the value watch takes the reward range of the loaded data too
-            self._watch.observe_many(*buffer.stored_rewards())
+        self._observe_stored_rewards()  # the value watch takes the reward range of the loaded data too
 
     def _on_buffer_replaced(self) -> None:
         """Hook: drop anything derived from the previous buffer."""

@@ -36,7 +36,7 @@ import numpy as np
 from sb3_er.experiments import files
 from sb3_er.experiments.records import counted
 from sb3_er.experiments.specs import Experiment
-from sb3_er.experiments.summary import Curves, summarize
+from sb3_er.experiments.summary import Curves, format_figure, summarize, thesis_text
 from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
 REFERENCE = "sarsa_lambda"
@@ -57,29 +57,6 @@ def _too_few(algo: str, curves: Curves) -> str:
     return (f"{ALGORITHM_LABELS.get(algo, algo)} has {counted(n, 'averaged run')} "
             f"({left} left the possible returns, {diverged} diverged), fewer than the {MIN_AVERAGED_RUNS} a bootstrap "
             "verdict needs")
-
-
-def format_signed(value: float, scale: float, whole: bool = False) -> str:
-    """`value` with its sign, in the notation `scale` (the largest magnitude it is shown beside) calls for, so that a
-    difference and its interval share one notation: ``format_signed(-700, 2800)`` -> ``"-700"``,
-    ``format_signed(14_912, 15_031)`` -> ``"+14,900"``, ``format_signed(-3.4352, 4.7)`` -> ``"-3.44"``.
-
-    The digits are the summary table's: three significant figures of `scale` from 10,000 on (digits grouped by
-    commas), whole numbers from 100, one decimal from 10, two below; whole numbers throughout with `whole` (counts
-    such as episodes, when every figure shown beside it is one).
-
-    :param value: the number.
-    :param scale: the largest magnitude shown beside it (its own magnitude when alone).
-    :param whole: the figures shown together are all whole numbers: no decimals below 10,000.
-    """
-    scale = max(abs(scale), abs(value))
-    if whole and scale < 1e4:
-        return f"{value:+.0f}"
-    if scale >= 1e4:
-        digits = math.floor(math.log10(scale)) - 2
-        return f"{round(value, -digits):+,.0f}"
-    decimals = 0 if scale >= 100 else (1 if scale >= 10 else 2)
-    return f"{value:+.{decimals}f}"
 
 
 def thesis_sign(text: str) -> int | None:
@@ -162,17 +139,12 @@ def judge(sign: int, low: float, high: float) -> bool | None:
     return sign != 0 and ours == sign
 
 
-def _printed(value) -> str:
-    """A thesis figure as the table prints it: a whole float without its ".0" (-1.673e4 -> "-16730"), text as is."""
-    return str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
-
-
 def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> str:
     label, reference = ALGORITHM_LABELS.get(algo, algo), ALGORITHM_LABELS[REFERENCE]
     words = {-1: "lower", 0: "the same", 1: "higher"}[sign]
     better = "" if sign == 0 else (
         " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
-    printed = f"thesis: {_printed(thesis_entry[0])} against {_printed(reference_entry[0])}, {thesis_entry[1]}"
+    printed = f"thesis: {thesis_text(thesis_entry[0])} against {thesis_text(reference_entry[0])}, {thesis_entry[1]}"
     verb = "are" if metric == "falls" else "is"
     than = "as" if sign == 0 else "than"
     return f"{label}'s {METRICS[metric]} {verb} {words}{better} {than} {reference}'s ({printed})"
@@ -271,10 +243,10 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
                 interval = (f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
                             f"{n_resamples} bootstrap resamples {seeds}")
             else:
-                ends = ", ".join(format_signed(end, scale, whole) for end in (low, high))
+                ends = ", ".join(format_figure(end, scale, signed=True, whole=whole) for end in (low, high))
                 interval = f"95 % bootstrap CI [{ends}] {seeds}"
             ours_text = "undefined (no gait on the mean curve of all seeds)" if math.isnan(difference) else (
-                f"{format_signed(difference, scale, whole)}{unit}")
+                f"{format_figure(difference, scale, signed=True, whole=whole)}{unit}")
             evidence = f"ours {ours_text}, {interval}"
             too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
             if too_few:

@@ -46,7 +46,7 @@ from sb3_er.experiments.protocols import EpisodeReturnProtocol
 from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
-from sb3_er.experiments.summary import _format_number, _format_with_ci
+from sb3_er.experiments.summary import _format_with_ci, format_figure
 
 WINDOW = 10
 """Learning episodes averaged for the level and the end performance."""
@@ -373,8 +373,8 @@ def measured_table_markdown(problem: Problem, table: pd.DataFrame) -> str:
             reached = f" ({row['reached']}/{row['seeds']})"
             measured = [_format_with_ci(row["samples_to_level"], row["samples_to_level_ci95"]) + reached,
                         _format_with_ci(row["end_performance"], row["end_performance_ci95"]),
-                        _format_number(row["updates_per_episode"]), _format_number(row["cpu_s_per_episode"]),
-                        _format_number(row["wall_s_per_episode"])]
+                        format_figure(row["updates_per_episode"]), format_figure(row["cpu_s_per_episode"]),
+                        format_figure(row["wall_s_per_episode"])]
         if row.get("diverged"):
             measured[1] += f" ({row['diverged']} diverged)"
         lines.append(f"| {method.label} | {update} | {operator} | {iteration} | {complexity} | "

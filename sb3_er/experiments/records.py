@@ -626,26 +626,6 @@ def counted(n: float, noun: str) -> str:
     return (f"{n:g}" if isinstance(n, float) else str(n)) + f" {noun}{'' if n == 1 else 's'}"
 
 
-def describe_code(record: dict[str, Any] | None) -> str:
-    """One-line description of the code version in `record`, e.g. ``"sb3-er 0.1.0, commit 91bd149ab1 with
-    uncommitted changes"`` or ``"sb3-er 0.1.0, not a git checkout"``.
-
-    :param record: a run's record, or None ("no record").
-    """
-    if record is None:
-        return "unknown version (no record)"
-    return f"sb3-er {record.get('sb3_er_version')}, {_where(record, 10)}"
-
-
-def _where(record: dict[str, Any], digits: int) -> str:
-    """The record's commit (`digits` of it) and whether the checkout had uncommitted changes, or "not a git
-    checkout"."""
-    commit = record.get("git_commit")
-    if not commit:
-        return "not a git checkout"
-    return f"commit {commit[:digits]}" + (" with uncommitted changes" if record.get("git_dirty") else "")
-
-
 def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
     """The summary's line saying which code made the runs, grouped by the package's code hash (``code_sha256``),
     which is what decides whether runs may be mixed: commits that change only documentation or results share it.

@@ -122,29 +122,37 @@ def summarize(experiment: Experiment, curves: Curves) -> CurveSummary | None:
     )
 
 
-def _format_number(value: float) -> str:
-    """A table figure: three significant figures from 10,000 on, digits grouped by commas (-49,300; 1,200,000) up to
-    a billion and in exponent notation beyond (a diverged value); whole numbers from 100, one decimal from 10, two
-    below; NA for a missing one."""
+def format_figure(value: float, scale: float | None = None, signed: bool = False, whole: bool = False) -> str:
+    """A figure in the notation of the tables: three significant figures from 10,000 on, digits grouped by commas
+    (-49,300; 1,200,000) up to a billion and in exponent notation beyond (a diverged value); whole numbers from 100,
+    one decimal from 10, two below; NA for a missing one.
+
+    The notation follows `scale`, the largest magnitude shown beside `value`, so that figures shown together share
+    it: a difference and its interval, ``format_figure(-700, 2800, signed=True)`` -> ``"-700"`` beside ``"+2800"``.
+
+    :param value: the figure.
+    :param scale: the largest magnitude shown beside it (default: its own).
+    :param signed: write the sign of a positive figure too (a difference).
+    :param whole: the figures shown together are all whole numbers (counts such as episodes): no decimals below
+        10,000.
+    """
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "NA"
-    magnitude = abs(value)
-    if magnitude >= 1e9 or not math.isfinite(magnitude):
-        return f"{value:.3g}"
-    if magnitude >= 1e4:
-        return f"{round(value, 2 - math.floor(math.log10(magnitude))):,.0f}"
-    if magnitude >= 100:
-        return f"{value:.0f}"
-    if magnitude >= 10:
-        return f"{value:.1f}"
-    return f"{value:.2f}"
+    scale = max(abs(value), abs(scale) if scale is not None else 0.0)
+    sign = "+" if signed else ""
+    if scale >= 1e9 or not math.isfinite(scale):
+        return f"{value:{sign}.3g}"
+    if scale >= 1e4:
+        return f"{round(value, 2 - math.floor(math.log10(scale))):{sign},.0f}"
+    decimals = 0 if whole or scale >= 100 else (1 if scale >= 10 else 2)
+    return f"{value:{sign}.{decimals}f}"
 
 
 def _format_with_ci(value: float, half_width: float | None) -> str:
-    text = _format_number(value)
+    text = format_figure(value)
     if half_width is None or math.isnan(half_width) or text == "NA":
         return text
-    return f"{text} ± {_format_number(half_width)}"
+    return f"{text} ± {format_figure(half_width)}"
 
 
 def _format_difference(value: float, reference: float, algo: str) -> str:
@@ -198,9 +206,15 @@ def _thesis_cells(experiment: Experiment, algo: str, metric: str) -> tuple[str, 
     entry = experiment.thesis_table.get(algo, {}).get(metric)
     if entry is None:
         return "", ""
-    value = entry[0]
-    text = "NA" if value is None else (value if isinstance(value, str) else f"{value:g}")
-    return text, thesis_difference(experiment, algo, metric)
+    return thesis_text(entry[0]), thesis_difference(experiment, algo, metric)
+
+
+def thesis_text(value) -> str:
+    """A thesis table's figure as it prints it: -1.673e4 -> "-16730", 12.0 -> "12", ">200" as is, None -> "NA".
+
+    :param value: the figure (a number, a string such as ">200", or None for NA).
+    """
+    return "NA" if value is None else (value if isinstance(value, str) else f"{value:g}")
 
 
 #: Rows that count runs: no difference with Sarsa(lambda), no thesis figure.
@@ -242,7 +256,7 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
         summary = summaries[algo] or no_run
         label = ALGORITHM_LABELS.get(algo, algo)
         rise = summary.rise_time
-        rise_text = f">{_format_number(run_end)}" if math.isnan(rise) and summary.n_seeds else None
+        rise_text = f">{format_figure(run_end)}" if math.isnan(rise) and summary.n_seeds else None
         settling = summary.settling_time
         metrics = [
             ("rise_time", f"Rise time [{experiment.rise_time_unit}]", rise, None, rise_text),
