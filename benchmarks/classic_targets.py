@@ -39,13 +39,20 @@ def run(algo: str, env_id: str, seed: int) -> dict:
     cpu = time.process_time() - cpu
     env = Monitor(gym.make(env_id))
     env.reset(seed=1000 + seed)
-    returns, _ = evaluate_policy(model, env, n_eval_episodes=EVAL_EPISODES, deterministic=True,
-                                 return_episode_rewards=True)
+    returns, _ = evaluate_policy(
+        model, env, n_eval_episodes=EVAL_EPISODES, deterministic=True, return_episode_rewards=True
+    )
     # No logger writes during these runs, so the watch's logging period is the whole run.
     watch = model._watch.period_figures()
-    return {"median": statistics.median(returns), "mean": statistics.fmean(returns), "cpu": cpu,
-            "episodes": model._episode_num, "q_max": max(watch["q_max"], watch["target_max"]),
-            "bound_high": watch["value_bound_high"], "out_of_range": model.values_out_of_range}
+    return {
+        "median": statistics.median(returns),
+        "mean": statistics.fmean(returns),
+        "cpu": cpu,
+        "episodes": model._episode_num,
+        "q_max": max(watch["q_max"], watch["target_max"]),
+        "bound_high": watch["value_bound_high"],
+        "out_of_range": model.values_out_of_range,
+    }
 
 
 def _value(value: float) -> str:
@@ -61,9 +68,12 @@ def main(argv=None, targets: dict = TARGETS, description: str = __doc__) -> None
     parser.add_argument("--out", type=Path, default=None, help="also write the printout to OUT/summary.md")
     args = parser.parse_args(argv)
     printed = []
-    rows = ["| env | algorithm | median greedy return per seed | median over seeds | seeds at the level | "
-            "learn CPU s per seed | largest Q(s, a) or target the watch saw, per seed (possible returns up to) | "
-            "values outside the possible returns, per seed |", "|---|---|---|---:|---:|---|---|---|"]
+    rows = [
+        "| env | algorithm | median greedy return per seed | median over seeds | seeds at the level | "
+        "learn CPU s per seed | largest Q(s, a) or target the watch saw, per seed (possible returns up to) | "
+        "values outside the possible returns, per seed |",
+        "|---|---|---|---:|---:|---|---|---|",
+    ]
     for env_id in args.envs:
         level = targets[env_id]
         for algo in args.algos:
@@ -71,11 +81,13 @@ def main(argv=None, targets: dict = TARGETS, description: str = __doc__) -> None
             for seed in args.seeds:
                 result = run(algo, env_id, seed)
                 results.append(result)
-                line = (f"{env_id} {algo} seed {seed}: median {result['median']:.1f}, mean {result['mean']:.1f}, "
-                        f"{'reaches' if result['median'] >= level else 'misses'} {level:g}, "
-                        f"{result['cpu']:.1f} CPU s, {result['episodes']} episodes; largest value "
-                        f"{_value(result['q_max'])} (returns up to {result['bound_high']:.4g}), "
-                        f"{result['out_of_range']} values outside")
+                line = (
+                    f"{env_id} {algo} seed {seed}: median {result['median']:.1f}, mean {result['mean']:.1f}, "
+                    f"{'reaches' if result['median'] >= level else 'misses'} {level:g}, "
+                    f"{result['cpu']:.1f} CPU s, {result['episodes']} episodes; largest value "
+                    f"{_value(result['q_max'])} (returns up to {result['bound_high']:.4g}), "
+                    f"{result['out_of_range']} values outside"
+                )
                 printed.append(line)
                 print(line, flush=True)
             medians = [r["median"] for r in results]
@@ -84,19 +96,35 @@ def main(argv=None, targets: dict = TARGETS, description: str = __doc__) -> None
             largest = ", ".join(_value(r["q_max"]) for r in results)
             bound = max(r["bound_high"] for r in results)
             outside = ", ".join(f"{r['out_of_range']:,}" for r in results)
-            rows.append(f"| {env_id} (>= {level:g}) | {algo} | {', '.join(f'{m:g}' for m in medians)} | "
-                        f"{statistics.median(medians):g} | {reached}/{len(results)} | {cpus} | {largest} "
-                        f"({bound:.4g}) | {outside} |")
+            rows.append(
+                f"| {env_id} (>= {level:g}) | {algo} | {', '.join(f'{m:g}' for m in medians)} | "
+                f"{statistics.median(medians):g} | {reached}/{len(results)} | {cpus} | {largest} "
+                f"({bound:.4g}) | {outside} |"
+            )
     print("\n".join(rows))
     if args.out is not None:
         command = "python " + " ".join([Path(sys.argv[0]).as_posix(), *(sys.argv[1:] if argv is None else argv)])
-        text = "\n".join([f"Regenerate: `{command}` (seeds {', '.join(map(str, args.seeds))}, one after another).",
-                          "", *rows, "", "Per seed:", "", "```text", *printed, "```", "",
-                          records.code_versions_line([records.code_version()]), ""])
+        text = "\n".join(
+            [
+                f"Regenerate: `{command}` (seeds {', '.join(map(str, args.seeds))}, one after another).",
+                "",
+                *rows,
+                "",
+                "Per seed:",
+                "",
+                "```text",
+                *printed,
+                "```",
+                "",
+                records.code_versions_line([records.code_version()]),
+                "",
+            ]
+        )
         args.out.mkdir(parents=True, exist_ok=True)
         partial = args.out / "summary.md.partial"
         partial.write_text(text, encoding="utf-8")
         partial.replace(args.out / "summary.md")
+
 
 if __name__ == "__main__":
     main()

@@ -69,14 +69,14 @@ def main(argv=None) -> None:
         data = {b: rollouts(env_id, b, args.episodes, seed) for seed, b in enumerate(behaviours)}
         every = np.concatenate(list(data.values()))
         print(f"## {env_id}: observation_keys {keys}, {args.episodes} episodes per behaviour, {len(every)} steps")
-        print("| dimension | min | max | " + " | ".join(f"{b} min, max" for b in behaviours)
-              + " | 0.5 % | 99.5 % |")
+        print("| dimension | min | max | " + " | ".join(f"{b} min, max" for b in behaviours) + " | 0.5 % | 99.5 % |")
         print("|---|---:|---:|" + "---|" * len(behaviours) + "---:|---:|")
         low, high = np.percentile(every, [0.5, 99.5], axis=0)
         for d, name in enumerate(names):
             per = " | ".join(f"{data[b][:, d].min():.3f}, {data[b][:, d].max():.3f}" for b in behaviours)
-            print(f"| {name} | {every[:, d].min():.3f} | {every[:, d].max():.3f} | {per} | {low[d]:.3f} | "
-                  f"{high[d]:.3f} |")
+            print(
+                f"| {name} | {every[:, d].min():.3f} | {every[:, d].max():.3f} | {per} | {low[d]:.3f} | {high[d]:.3f} |"
+            )
         print()
 
 

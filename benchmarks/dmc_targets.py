@@ -49,9 +49,12 @@ OUT = Path(__file__).resolve().parents[1] / "results" / "measured" / "dmc_target
 #: three tasks, but no figure of it could be read here, so none is copied from it.
 PUBLISHED: dict[str, list[tuple[str, str, str, str]]] = {
     "dm_control/acrobot-swingup-v0": [
-        ("DDPG (Stable-Baselines3, rl-zoo; the suite's task with 1,000-step episodes as AcrobotSwingupDMC-v0)",
-         "63.99 +/- 45.62 (mean_reward of its model card)", "not stated on the card",
-         "https://huggingface.co/qgallouedec/ddpg-AcrobotSwingupDMC-v0 (model card, README.md)"),
+        (
+            "DDPG (Stable-Baselines3, rl-zoo; the suite's task with 1,000-step episodes as AcrobotSwingupDMC-v0)",
+            "63.99 +/- 45.62 (mean_reward of its model card)",
+            "not stated on the card",
+            "https://huggingface.co/qgallouedec/ddpg-AcrobotSwingupDMC-v0 (model card, README.md)",
+        ),
     ],
 }
 
@@ -114,8 +117,17 @@ def steps_to_reach(curve: list[dict[str, Any]], reached: float) -> Optional[int]
     return None
 
 
-def run(task: str, algo: str, seed: int, steps: int, every: int, out: Path, policy_kwargs: Optional[dict] = None,
-        label: Optional[str] = None, final_episodes: int = FINAL_EPISODES) -> dict[str, Any]:
+def run(
+    task: str,
+    algo: str,
+    seed: int,
+    steps: int,
+    every: int,
+    out: Path,
+    policy_kwargs: Optional[dict] = None,
+    label: Optional[str] = None,
+    final_episodes: int = FINAL_EPISODES,
+) -> dict[str, Any]:
     """Run (or continue) one run; returns its record. ``policy_kwargs`` (a tiling screen's candidate, filed under
     ``label``) default to none: sb3-er's tiling for the id. ``final_episodes`` greedy episodes give the return
     reached."""
@@ -139,9 +151,19 @@ def run(task: str, algo: str, seed: int, steps: int, every: int, out: Path, poli
         record["resumed_at"] = record.get("resumed_at", []) + [model.num_timesteps]
     else:
         model = cls("TileQ", task, seed=seed, **kwargs)
-        record = {"task": task, "algo": algo, "label": label or algo, "seed": seed, "steps": steps, "every": every,
-                  "policy_kwargs": policy_kwargs, "curve": [], "learn_cpu_s": 0.0, "chunks": [],
-                  "dependencies": dependency_versions()}
+        record = {
+            "task": task,
+            "algo": algo,
+            "label": label or algo,
+            "seed": seed,
+            "steps": steps,
+            "every": every,
+            "policy_kwargs": policy_kwargs,
+            "curve": [],
+            "learn_cpu_s": 0.0,
+            "chunks": [],
+            "dependencies": dependency_versions(),
+        }
     if record["steps"] != steps or record["every"] != every:
         raise SystemExit(f"{path} was started with --steps {record['steps']} --every {record['every']}")
     code = code_version()
@@ -156,10 +178,17 @@ def run(task: str, algo: str, seed: int, steps: int, every: int, out: Path, poli
             record["first_value_excursion"] = model.value_excursion
         last = model.num_timesteps >= steps
         returns = greedy_returns(model, task, seed, final_episodes if last else CURVE_EPISODES)
-        record["curve"].append({"steps": int(model.num_timesteps), "mean_return": statistics.fmean(returns),
-                                "returns": returns})
-        record["chunks"].append({"steps": int(model.num_timesteps), "code_sha256": code["code_sha256"],
-                                 "git_commit": code["git_commit"], "git_dirty": code["git_dirty"]})
+        record["curve"].append(
+            {"steps": int(model.num_timesteps), "mean_return": statistics.fmean(returns), "returns": returns}
+        )
+        record["chunks"].append(
+            {
+                "steps": int(model.num_timesteps),
+                "code_sha256": code["code_sha256"],
+                "git_commit": code["git_commit"],
+                "git_dirty": code["git_dirty"],
+            }
+        )
         if last:
             record["reached"] = statistics.fmean(returns)
             record["steps_to_reach"] = steps_to_reach(record["curve"], record["reached"])
@@ -172,8 +201,11 @@ def run(task: str, algo: str, seed: int, steps: int, every: int, out: Path, poli
                 model.save_replay_buffer(checkpoint / "buffer.npz")
         path.parent.mkdir(parents=True, exist_ok=True)
         write_atomically(path, json.dumps(record, indent=1))
-        print(f"{task} {algo} seed {seed}: {model.num_timesteps} steps, greedy mean {record['curve'][-1]['mean_return']:.1f}"
-              f", {record['learn_cpu_s']:.0f} learn CPU s", flush=True)
+        print(
+            f"{task} {algo} seed {seed}: {model.num_timesteps} steps, greedy mean {record['curve'][-1]['mean_return']:.1f}"
+            f", {record['learn_cpu_s']:.0f} learn CPU s",
+            flush=True,
+        )
     return record
 
 
@@ -200,58 +232,101 @@ def summarize(out: Path) -> None:
     from sb3_er.common.atomic import write_atomically
 
     runs = records(out)
-    lines = ["# dm_control swing-up tasks with the defaults", "",
-             f"Generated by `python benchmarks/dmc_targets.py --summarize` from runs/. `Algo(\"TileQ\", env_id, "
-             f"seed=seed).learn(steps)`: the class defaults, sb3-er's tiling for the id, 7 torque levels. Return "
-             f"reached: mean of {FINAL_EPISODES} greedy episodes after the last step (of 1,000); steps it took: the "
-             f"first point of the curve (every {EVERY:,} steps, {CURVE_EPISODES} greedy episodes) at "
-             f"{REACHED_FRACTION:.0%} of it. Unfinished runs show their last point.", "",
-             "Values outside the possible returns: how many targets and Q-values the value watch saw outside the "
-             "returns the suite's rewards make possible ([0, 1] a step, which sb3-er's flattening of a dm_control/ id "
-             "declares: [0, 100] at gamma 0.99, widened by the initial values), and the first one with its step; a "
-             "run with any has left the regime its learner is meant for.", "",
-             "| task | algorithm | seed | steps run | return reached | steps it took | learn CPU s | values outside the "
-             "possible returns (first: value at step) |",
-             "|---|---|---:|---:|---:|---:|---:|---|"]
+    lines = [
+        "# dm_control swing-up tasks with the defaults",
+        "",
+        f'Generated by `python benchmarks/dmc_targets.py --summarize` from runs/. `Algo("TileQ", env_id, '
+        f"seed=seed).learn(steps)`: the class defaults, sb3-er's tiling for the id, 7 torque levels. Return "
+        f"reached: mean of {FINAL_EPISODES} greedy episodes after the last step (of 1,000); steps it took: the "
+        f"first point of the curve (every {EVERY:,} steps, {CURVE_EPISODES} greedy episodes) at "
+        f"{REACHED_FRACTION:.0%} of it. Unfinished runs show their last point.",
+        "",
+        "Values outside the possible returns: how many targets and Q-values the value watch saw outside the "
+        "returns the suite's rewards make possible ([0, 1] a step, which sb3-er's flattening of a dm_control/ id "
+        "declares: [0, 100] at gamma 0.99, widened by the initial values), and the first one with its step; a "
+        "run with any has left the regime its learner is meant for.",
+        "",
+        "| task | algorithm | seed | steps run | return reached | steps it took | learn CPU s | values outside the "
+        "possible returns (first: value at step) |",
+        "|---|---|---:|---:|---:|---:|---:|---|",
+    ]
     findings = []
     for r in sorted(runs, key=lambda r: (r["task"], r["algo"], r["seed"])):
         last = r["curve"][-1] if r["curve"] else None
-        reached = f"{r['reached']:.1f}" if r.get("finished") else (f"({last['mean_return']:.1f}, unfinished)"
-                                                                    if last else "-")
+        reached = (
+            f"{r['reached']:.1f}"
+            if r.get("finished")
+            else (f"({last['mean_return']:.1f}, unfinished)" if last else "-")
+        )
         took = f"{r['steps_to_reach']:,}" if r.get("steps_to_reach") is not None else "-"
-        lines.append(f"| {r['task'].split('/')[1]} | {r['algo']} | {r['seed']} | {last['steps'] if last else 0:,} | "
-                     f"{reached} | {took} | {r['learn_cpu_s']:.0f} | {_outside(r)} |")
-        findings.append({"task": r["task"], "algo": r["algo"], "seed": r["seed"], "finished": bool(r.get("finished")),
-                         "steps_run": last["steps"] if last else 0, "reached": r.get("reached"),
-                         "steps_to_reach": r.get("steps_to_reach"),
-                         "values_out_of_range": r.get("values_out_of_range")})
-    lines += ["", "Published figures on the same tasks (state observations):", "",
-              "| task | method | return | at steps | source |", "|---|---|---:|---:|---|"]
+        lines.append(
+            f"| {r['task'].split('/')[1]} | {r['algo']} | {r['seed']} | {last['steps'] if last else 0:,} | "
+            f"{reached} | {took} | {r['learn_cpu_s']:.0f} | {_outside(r)} |"
+        )
+        findings.append(
+            {
+                "task": r["task"],
+                "algo": r["algo"],
+                "seed": r["seed"],
+                "finished": bool(r.get("finished")),
+                "steps_run": last["steps"] if last else 0,
+                "reached": r.get("reached"),
+                "steps_to_reach": r.get("steps_to_reach"),
+                "values_out_of_range": r.get("values_out_of_range"),
+            }
+        )
+    lines += [
+        "",
+        "Published figures on the same tasks (state observations):",
+        "",
+        "| task | method | return | at steps | source |",
+        "|---|---|---:|---:|---|",
+    ]
     for task, entries in PUBLISHED.items():
         for method, value, at, source in entries:
             lines.append(f"| {task.split('/')[1]} | {method} | {value} | {at} | {source} |")
     versions = sorted({c["code_sha256"][:10] for r in runs for c in r["chunks"]})
-    lines += ["", f"Code versions (code_sha256, first 10 hex digits) of these runs: {', '.join(versions)}.", "",
-              "Figure: `curves.png` (the learning curves, every run; the dashed line is the random policy)."]
-    baselines = {t: json.loads(p.read_text()) for t in TASKS
-                 if (p := out / "runs" / t.split("/")[1] / "random.json").is_file()}
+    lines += [
+        "",
+        f"Code versions (code_sha256, first 10 hex digits) of these runs: {', '.join(versions)}.",
+        "",
+        "Figure: `curves.png` (the learning curves, every run; the dashed line is the random policy).",
+    ]
+    baselines = {
+        t: json.loads(p.read_text()) for t in TASKS if (p := out / "runs" / t.split("/")[1] / "random.json").is_file()
+    }
     if baselines:
-        lines[-1:-1] = ["A random choice among the 7 torque levels, mean of "
-                        f"{FINAL_EPISODES} episodes on the same starts: "
-                        + ", ".join(f"{t.split('/')[1]} {b['mean_return']:.1f}" for t, b in baselines.items()) + ".",
-                        ""]
+        lines[-1:-1] = [
+            "A random choice among the 7 torque levels, mean of "
+            f"{FINAL_EPISODES} episodes on the same starts: "
+            + ", ".join(f"{t.split('/')[1]} {b['mean_return']:.1f}" for t, b in baselines.items())
+            + ".",
+            "",
+        ]
     tasks = [t for t in TASKS if any(r["task"] == t for r in runs)]
     if tasks:
         figure, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
         for ax, task in zip(axes[0], tasks):
             for algo, colour in zip(ALGOS, ("tab:blue", "tab:orange")):
                 for r in (r for r in runs if r["task"] == task and r["algo"] == algo):
-                    ax.plot([p["steps"] for p in r["curve"]], [p["mean_return"] for p in r["curve"]], color=colour,
-                            alpha=0.8, marker=".", label=f"{algo}" if r["seed"] == min(
-                                x["seed"] for x in runs if x["task"] == task and x["algo"] == algo) else None)
+                    ax.plot(
+                        [p["steps"] for p in r["curve"]],
+                        [p["mean_return"] for p in r["curve"]],
+                        color=colour,
+                        alpha=0.8,
+                        marker=".",
+                        label=f"{algo}"
+                        if r["seed"] == min(x["seed"] for x in runs if x["task"] == task and x["algo"] == algo)
+                        else None,
+                    )
             if task in baselines:
-                ax.axhline(baselines[task]["mean_return"], color="grey", linestyle="--", linewidth=1,
-                           label="random torques" if task == tasks[0] else None)
+                ax.axhline(
+                    baselines[task]["mean_return"],
+                    color="grey",
+                    linestyle="--",
+                    linewidth=1,
+                    label="random torques" if task == tasks[0] else None,
+                )
             ax.set_title(task.split("/")[1])
             ax.set_xlabel("steps")
             ax.set_ylim(0, 1000)

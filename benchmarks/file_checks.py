@@ -63,11 +63,12 @@ def main() -> None:
             path = Path(directory) / f"buffer{suffix}"
             save = best_of(args.repeats, lambda: save_buffer(buffer, path))
             load = best_of(args.repeats, lambda: load_buffer(path, coder))
-            print(f"  {suffix}: save {save:.3f} s, load {load:.3f} s (checks included), "
-                  f"{path.stat().st_size / 1e6:.1f} MB")
+            print(
+                f"  {suffix}: save {save:.3f} s, load {load:.3f} s (checks included), "
+                f"{path.stat().st_size / 1e6:.1f} MB"
+            )
         raw = pickle.dumps(state)
-        print(f"  unpickling the state dict alone (no checks):"
-              f"{best_of(args.repeats, lambda: pickle.loads(raw)):.3f} s")
+        print(f"  unpickling the state dict alone (no checks):{best_of(args.repeats, lambda: pickle.loads(raw)):.3f} s")
 
 
 if __name__ == "__main__":

@@ -47,12 +47,16 @@ def run(algo: str, episodes: int, seed: int) -> None:
     windows = [(0, 10), (episodes // 2 - 5, episodes // 2 + 5), (episodes - 10, episodes)]
     window_text = ", ".join(f"episodes {a + 1}-{b}: {per_episode[a:b].mean():.3f} s" for a, b in windows if a >= 0)
     returns = [r["return"] for r in clock.records]
-    print(f"{algo}: {total:.1f} CPU s for {len(per_episode)} episodes ({model.num_timesteps} steps); per episode "
-          f"{window_text}; mean return of the last 10 episodes {np.mean(returns[-10:]):.0f}")
+    print(
+        f"{algo}: {total:.1f} CPU s for {len(per_episode)} episodes ({model.num_timesteps} steps); per episode "
+        f"{window_text}; mean return of the last 10 episodes {np.mean(returns[-10:]):.0f}"
+    )
     if hasattr(model, "fit_seconds"):
         stats = model._fit_stats
-        print(f"    {model.fits} fits, {model.fit_seconds:.1f} s in fits ({model.fit_seconds / total:.0%}); last fit: "
-              + ", ".join(f"{k} {v:.4g}" for k, v in stats.items()))
+        print(
+            f"    {model.fits} fits, {model.fit_seconds:.1f} s in fits ({model.fit_seconds / total:.0%}); last fit: "
+            + ", ".join(f"{k} {v:.4g}" for k, v in stats.items())
+        )
     if hasattr(model, "planning_updates"):
         print(f"    {model.planning_updates} planning updates, {model.model_fits} model fits")
 

@@ -174,7 +174,8 @@ def python_parts(env, controls: list[np.ndarray], seed: int, repeats: int) -> di
         "gait policy (ObservingGait.action)": cost_us(lambda: gait.action(observation, info), calls, repeats),
         "action check + levels to volts": cost_us(lambda: _voltages_of_levels(action), calls, repeats),
         "task before_step (controllers, clip, ctrl)": cost_us(
-            lambda: task.apply_voltages(*voltages, physics), calls, repeats),
+            lambda: task.apply_voltages(*voltages, physics), calls, repeats
+        ),
         "task after_step (all of it)": cost_us(lambda: task.after_step(physics), calls, repeats),
     }
     raw = list(task._raw_rates)
@@ -226,38 +227,55 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=4, help="gait episodes per repeat (default 4)")
     parser.add_argument("--repeats", type=int, default=3, help="repeats of each measurement (default 3)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--learn-steps", type=int, default=10000,
-                        help="SarsaLambda.learn steps for the learner's share (default 10000; 0 skips it)")
+    parser.add_argument(
+        "--learn-steps",
+        type=int,
+        default=10000,
+        help="SarsaLambda.learn steps for the learner's share (default 10000; 0 skips it)",
+    )
     args = parser.parse_args()
     if args.episodes < 1 or args.repeats < 1:
         parser.error("--episodes and --repeats must be at least 1")
     env = gym.make("sb3_er/Leo-v0")
     run_episodes(env, 1, args.seed, "gait")  # warm-up
-    print(f"sb3_er/Leo-v0, {PHYSICS_SUBSTEPS} physics substeps per 1/30 s control step; CPU time, best of "
-          f"{args.repeats} (median)")
+    print(
+        f"sb3_er/Leo-v0, {PHYSICS_SUBSTEPS} physics substeps per 1/30 s control step; CPU time, best of "
+        f"{args.repeats} (median)"
+    )
     gait_rate, gait_median = best_rate(lambda: run_episodes(env, args.episodes, args.seed, "gait"), args.repeats)
-    print(f"Erik's gait (gym.make, policy included): {gait_rate:6.0f} control steps/s ({gait_median:.0f}); "
-          f"a 25 s episode in {750 / gait_rate:.3f} s")
-    random_rate, random_median = best_rate(lambda: run_episodes(env, 10 * args.episodes, args.seed, "random"),
-                                           args.repeats)
+    print(
+        f"Erik's gait (gym.make, policy included): {gait_rate:6.0f} control steps/s ({gait_median:.0f}); "
+        f"a 25 s episode in {750 / gait_rate:.3f} s"
+    )
+    random_rate, random_median = best_rate(
+        lambda: run_episodes(env, 10 * args.episodes, args.seed, "random"), args.repeats
+    )
     print(f"random levels (gym.make, falls end episodes): {random_rate:6.0f} control steps/s ({random_median:.0f})")
     controls = record_gait(env, args.seed)
     physics_rate, physics_median = best_rate(lambda: replay_physics(env, controls, args.seed), args.repeats)
-    print(f"bare physics (the gait's controls replayed, {PHYSICS_SUBSTEPS} substeps): {physics_rate:6.0f} control "
-          f"steps/s ({physics_median:.0f})")
+    print(
+        f"bare physics (the gait's controls replayed, {PHYSICS_SUBSTEPS} substeps): {physics_rate:6.0f} control "
+        f"steps/s ({physics_median:.0f})"
+    )
 
     rates = measure_in_turns(env, controls, args.episodes, args.seed, args.repeats)
     step_us, physics_us, python_us = (1e6 / max(rates[name]) for name in ("gait", "physics", "python"))
     print(f"\nprofile of a gait control step, CPU us (best of {args.repeats}, measured in turns), share of the step")
     print(f"  {'whole control step (Erik gait, gym.make)':56s} {step_us:7.2f} us 100.0 %")
-    print(f"  {'MuJoCo substeps (30 x mj_step, Physics.step_control)':56s} {physics_us:7.2f} us "
-          f"{100 * physics_us / step_us:5.1f} %")
-    print(f"  {'Python side in the loop (physics stubbed out)':56s} {python_us:7.2f} us "
-          f"{100 * python_us / step_us:5.1f} %")
+    print(
+        f"  {'MuJoCo substeps (30 x mj_step, Physics.step_control)':56s} {physics_us:7.2f} us "
+        f"{100 * physics_us / step_us:5.1f} %"
+    )
+    print(
+        f"  {'Python side in the loop (physics stubbed out)':56s} {python_us:7.2f} us "
+        f"{100 * python_us / step_us:5.1f} %"
+    )
     for name, us in python_parts(env, controls, args.seed, args.repeats).items():
         print(f"    {name:54s} {us:7.2f} us {100 * us / step_us:5.1f} %")
     rest = step_us - physics_us - python_us
-    print(f"  {'rest (MuJoCo and Python evicting each other, spread)':56s} {rest:7.2f} us {100 * rest / step_us:5.1f} %")
+    print(
+        f"  {'rest (MuJoCo and Python evicting each other, spread)':56s} {rest:7.2f} us {100 * rest / step_us:5.1f} %"
+    )
     print("MuJoCo's split of a substep (its wall-clock timers):")
     for name, share in mujoco_split(env, controls, args.seed, args.repeats).items():
         print(f"  {name:56s} {100 * share:5.1f} %")
@@ -265,9 +283,11 @@ def main() -> None:
 
     if args.learn_steps > 0:
         rate, share, env_us = learner_share(args.learn_steps, args.seed)
-        print(f"\nSarsaLambda.learn on Leo-v0 (zoo settings, {args.learn_steps} steps): {rate:.0f} steps/s; "
-              f"LeoEnv.step {env_us:.0f} us/step = {100 * share:.0f} %, learner and SB3 loop "
-              f"{(1 / rate - share / rate) * 1e6:.0f} us/step = {100 * (1 - share):.0f} %")
+        print(
+            f"\nSarsaLambda.learn on Leo-v0 (zoo settings, {args.learn_steps} steps): {rate:.0f} steps/s; "
+            f"LeoEnv.step {env_us:.0f} us/step = {100 * share:.0f} %, learner and SB3 loop "
+            f"{(1 / rate - share / rate) * 1e6:.0f} us/step = {100 * (1 - share):.0f} %"
+        )
 
 
 if __name__ == "__main__":

@@ -73,35 +73,62 @@ METHOD_LABELS = {
     "sac": "SB3 SAC (rl-zoo tuned)",
 }
 #: The tasks each method runs on: the peers are for one kind of action space each.
-METHOD_ENVS = {"sarsa_lambda": ENVS, "er_sigma": ENVS, "dqn": DISCRETE_ENVS, "mushroom": DISCRETE_ENVS,
-               "sac": CONTINUOUS_ENVS}
+METHOD_ENVS = {
+    "sarsa_lambda": ENVS,
+    "er_sigma": ENVS,
+    "dqn": DISCRETE_ENVS,
+    "mushroom": DISCRETE_ENVS,
+    "sac": CONTINUOUS_ENVS,
+}
 #: SB3's algorithm of each rl-zoo peer.
 RL_ZOO_PEERS = ("dqn", "sac")
 #: Gymnasium's reward_threshold of each env (checked against env.spec at run time; Pendulum-v1 has none).
-THRESHOLDS = {"CartPole-v1": 475.0, "MountainCar-v0": -110.0, "Acrobot-v1": -100.0, "Pendulum-v1": None,
-              "MountainCarContinuous-v0": 90.0}
+THRESHOLDS = {
+    "CartPole-v1": 475.0,
+    "MountainCar-v0": -110.0,
+    "Acrobot-v1": -100.0,
+    "Pendulum-v1": None,
+    "MountainCarContinuous-v0": 90.0,
+}
 #: The issues' target levels for the greedy return after 100,000 steps (issue 12: discrete; issue 26: continuous).
-TARGETS = {"CartPole-v1": 450.0, "MountainCar-v0": -140.0, "Acrobot-v1": -120.0, "Pendulum-v1": -200.0,
-           "MountainCarContinuous-v0": 90.0}
+TARGETS = {
+    "CartPole-v1": 450.0,
+    "MountainCar-v0": -140.0,
+    "Acrobot-v1": -120.0,
+    "Pendulum-v1": -200.0,
+    "MountainCarContinuous-v0": 90.0,
+}
 DEFAULT_BUDGET = 100_000
 #: MushroomRL's tiles need a finite range: CartPole's velocities get +-this (|velocities| of learning runs stay within).
 MUSHROOM_VELOCITY_RANGE = 4.0
 #: CartPole's cart position and pole angle end the episode beyond +-2.4 and +-12 degrees: MushroomRL tiles that range.
-CARTPOLE_RANGE = ((-2.4, 2.4), (-MUSHROOM_VELOCITY_RANGE, MUSHROOM_VELOCITY_RANGE), (-0.2095, 0.2095),
-                  (-MUSHROOM_VELOCITY_RANGE, MUSHROOM_VELOCITY_RANGE))
+CARTPOLE_RANGE = (
+    (-2.4, 2.4),
+    (-MUSHROOM_VELOCITY_RANGE, MUSHROOM_VELOCITY_RANGE),
+    (-0.2095, 0.2095),
+    (-MUSHROOM_VELOCITY_RANGE, MUSHROOM_VELOCITY_RANGE),
+)
 #: A combination that installs from PyPI with this machine's CPU torch: mushroom-rl 1.10.2 pins torch 2.5.1 (a CUDA
 #: build from PyPI), 1.10.1 does not pin torch; numpy < 2 for its old code.
 MUSHROOM_TORCH = "torch==2.13.0"
 MUSHROOM_PINS = (
-    "mushroom-rl==1.10.1", "numpy==1.26.4", "scipy==1.17.1", "scikit-learn==1.9.1", "matplotlib==3.11.2",
-    "opencv-python==4.11.0.86", "pygame==2.6.1", "gymnasium==1.4.0",
+    "mushroom-rl==1.10.1",
+    "numpy==1.26.4",
+    "scipy==1.17.1",
+    "scikit-learn==1.9.1",
+    "matplotlib==3.11.2",
+    "opencv-python==4.11.0.86",
+    "pygame==2.6.1",
+    "gymnasium==1.4.0",
 )
-DEFAULT_MUSHROOM_VENV = Path(os.environ.get("SB3_ER_MUSHROOM_VENV",
-                                            Path.home() / ".cache" / "sb3-er" / "mushroom-venv"))
+DEFAULT_MUSHROOM_VENV = Path(
+    os.environ.get("SB3_ER_MUSHROOM_VENV", Path.home() / ".cache" / "sb3-er" / "mushroom-venv")
+)
 RESULT_PREFIX = "PEERS_RESULT "
 
 
 # --- measurements shared by every worker --------------------------------------------------------------------------
+
 
 def _rss_mb() -> float:
     """Peak resident set size of this process so far, in MB (Linux reports KB)."""
@@ -132,8 +159,15 @@ def _first_reaching(evaluations: list[tuple[int, float]], level):
     return next((step for step, value in evaluations if value >= level), None)
 
 
-def _result(config: dict, evaluations, final_returns, learning: tuple[float, float], baseline_mb: float, episodes: int,
-            extra=None) -> dict:
+def _result(
+    config: dict,
+    evaluations,
+    final_returns,
+    learning: tuple[float, float],
+    baseline_mb: float,
+    episodes: int,
+    extra=None,
+) -> dict:
     wall, cpu = learning
     threshold, target = THRESHOLDS[config["env"]], TARGETS[config["env"]]
     return {
@@ -157,6 +191,7 @@ def _result(config: dict, evaluations, final_returns, learning: tuple[float, flo
 
 
 # --- sb3-er and DQN (this venv) ------------------------------------------------------------------------------------
+
 
 def rl_zoo_dqn_hyperparameters(env_id: str) -> tuple[int, dict]:
     """rl-zoo's tuned DQN settings for env_id from the installed rl_zoo3 package: (n_timesteps, DQN kwargs)."""
@@ -191,8 +226,10 @@ def _run_sb3(config: dict) -> dict:
     env_id, seed, method = config["env"], config["seed"], config["method"]
     train_env, eval_env, final_env = (Monitor(gym.make(env_id)) for _ in range(3))
     if train_env.spec.reward_threshold != THRESHOLDS[env_id]:
-        raise RuntimeError(f"{env_id}'s reward_threshold is {train_env.spec.reward_threshold}, "
-                           f"not {THRESHOLDS[env_id]}: update THRESHOLDS")
+        raise RuntimeError(
+            f"{env_id}'s reward_threshold is {train_env.spec.reward_threshold}, "
+            f"not {THRESHOLDS[env_id]}: update THRESHOLDS"
+        )
     eval_env.reset(seed=2000 + seed)
     final_env.reset(seed=1000 + seed)
     baseline = _rss_mb()
@@ -218,14 +255,16 @@ def _run_sb3(config: dict) -> dict:
 
     model.learn(config["budget"], callback=Evaluations())
     learning = clock.learning()
-    returns, _ = evaluate_policy(model, final_env, n_eval_episodes=config["final_episodes"], deterministic=True,
-                                 return_episode_rewards=True)
+    returns, _ = evaluate_policy(
+        model, final_env, n_eval_episodes=config["final_episodes"], deterministic=True, return_episode_rewards=True
+    )
     episodes = len(train_env.get_episode_rewards())
     extra = {"tiling": model.policy_kwargs if method not in RL_ZOO_PEERS else None}
     return _result(config, evaluations, returns, learning, baseline, episodes, extra)
 
 
 # --- MushroomRL (its own venv) -------------------------------------------------------------------------------------
+
 
 def mushroom_tiles(n_tilings: int, tile_widths, low, high) -> list[int]:
     """Tiles per dimension for MushroomRL's ``Tiles.generate(n_tilings, n_tiles, low, high)`` whose width comes
@@ -260,8 +299,12 @@ def _run_mushroom(config: dict) -> dict:
             self.env = gym.make(env_id)
             self._seed = seed
             box = self.env.observation_space
-            info = MDPInfo(spaces.Box(box.low.astype(np.float64), box.high.astype(np.float64)),
-                           spaces.Discrete(int(self.env.action_space.n)), gamma, self.env.spec.max_episode_steps)
+            info = MDPInfo(
+                spaces.Box(box.low.astype(np.float64), box.high.astype(np.float64)),
+                spaces.Discrete(int(self.env.action_space.n)),
+                gamma,
+                self.env.spec.max_episode_steps,
+            )
             super().__init__(info)
 
         def reset(self, state=None):
@@ -284,8 +327,12 @@ def _run_mushroom(config: dict) -> dict:
     n_actions = mdp.info.action_space.n
     policy = EpsGreedy(epsilon=Parameter(hyper["exploration_rate"]))
     agent = SARSALambdaContinuous(
-        mdp.info, policy, LinearApproximator, learning_rate=Parameter(hyper["learning_rate"] / n_tilings),
-        lambda_coeff=hyper["trace_lambda"], features=features,
+        mdp.info,
+        policy,
+        LinearApproximator,
+        learning_rate=Parameter(hyper["learning_rate"] / n_tilings),
+        lambda_coeff=hyper["trace_lambda"],
+        features=features,
         approximator_params={"input_shape": (features.size,), "output_shape": (n_actions,), "n_actions": n_actions},
     )
     baseline = _rss_mb()
@@ -319,8 +366,11 @@ def _run_mushroom(config: dict) -> dict:
     Core(agent, mdp, callback_step=on_step).learn(n_steps=config["budget"], n_steps_per_fit=1, quiet=True)
     learning = clock.learning()
     returns = greedy_returns(final_env, config["final_episodes"], reset_seed=1000 + seed)
-    extra = {"mushroom_n_tiles": n_tiles, "mushroom_tile_widths": mushroom_widths(n_tilings, n_tiles, low, high),
-             "mushroom_features": int(features.size)}
+    extra = {
+        "mushroom_n_tiles": n_tiles,
+        "mushroom_tile_widths": mushroom_widths(n_tilings, n_tiles, low, high),
+        "mushroom_features": int(features.size),
+    }
     return _result(config, evaluations, returns, learning, baseline, counter["episodes"], extra)
 
 
@@ -333,8 +383,12 @@ def mushroom_ready(venv: Path) -> tuple[bool, str]:
     python = mushroom_python(venv)
     if not python.exists():
         return False, f"MushroomRL's venv {venv} is not built (python benchmarks/peers.py --build-mushroom)"
-    probe = subprocess.run([str(python), "-c", "import mushroom_rl, gymnasium; print(mushroom_rl.__version__)"],
-                           check=False, capture_output=True, text=True)
+    probe = subprocess.run(
+        [str(python), "-c", "import mushroom_rl, gymnasium; print(mushroom_rl.__version__)"],
+        check=False,
+        capture_output=True,
+        text=True,
+    )
     if probe.returncode != 0:
         return False, f"MushroomRL's venv {venv} does not import mushroom_rl and gymnasium: {probe.stderr[-500:]}"
     return True, f"mushroom-rl {probe.stdout.strip()} in {venv}"
@@ -354,6 +408,7 @@ def build_mushroom_venv(venv: Path) -> None:
 
 
 # --- the driver ----------------------------------------------------------------------------------------------------
+
 
 def sb3_er_defaults() -> dict:
     """sb3-er's default alpha, gamma, epsilon and lambda (SarsaLambda's constructor), for MushroomRL."""
@@ -389,9 +444,10 @@ def run_one(config: dict, python: str) -> dict:
     process = subprocess.run(command, check=False, capture_output=True, text=True)
     lines = [line for line in process.stdout.splitlines() if line.startswith(RESULT_PREFIX)]
     if process.returncode != 0 or not lines:
-        raise RuntimeError(f"{config['method']} on {config['env']} (seed {config['seed']}) failed:\n"
-                           f"{process.stderr[-3000:]}")
-    return json.loads(lines[-1][len(RESULT_PREFIX):])
+        raise RuntimeError(
+            f"{config['method']} on {config['env']} (seed {config['seed']}) failed:\n{process.stderr[-3000:]}"
+        )
+    return json.loads(lines[-1][len(RESULT_PREFIX) :])
 
 
 def _median(values):
@@ -410,11 +466,20 @@ def _steps(results, key) -> str:
 
 def markdown_tables(results: list[dict]) -> str:
     """The summary table (one row per env and method) and the per-seed table."""
-    rows = [("| env | method | steps | steps to threshold (seeds) | steps to target (seeds) | final return (mean ± sd "
-             "over seeds) | learn wall s | learn CPU s | steps/CPU s | peak RSS MB | above imports MB |"),
-            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    per_seed = [("| env | method | seed | final mean | final median | steps to threshold | steps to target | "
-                 "learn CPU s | episodes |"), "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    rows = [
+        (
+            "| env | method | steps | steps to threshold (seeds) | steps to target (seeds) | final return (mean ± sd "
+            "over seeds) | learn wall s | learn CPU s | steps/CPU s | peak RSS MB | above imports MB |"
+        ),
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    per_seed = [
+        (
+            "| env | method | seed | final mean | final median | steps to threshold | steps to target | "
+            "learn CPU s | episodes |"
+        ),
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     groups: dict[tuple[str, str], list[dict]] = {}
     for result in results:
         groups.setdefault((result["env"], result["method"]), []).append(result)
@@ -440,25 +505,36 @@ def markdown_tables(results: list[dict]) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--seeds", type=int, default=5, help="seeds per (env, method) (default 5)")
     parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--budget", type=int, default=None,
-                        help="environment steps for every method (default: 100,000; rl-zoo's n_timesteps for DQN "
-                             "and SAC)")
+    parser.add_argument(
+        "--budget",
+        type=int,
+        default=None,
+        help="environment steps for every method (default: 100,000; rl-zoo's n_timesteps for DQN and SAC)",
+    )
     parser.add_argument("--eval-freq", type=int, default=5000, help="steps between greedy evaluations (default 5000)")
     parser.add_argument("--eval-episodes", type=int, default=10, help="episodes per periodic evaluation (default 10)")
     parser.add_argument("--final-episodes", type=int, default=20, help="episodes of the final evaluation (default 20)")
     parser.add_argument("--mushroom-venv", type=Path, default=DEFAULT_MUSHROOM_VENV)
-    parser.add_argument("--no-build", action="store_true",
-                        help="do not build MushroomRL's venv: leave MushroomRL out (with the reason) if it is missing")
+    parser.add_argument(
+        "--no-build",
+        action="store_true",
+        help="do not build MushroomRL's venv: leave MushroomRL out (with the reason) if it is missing",
+    )
     parser.add_argument("--build-mushroom", action="store_true", help="build MushroomRL's venv and exit")
-    parser.add_argument("--json", type=Path, default=None,
-                        help="write every result to this JSON file as its run ends; runs already in it are skipped "
-                             "(resume), and the tables cover all of its results")
+    parser.add_argument(
+        "--json",
+        type=Path,
+        default=None,
+        help="write every result to this JSON file as its run ends; runs already in it are skipped "
+        "(resume), and the tables cover all of its results",
+    )
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     return parser
 
@@ -502,9 +578,15 @@ def main(argv=None) -> None:
             for seed in range(args.first_seed, args.first_seed + args.seeds):
                 if (env_id, method, seed, budget) in done:
                     continue
-                config = {"method": method, "env": env_id, "seed": seed, "budget": budget,
-                          "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
-                          "final_episodes": args.final_episodes}
+                config = {
+                    "method": method,
+                    "env": env_id,
+                    "seed": seed,
+                    "budget": budget,
+                    "eval_freq": args.eval_freq,
+                    "eval_episodes": args.eval_episodes,
+                    "final_episodes": args.final_episodes,
+                }
                 python = sys.executable
                 if method == "mushroom":
                     config.update(tiling=mushroom_tiling(env_id), hyperparameters=hyperparameters)
@@ -515,8 +597,12 @@ def main(argv=None) -> None:
                     from sb3_er.experiments.files import write_atomically
 
                     write_atomically(args.json, json.dumps(results, indent=1))
-                print(f"{env_id} {method} seed {seed}: final {result['final_mean']:.1f}, "
-                      f"{result['learn_cpu_s']:.1f} CPU s", file=sys.stderr, flush=True)
+                print(
+                    f"{env_id} {method} seed {seed}: final {result['final_mean']:.1f}, "
+                    f"{result['learn_cpu_s']:.1f} CPU s",
+                    file=sys.stderr,
+                    flush=True,
+                )
     print(markdown_tables(results))
     for note in notes:
         print(f"\n{note}")

@@ -51,9 +51,14 @@ def env_coder(env: gym.Env, memory_size: int) -> TileCoder:
     """The env's own tile coding (thesis Tables 4.2 and 4.3; LEO tiles its voltages too), 16 tilings."""
     env = env.unwrapped
     nvec = [env.action_space.n] if hasattr(env.action_space, "n") else list(env.action_space.nvec)
-    return TileCoder(env.tile_widths, nvec, n_tilings=16, memory_size=memory_size,
-                     action_values=getattr(env, "action_values", None),
-                     action_tile_widths=getattr(env, "action_tile_widths", None))
+    return TileCoder(
+        env.tile_widths,
+        nvec,
+        n_tilings=16,
+        memory_size=memory_size,
+        action_values=getattr(env, "action_values", None),
+        action_tile_widths=getattr(env, "action_tile_widths", None),
+    )
 
 
 def recorded_buffer(env: gym.Env, coder: TileCoder, n_transitions: int) -> TrajectoryReplayBuffer:
@@ -94,8 +99,10 @@ def load_kernels(checkout: str):
     if path.is_dir():
         path = path / "sb3_er" / "common" / "kernels.py"
     if not path.is_file():
-        raise SystemExit(f"--baseline: {path} does not exist; give a checkout of this repository (a folder holding "
-                         "sb3_er/common/kernels.py) or that file")
+        raise SystemExit(
+            f"--baseline: {path} does not exist; give a checkout of this repository (a folder holding "
+            "sb3_er/common/kernels.py) or that file"
+        )
     spec = importlib.util.spec_from_file_location("baseline_kernels", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # numba's cache finds a module by name when it loads a cached kernel
@@ -103,8 +110,10 @@ def load_kernels(checkout: str):
     current = [name for name in inspect.signature(kernels.replay_phase.py_func).parameters if name != "watch"]
     theirs = [name for name in inspect.signature(module.replay_phase.py_func).parameters if name != "watch"]
     if current != theirs:
-        raise SystemExit(f"--baseline: {path}'s replay_phase takes ({', '.join(theirs)}), this version's "
-                         f"({', '.join(current)}) besides the watch; only versions with the same arguments compare")
+        raise SystemExit(
+            f"--baseline: {path}'s replay_phase takes ({', '.join(theirs)}), this version's "
+            f"({', '.join(current)}) besides the watch; only versions with the same arguments compare"
+        )
     return module
 
 
@@ -122,10 +131,26 @@ class ReplayTimer:
         coder = self.coder
         self.theta.fill(0.0)
         arguments = [
-            self.theta, self.buffer.visits, *self.buffer.replay_arguments(), coder.stride, coder.action_columns,
-            coder.columns_are_actions, n, module.ORDER_REVERSED, module.TARGET_SARSA, self.sigma, self.zeta, False,
-            ALPHA / coder.n_tilings, GAMMA, EPSILON, module.new_rng_state(1, 1), module.new_rng_state(1, 0),
-            self.q_scratch, self.w_scratch, *getattr(module, "ZERO_INITIAL", ()),
+            self.theta,
+            self.buffer.visits,
+            *self.buffer.replay_arguments(),
+            coder.stride,
+            coder.action_columns,
+            coder.columns_are_actions,
+            n,
+            module.ORDER_REVERSED,
+            module.TARGET_SARSA,
+            self.sigma,
+            self.zeta,
+            False,
+            ALPHA / coder.n_tilings,
+            GAMMA,
+            EPSILON,
+            module.new_rng_state(1, 1),
+            module.new_rng_state(1, 0),
+            self.q_scratch,
+            self.w_scratch,
+            *getattr(module, "ZERO_INITIAL", ()),
         ]
         if hasattr(module, "NO_WATCH"):
             arguments.append(watch_array if module is kernels else module.NO_WATCH)
@@ -138,8 +163,7 @@ def kernel_updates_per_second(coder, buffer, sigma, zeta, n_replays, rounds=5) -
     """(updates per CPU second without the value watch, time per update with it over time without it): the median
     of ``rounds`` alternating pairs of phases from the same weights and generators."""
     timer = ReplayTimer(coder, buffer, sigma, zeta)
-    return _alternate(lambda n, watch: timer.rate(kernels, n, watch), n_replays, kernels.new_watch(-1e6, 1e6),
-                      rounds)
+    return _alternate(lambda n, watch: timer.rate(kernels, n, watch), n_replays, kernels.new_watch(-1e6, 1e6), rounds)
 
 
 def against_baseline(baseline, coder, buffer, sigma, zeta, n_replays, rounds=9) -> tuple[float, float]:
@@ -205,13 +229,49 @@ def _sarsa_lambda_episode(theta, trace, states, coder_args, n_steps, rng, watch)
     slots = np.zeros(n_tilings, np.int64)
     next_slots = np.zeros(n_tilings, np.int64)
     q = np.zeros(action_columns.shape[1])
-    action = kernels.select_action(theta, states[0], inv_widths, offsets, wrap_tiles, slot_mask, stride,
-                                   action_columns, columns_are_actions, EPSILON, rng, slots, q)
+    action = kernels.select_action(
+        theta,
+        states[0],
+        inv_widths,
+        offsets,
+        wrap_tiles,
+        slot_mask,
+        stride,
+        action_columns,
+        columns_are_actions,
+        EPSILON,
+        rng,
+        slots,
+        q,
+    )
     for k in range(n_steps):
         action, _, _ = kernels.sarsa_lambda_step(
-            theta, trace[0], trace[1], trace[2], trace[3], slots, action, -1.0, False, states[k + 1], next_slots, q,
-            inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions, ALPHA / n_tilings, GAMMA,
-            GAMMA * 0.92, 0.01, EPSILON, rng, watch,
+            theta,
+            trace[0],
+            trace[1],
+            trace[2],
+            trace[3],
+            slots,
+            action,
+            -1.0,
+            False,
+            states[k + 1],
+            next_slots,
+            q,
+            inv_widths,
+            offsets,
+            wrap_tiles,
+            slot_mask,
+            stride,
+            action_columns,
+            columns_are_actions,
+            ALPHA / n_tilings,
+            GAMMA,
+            GAMMA * 0.92,
+            0.01,
+            EPSILON,
+            rng,
+            watch,
         )
         slots, next_slots = next_slots, slots
 
@@ -225,8 +285,12 @@ def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, floa
 
     def run(steps, watch):
         theta = np.zeros(coder.n_weights)
-        trace = (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int32),
-                 np.zeros(1, np.int64))
+        trace = (
+            np.zeros(capacity, np.int64),
+            np.zeros(capacity),
+            np.full(coder.n_weights, -1, np.int32),
+            np.zeros(1, np.int64),
+        )
         start = time.process_time()
         _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, steps, kernels.new_rng_state(0), watch)
         return steps / (time.process_time() - start)
@@ -235,8 +299,15 @@ def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, floa
 
 
 def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
-    model = SarsaLambda("TileQ", gym.make(env_id), gamma=1.0, exploration_rate=0.0, trace_lambda=0.9,
-                        policy_kwargs=policy_kwargs, seed=0)
+    model = SarsaLambda(
+        "TileQ",
+        gym.make(env_id),
+        gamma=1.0,
+        exploration_rate=0.0,
+        trace_lambda=0.9,
+        policy_kwargs=policy_kwargs,
+        seed=0,
+    )
     model.learn(2000)
     start = time.process_time()
     model.learn(n_steps)
@@ -246,16 +317,20 @@ def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="smaller runs, for a smoke test")
-    parser.add_argument("--baseline", metavar="CHECKOUT",
-                        help="another checkout (or its sb3_er/common/kernels.py) to time in the same process")
+    parser.add_argument(
+        "--baseline",
+        metavar="CHECKOUT",
+        help="another checkout (or its sb3_er/common/kernels.py) to time in the same process",
+    )
     args = parser.parse_args()
     scale = 0.1 if args.quick else 1.0
     baseline = load_kernels(args.baseline) if args.baseline else None
 
     import sb3_er_envs  # noqa: F401  (registers the env ids)
 
-    header = (f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s} "
-              f"{'watch cost':>10s}")
+    header = (
+        f"{'setup':32s} {'variant':18s} {'kernel upd/s':>14s} {'numpy upd/s':>12s} {'speed-up':>9s} {'watch cost':>10s}"
+    )
     print(header + (f" {'baseline upd/s':>15s} {'vs baseline':>11s}" if baseline else ""))
     for name, setup in SETUPS.items():
         env = gym.make(setup["env_id"])

@@ -64,21 +64,34 @@ def report(name: str, wall_s: float | None, times: dict[str, tuple[int, float]],
     print(f"{name}: {label}")
     for algo, (n_runs, seconds) in times.items():
         share = 100 * seconds / total_runs if total_runs else 0.0
-        print(f"  {algo:18s} {n_runs:3d} runs  {seconds:8,.0f} s of runs  {seconds / n_runs:6.1f} s per run  {share:5.1f} %")
+        print(
+            f"  {algo:18s} {n_runs:3d} runs  {seconds:8,.0f} s of runs  {seconds / n_runs:6.1f} s per run  {share:5.1f} %"
+        )
     return wall
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--experiments", nargs="+", default=list(DEFAULT_EXPERIMENTS),
-                        choices=["gridworld", "pendulum", "walker", "leo"])
+    parser.add_argument(
+        "--experiments",
+        nargs="+",
+        default=list(DEFAULT_EXPERIMENTS),
+        choices=["gridworld", "pendulum", "walker", "leo"],
+    )
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--algos", nargs="+", default=list(ALL_ALGORITHMS), choices=list(ALL_ALGORITHMS))
-    parser.add_argument("--cpu-estimate", action="store_true",
-                        help="run --seeds seeds one after another and estimate the 20-seed wall time from CPU time")
-    parser.add_argument("--from-results", type=Path, default=None,
-                        help="report finished reproductions in DIR/<experiment> instead of running them")
+    parser.add_argument(
+        "--cpu-estimate",
+        action="store_true",
+        help="run --seeds seeds one after another and estimate the 20-seed wall time from CPU time",
+    )
+    parser.add_argument(
+        "--from-results",
+        type=Path,
+        default=None,
+        help="report finished reproductions in DIR/<experiment> instead of running them",
+    )
     args = parser.parse_args()
 
     total = 0.0
@@ -91,30 +104,55 @@ def main() -> None:
             total += report(experiment, None, run_times(folder), args.jobs)
             continue
         if args.cpu_estimate:
-            with tempfile.TemporaryDirectory(prefix=f"sb3er_{experiment}_warmup_") as tmp:  # imports and kernel compiles
-                reproduce(experiment, n_seeds=1, algos=args.algos, out_dir=Path(tmp), n_workers=1, budget=2,
-                          show_progress=False)
+            with tempfile.TemporaryDirectory(
+                prefix=f"sb3er_{experiment}_warmup_"
+            ) as tmp:  # imports and kernel compiles
+                reproduce(
+                    experiment,
+                    n_seeds=1,
+                    algos=args.algos,
+                    out_dir=Path(tmp),
+                    n_workers=1,
+                    budget=2,
+                    show_progress=False,
+                )
             with tempfile.TemporaryDirectory(prefix=f"sb3er_{experiment}_") as tmp:
                 start = cpu_seconds()
-                reproduce(experiment, n_seeds=args.seeds, algos=args.algos, out_dir=Path(tmp), n_workers=1,
-                          show_progress=False)
+                reproduce(
+                    experiment,
+                    n_seeds=args.seeds,
+                    algos=args.algos,
+                    out_dir=Path(tmp),
+                    n_workers=1,
+                    show_progress=False,
+                )
                 cpu = cpu_seconds() - start
                 estimate = cpu * FULL_SEEDS / args.seeds / args.jobs
-                print(f"{experiment}: {cpu:,.0f} CPU s for {args.seeds} seeds -> {cpu * FULL_SEEDS / args.seeds:,.0f} "
-                      f"CPU s for {FULL_SEEDS} seeds -> about {estimate:,.0f} s on {args.jobs} idle cores")
+                print(
+                    f"{experiment}: {cpu:,.0f} CPU s for {args.seeds} seeds -> {cpu * FULL_SEEDS / args.seeds:,.0f} "
+                    f"CPU s for {FULL_SEEDS} seeds -> about {estimate:,.0f} s on {args.jobs} idle cores"
+                )
                 report(experiment, None, run_times(Path(tmp)), args.jobs)
                 total += estimate
             continue
         with tempfile.TemporaryDirectory(prefix=f"sb3er_{experiment}_") as tmp:
             start = time.perf_counter()
-            reproduce(experiment, n_seeds=args.seeds, algos=args.algos, out_dir=Path(tmp), n_workers=args.jobs,
-                      show_progress=False)
+            reproduce(
+                experiment,
+                n_seeds=args.seeds,
+                algos=args.algos,
+                out_dir=Path(tmp),
+                n_workers=args.jobs,
+                show_progress=False,
+            )
             wall = time.perf_counter() - start
             total += report(experiment, wall, run_times(Path(tmp)), args.jobs)
     verdict = "within" if total <= TARGET_S else "over"
     seeds = f"estimated for {FULL_SEEDS} seeds from {args.seeds}" if args.cpu_estimate else f"{args.seeds} seeds"
-    print(f"all: {total:,.0f} s ({total / 60:.1f} min), {verdict} the {TARGET_S // 60}-minute target "
-          f"({seeds}, {args.jobs} jobs)")
+    print(
+        f"all: {total:,.0f} s ({total / 60:.1f} min), {verdict} the {TARGET_S // 60}-minute target "
+        f"({seeds}, {args.jobs} jobs)"
+    )
 
 
 if __name__ == "__main__":

@@ -77,8 +77,9 @@ SarsaLambda("TileQ", "sb3_er/CompassWalker-v0", learning_rate=0.4, gamma=0.99, t
 def run_python(code: str, env: dict | None = None) -> tuple[str, float]:
     """Run ``code`` in a fresh interpreter; its stdout and its wall time in seconds."""
     start = time.perf_counter()
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                            env={**os.environ, **(env or {})})
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env={**os.environ, **(env or {})}
+    )
     return result.stdout, time.perf_counter() - start
 
 
@@ -96,8 +97,10 @@ def phases(repeats: int) -> None:
     names = list(rows)
     floor_rss = statistics.median(r for _, r in rows[names[0]])
     previous_rss = floor_rss
-    print(f"phases of one start-up, medians of {repeats} fresh interpreters (each phase's time; peak memory after it, "
-          f"and its growth)")
+    print(
+        f"phases of one start-up, medians of {repeats} fresh interpreters (each phase's time; peak memory after it, "
+        f"and its growth)"
+    )
     print(f"{'phase':55s} {'s':>6s} {'peak MiB':>9s} {'+MiB':>6s}")
     above_s = 0.0
     for name in names:
@@ -111,8 +114,10 @@ def phases(repeats: int) -> None:
     n_weights, weights_mib = sizes
     print(f"{'5a of 5: the weights fill (a second fill, timed)':55s} {statistics.median(fills):6.2f}")
     final_rss = statistics.median(r for _, r in rows[names[-1]])
-    print(f"\nabove the floor: {above_s:.2f} s and {final_rss - floor_rss:.0f} MiB, of which the weights "
-          f"(memory_size {n_weights:,} float64) are {weights_mib:.0f} MiB")
+    print(
+        f"\nabove the floor: {above_s:.2f} s and {final_rss - floor_rss:.0f} MiB, of which the weights "
+        f"(memory_size {n_weights:,} float64) are {weights_mib:.0f} MiB"
+    )
 
 
 def fresh_install(repeats: int) -> None:
@@ -122,8 +127,10 @@ def fresh_install(repeats: int) -> None:
             firsts.append(run_python(WHOLE, {"NUMBA_CACHE_DIR": cache})[1])
             seconds.append(run_python(WHOLE, {"NUMBA_CACHE_DIR": cache})[1])
     first, second = statistics.median(firsts), statistics.median(seconds)
-    print(f"\nwhole process, empty numba cache (a fresh install), medians of {repeats}: first run {first:.2f} s "
-          f"(compiles the kernels it calls), second run {second:.2f} s (loads them): {first / second:.1f}x")
+    print(
+        f"\nwhole process, empty numba cache (a fresh install), medians of {repeats}: first run {first:.2f} s "
+        f"(compiles the kernels it calls), second run {second:.2f} s (loads them): {first / second:.1f}x"
+    )
 
 
 def main(argv=None) -> None:

@@ -57,24 +57,42 @@ def run(experiment_name: str, algo: str, log2_size: int, budget: float, seed: in
         performance = sum(record["return"] for record in records[-10:]) / len(records[-10:])
     for used_env in [env, *getattr(callback, "eval_envs", [])]:
         used_env.close()
-    return {"cpu_s": cpu_s, "slots": model.policy.tile_coder.n_slots, "weights": model.policy.tile_coder.n_weights,
-            "table_mb": model.policy.tile_coder.n_weights * 8 / 2**20, "performance": performance,
-            "diverged": diverged, **report}
+    return {
+        "cpu_s": cpu_s,
+        "slots": model.policy.tile_coder.n_slots,
+        "weights": model.policy.tile_coder.n_weights,
+        "table_mb": model.policy.tile_coder.n_weights * 8 / 2**20,
+        "performance": performance,
+        "diverged": diverged,
+        **report,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--experiments", nargs="+", default=["pendulum", "walker"], choices=list(EXPERIMENT_BUDGETS))
     parser.add_argument("--algo", default="er")
-    parser.add_argument("--memory-sizes", nargs="+", type=int, default=[22, 18, 16], metavar="LOG2",
-                        help="log2 of memory_size (default 22 18 16; 22 is the default table)")
-    parser.add_argument("--budget", type=float, default=None,
-                        help="run length (default: the experiment's own, episodes or seconds of learning time)")
+    parser.add_argument(
+        "--memory-sizes",
+        nargs="+",
+        type=int,
+        default=[22, 18, 16],
+        metavar="LOG2",
+        help="log2 of memory_size (default 22 18 16; 22 is the default table)",
+    )
+    parser.add_argument(
+        "--budget",
+        type=float,
+        default=None,
+        help="run length (default: the experiment's own, episodes or seconds of learning time)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
-    print("| experiment | memory_size | weights (MB) | CPU s of the run | speed-up | distinct state tiles | "
-          "collision rate | fill | performance at the end |")
+    print(
+        "| experiment | memory_size | weights (MB) | CPU s of the run | speed-up | distinct state tiles | "
+        "collision rate | fill | performance at the end |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for name in args.experiments:
         budget = EXPERIMENT_BUDGETS[name] if args.budget is None else args.budget
@@ -84,10 +102,12 @@ def main() -> None:
             figures = run(name, args.algo, log2_size, budget, args.seed)
             reference = reference or figures["cpu_s"]
             performance = "diverged" if figures["diverged"] else f"{figures['performance']:.4g}"
-            print(f"| {name} ({args.algo}, {budget:g}) | 2^{log2_size} | {figures['table_mb']:.1f} | "
-                  f"{figures['cpu_s']:.1f} | {reference / figures['cpu_s']:.2f}x | {figures['distinct_tiles']:,.0f} | "
-                  f"{100 * figures['collision_rate']:.2f} % | {100 * figures['fill']:.2f} % | {performance} |",
-                  flush=True)
+            print(
+                f"| {name} ({args.algo}, {budget:g}) | 2^{log2_size} | {figures['table_mb']:.1f} | "
+                f"{figures['cpu_s']:.1f} | {reference / figures['cpu_s']:.2f}x | {figures['distinct_tiles']:,.0f} | "
+                f"{100 * figures['collision_rate']:.2f} % | {100 * figures['fill']:.2f} % | {performance} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -102,9 +102,12 @@ def main() -> None:
         wall, peak, stdout = child_run([sys.executable, "-c", code], str(work))
         figures = json.loads(stdout.strip().splitlines()[-1])
         ours.append({"wall": wall, "peak": peak, **figures})
-        print(f"pair {pair + 1}: GRL {steps / seconds:,.0f} steps/s, {grl[-1]['wall']:.2f} s, {grl[-1]['peak']:.0f} MiB | "
-              f"sb3-er {figures['steps'] / figures['learn_s']:,.0f} steps/s, {ours[-1]['wall']:.2f} s, "
-              f"{ours[-1]['peak']:.0f} MiB", flush=True)
+        print(
+            f"pair {pair + 1}: GRL {steps / seconds:,.0f} steps/s, {grl[-1]['wall']:.2f} s, {grl[-1]['peak']:.0f} MiB | "
+            f"sb3-er {figures['steps'] / figures['learn_s']:,.0f} steps/s, {ours[-1]['wall']:.2f} s, "
+            f"{ours[-1]['peak']:.0f} MiB",
+            flush=True,
+        )
     report(grl, ours)
     print(f"load average after: {os.getloadavg()}")
 
@@ -120,8 +123,9 @@ def parse_grld(stdout: str, work: Path) -> tuple[int, float]:
     files = sorted(work.glob("*-0.txt"), key=lambda f: f.stat().st_mtime)
     if not files:
         raise ValueError(f"grld wrote no <output>-0.txt in {work}")
-    rows = [line.split() for line in files[-1].read_text().splitlines()
-            if line.strip() and re.match(r"^\s*[-+0-9.]", line)]
+    rows = [
+        line.split() for line in files[-1].read_text().splitlines() if line.strip() and re.match(r"^\s*[-+0-9.]", line)
+    ]
     if not rows:
         raise ValueError(f"{files[-1]}: no trial rows")
     return int(float(rows[-1][1])), float(rows[-1][5])
@@ -135,14 +139,20 @@ def report(grl: list[dict], ours: list[dict]) -> None:
     our_rate = statistics.median(r["steps"] / r["learn_s"] for r in ours)
     print(f"\nmedians of {len(grl)} pairs          sb3-er        GRL   ratio")
     print(f"learning steps per second     {our_rate:9,.0f}  {grl_rate:9,.0f}   {our_rate / grl_rate:.2f}x faster")
-    print(f"whole process, wall (s)       {median(ours, 'wall'):9.2f}  {median(grl, 'wall'):9.2f}   "
-          f"{median(ours, 'wall') / median(grl, 'wall'):.2f}x")
-    print(f"peak memory (MiB)             {median(ours, 'peak'):9.0f}  {median(grl, 'peak'):9.0f}   "
-          f"{median(ours, 'peak') / median(grl, 'peak'):.2f}x")
+    print(
+        f"whole process, wall (s)       {median(ours, 'wall'):9.2f}  {median(grl, 'wall'):9.2f}   "
+        f"{median(ours, 'wall') / median(grl, 'wall'):.2f}x"
+    )
+    print(
+        f"peak memory (MiB)             {median(ours, 'peak'):9.0f}  {median(grl, 'peak'):9.0f}   "
+        f"{median(ours, 'peak') / median(grl, 'peak'):.2f}x"
+    )
     floor_s = median(ours, "floor_s")
-    print(f"\nsb3-er start-up: import stable_baselines3 {floor_s:.2f} s and {median(ours, 'floor_kib') / 1024:.0f} MiB "
-          f"(the floor); import sb3_er and building the model {median(ours, 'ready_s') - floor_s:.2f} s above it; "
-          f"peak memory {median(ours, 'peak') - median(ours, 'floor_kib') / 1024:.0f} MiB above it")
+    print(
+        f"\nsb3-er start-up: import stable_baselines3 {floor_s:.2f} s and {median(ours, 'floor_kib') / 1024:.0f} MiB "
+        f"(the floor); import sb3_er and building the model {median(ours, 'ready_s') - floor_s:.2f} s above it; "
+        f"peak memory {median(ours, 'peak') - median(ours, 'floor_kib') / 1024:.0f} MiB above it"
+    )
 
 
 if __name__ == "__main__":

@@ -325,9 +325,7 @@ def impact_manifold_state(stance_angle: float, energy: float, slope: float = 0.0
             f"{math.cos(stance_angle - slope):.6f}, got stance_angle={stance_angle}, energy={energy}"
         )
     stance_rate = -math.sqrt(2.0 * kinetic)
-    return np.array(
-        [stance_angle, 2.0 * stance_angle, stance_rate, (1.0 - math.cos(2.0 * stance_angle)) * stance_rate]
-    )
+    return np.array([stance_angle, 2.0 * stance_angle, stance_rate, (1.0 - math.cos(2.0 * stance_angle)) * stance_rate])
 
 
 def _distance_to_segment(columns: np.ndarray, rows: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -525,8 +523,9 @@ class SimplestWalkerEnv(gym.Env):
             high = list(self._state_high)
         tile_widths = list(THESIS_TILE_WIDTHS if tile_widths is None else np.asarray(tile_widths, dtype=np.float64))
         if len(tile_widths) != 4 or not all(math.isfinite(w) and w > 0 for w in tile_widths):
-            raise ValueError(f"tile_widths must be 4 positive numbers (stance angle, hip coordinate, their rates), "
-                             f"got {tile_widths}")
+            raise ValueError(
+                f"tile_widths must be 4 positive numbers (stance angle, hip coordinate, their rates), got {tile_widths}"
+            )
         low = [-h for h in high]
         if self._stance_change_flag:
             tile_widths.append(self.stance_change_tile_width)
@@ -636,7 +635,7 @@ class SimplestWalkerEnv(gym.Env):
         outcome, state = self._outcome, self.state
         simulate_control_step(state, self.hip_accelerations[index], self.slope, self.dt, self.substeps, outcome)
         self._steps += 1
-        footsteps, step_length, hip_touched, heel_strike_time = outcome.tolist()[:POST_IMPACT_STATE.start]
+        footsteps, step_length, hip_touched, heel_strike_time = outcome.tolist()[: POST_IMPACT_STATE.start]
         stance, hip, stance_rate, hip_rate = state.tolist()
         fell = self._fell_at(stance, hip, hip_touched)
         footstep = footsteps != 0.0
@@ -734,7 +733,5 @@ class SimplestWalkerEnv(gym.Env):
         if state.shape != (4,) or not np.all(np.isfinite(state)):
             raise ValueError(f"state must be 4 finite numbers [phi_st, phi_h, phi_st', phi_h'], got {state!r}")
         if np.any(np.abs(state) > self._state_high):
-            raise ValueError(
-                f"state {state} lies outside the state bounds {-self._state_high} to {self._state_high}"
-            )
+            raise ValueError(f"state {state} lies outside the state bounds {-self._state_high} to {self._state_high}")
         return state

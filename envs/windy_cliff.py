@@ -238,9 +238,9 @@ class WindyCliffEnv(gym.Env):
         image[:, ::px] = _COLOURS["grid"]
         agent_top = (self.height - self._y) * px
         margin = px // 4
-        image[
-            agent_top + margin : agent_top + px - margin, self._x * px + margin : (self._x + 1) * px - margin
-        ] = _COLOURS["agent"]
+        image[agent_top + margin : agent_top + px - margin, self._x * px + margin : (self._x + 1) * px - margin] = (
+            _COLOURS["agent"]
+        )
         return image
 
     def _observation(self) -> np.ndarray:

@@ -20,7 +20,13 @@ ANALYSIS_NAMES = (*ANALYSES, "framework", "sigma-regime")
 FRAMEWORK_PROBLEMS = ("gridworld", "pendulum", "mountaincar")
 FRAMEWORK_METHODS = ("sarsa_lambda", "er", "er_prioritized", "er_sigma", "dyna", "fqi", "lspi")
 SIGMA_REGIME_READINGS = (
-    "gridworld", "pendulum-0.33", "pendulum-3.3", "walker", "walker-earlier", "walker-optimistic", "leo",
+    "gridworld",
+    "pendulum-0.33",
+    "pendulum-3.3",
+    "walker",
+    "walker-earlier",
+    "walker-optimistic",
+    "leo",
 )
 
 
@@ -56,15 +62,22 @@ def build_parser() -> argparse.ArgumentParser:
         f"--algo: {', '.join(ALL_ALGORITHM_NAMES)}",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="{reproduce,train,enjoy,optimize}")
-    reproduce = commands.add_parser("reproduce", help="run a thesis experiment (gridworld, pendulum, walker, leo) or "
-                                    "analysis (replay-order, sigma, pessimistic, framework, sigma-regime)",
-                                    description=REPRODUCE_DESCRIPTION)
+    reproduce = commands.add_parser(
+        "reproduce",
+        help="run a thesis experiment (gridworld, pendulum, walker, leo) or "
+        "analysis (replay-order, sigma, pessimistic, framework, sigma-regime)",
+        description=REPRODUCE_DESCRIPTION,
+    )
     _add_reproduce_arguments(reproduce)
     for name, description in ZOO_DESCRIPTIONS.items():
         zoo_command = commands.add_parser(name, help=description, description=description, add_help=False)
-        zoo_command.add_argument("zoo_arguments", nargs=argparse.REMAINDER, metavar="--algo ALGO --env ENV ...",
-                                 help=f"rl_zoo3 {'enjoy' if name == 'enjoy' else 'train'} options, passed through "
-                                 f"(sb3-er {name} -h lists them)")
+        zoo_command.add_argument(
+            "zoo_arguments",
+            nargs=argparse.REMAINDER,
+            metavar="--algo ALGO --env ENV ...",
+            help=f"rl_zoo3 {'enjoy' if name == 'enjoy' else 'train'} options, passed through "
+            f"(sb3-er {name} -h lists them)",
+        )
     return parser
 
 
@@ -78,7 +91,8 @@ def reproduce_parser() -> argparse.ArgumentParser:
 def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
     budgets = ", ".join(f"{name} {spec.default_budget:g} {spec.budget_unit}" for name, spec in EXPERIMENTS.items())
     parser.add_argument(
-        "experiment", choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
+        "experiment",
+        choices=[*EXPERIMENTS, *ANALYSIS_NAMES],
         help="which thesis experiment, or analysis: replay-order (Appendix A), sigma (Appendix B), pessimistic "
         "(Figure 5.5), framework (Table 3.1: the sample re-use methods on the grid world, pendulum and MountainCar), "
         "sigma-regime (which way ER-sigma moves its targets, per env and reading)",
@@ -86,12 +100,17 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=20, help="number of seeds per algorithm (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
     parser.add_argument(
-        "--algos", nargs="+", default=None, choices=list(ALGORITHM_LABELS),
+        "--algos",
+        nargs="+",
+        default=None,
+        choices=list(ALGORITHM_LABELS),
         help="algorithms (default: all five; not for the analyses)",
     )
     parser.add_argument("--out", default=None, help="output folder (default results/<experiment>)")
     parser.add_argument(
-        "--budget", type=float, default=None,
+        "--budget",
+        type=float,
+        default=None,
         help=f"run length: episodes for gridworld and pendulum, seconds of learning time for walker and leo "
         f"(defaults: {budgets}); replay-order: the horizon in replayed updates (default 300000); sigma: seconds of "
         "learning time (default 5000); pessimistic: long-replay phases (default 30); framework: learning episodes "
@@ -100,49 +119,97 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         "(defaults: gridworld and pendulum 100 episodes, walker 5000 s, leo 12000 s)",
     )
     parser.add_argument(
-        "--jobs", type=int, default=None,
+        "--jobs",
+        type=int,
+        default=None,
         help="worker processes, or the CPUs of the local Ray instance with --backend ray (default: number of CPUs)",
     )
-    parser.add_argument("--no-progress", action="store_true",
-                        help="hide the progress bar (it is shown only when standard error is a terminal)")
     parser.add_argument(
-        "--backend", choices=["local", "ray"], default="local",
+        "--no-progress",
+        action="store_true",
+        help="hide the progress bar (it is shown only when standard error is a terminal)",
+    )
+    parser.add_argument(
+        "--backend",
+        choices=["local", "ray"],
+        default="local",
         help="local: worker processes on this machine (default); ray: one Ray task per run, on a local Ray instance "
         "or the cluster at --address (needs pip install 'sb3-er[ray]')",
     )
     parser.add_argument(
-        "--address", default=None,
+        "--address",
+        default=None,
         help="Ray cluster to run on: 'auto' (the cluster this machine belongs to) or HOST:PORT of its head node; "
         "default: start a local Ray instance",
     )
     parser.add_argument(
-        "--env-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
+        "--env-kwargs",
+        nargs="+",
+        default=[],
+        metavar="NAME:VALUE",
+        type=_name_value,
         help="a reading of the env other than its defaults, as gymnasium.make keyword arguments, e.g. "
         "--env-kwargs n_actions:3 fall:angles (values read as YAML: 3 is a number, angles a string)",
     )
     parser.add_argument(
-        "--algo-kwargs", nargs="+", default=[], metavar="NAME:VALUE", type=_name_value,
+        "--algo-kwargs",
+        nargs="+",
+        default=[],
+        metavar="NAME:VALUE",
+        type=_name_value,
         help="constructor arguments overriding zoo_configs/<algo>.yml for every chosen algorithm that has them, e.g. "
         "--algo-kwargs replay_unit:segment (for the analyses: sigma only, on top of its sigma definitions)",
     )
     analyses = parser.add_argument_group("analyses")
-    analyses.add_argument("--database-episodes", type=int, default=None,
-                          help="replay-order: Sarsa(lambda) episodes per database (default 200)")
-    analyses.add_argument("--eval-every", type=int, default=None,
-                          help="replay-order: replayed updates between greedy evaluations (default 75000)")
-    analyses.add_argument("--sigmas", nargs="+", default=None, metavar="SIGMA",
-                          help="sigma: the definitions to run (default all five: worst average_worst average "
-                          "average_best best)")
-    analyses.add_argument("--initial-value", type=float, default=None,
-                          help="pessimistic: the pessimistic initial Q (default -50, the cliff's reward)")
-    analyses.add_argument("--problems", nargs="+", default=None, choices=FRAMEWORK_PROBLEMS,
-                          help="framework: the problems to run (default all three)")
-    analyses.add_argument("--methods", nargs="+", default=None, choices=FRAMEWORK_METHODS,
-                          help="framework: the methods to run (default all seven)")
-    analyses.add_argument("--readings", nargs="+", default=None, choices=SIGMA_REGIME_READINGS,
-                          help="sigma-regime: the env readings to run (default all seven)")
+    analyses.add_argument(
+        "--database-episodes",
+        type=int,
+        default=None,
+        help="replay-order: Sarsa(lambda) episodes per database (default 200)",
+    )
+    analyses.add_argument(
+        "--eval-every",
+        type=int,
+        default=None,
+        help="replay-order: replayed updates between greedy evaluations (default 75000)",
+    )
+    analyses.add_argument(
+        "--sigmas",
+        nargs="+",
+        default=None,
+        metavar="SIGMA",
+        help="sigma: the definitions to run (default all five: worst average_worst average average_best best)",
+    )
+    analyses.add_argument(
+        "--initial-value",
+        type=float,
+        default=None,
+        help="pessimistic: the pessimistic initial Q (default -50, the cliff's reward)",
+    )
+    analyses.add_argument(
+        "--problems",
+        nargs="+",
+        default=None,
+        choices=FRAMEWORK_PROBLEMS,
+        help="framework: the problems to run (default all three)",
+    )
+    analyses.add_argument(
+        "--methods",
+        nargs="+",
+        default=None,
+        choices=FRAMEWORK_METHODS,
+        help="framework: the methods to run (default all seven)",
+    )
+    analyses.add_argument(
+        "--readings",
+        nargs="+",
+        default=None,
+        choices=SIGMA_REGIME_READINGS,
+        help="sigma-regime: the env readings to run (default all seven)",
+    )
     parser.add_argument(
-        "--allow-mixed-versions", action="store_true",
+        "--allow-mixed-versions",
+        action="store_true",
         help="resume next to finished runs made by other code (version, git commit) or another configuration; "
         "without it such a resume is refused",
     )
@@ -162,9 +229,20 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
     """The keyword arguments of the chosen analysis's own options; a parser error (exit 2) for an option given to an
     experiment or analysis that has no use for it."""
     own = ANALYSIS_OPTIONS.get(args.experiment, {"algo_kwargs": "algo_kwargs"})
-    given = {dest: value for dest in ("database_episodes", "eval_every", "sigmas", "initial_value", "algo_kwargs",
-                                      "problems", "methods", "readings")
-             if (value := getattr(args, dest)) not in (None, [])}
+    given = {
+        dest: value
+        for dest in (
+            "database_episodes",
+            "eval_every",
+            "sigmas",
+            "initial_value",
+            "algo_kwargs",
+            "problems",
+            "methods",
+            "readings",
+        )
+        if (value := getattr(args, dest)) not in (None, [])
+    }
     if args.experiment in ANALYSIS_NAMES and args.algos is not None:
         given["algos"] = args.algos
     foreign = sorted(f"--{dest.replace('_', '-')}" for dest in given if dest not in own)
@@ -172,8 +250,11 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
         parser.error(f"{', '.join(foreign)} does not apply to {args.experiment}")
     if args.experiment not in ANALYSIS_NAMES:
         return {}
-    return {keyword: dict(given[dest]) if dest == "algo_kwargs" else given[dest]
-            for dest, keyword in own.items() if dest in given}
+    return {
+        keyword: dict(given[dest]) if dest == "algo_kwargs" else given[dest]
+        for dest, keyword in own.items()
+        if dest in given
+    }
 
 
 def reproduce_command(argv: Sequence[str]) -> None:
@@ -260,8 +341,10 @@ def reproduce_command(argv: Sequence[str]) -> None:
         for finding in data["findings"]:
             print(f"  {words[finding['holds']]:>14}: {finding['claim']}; {finding['evidence']}")
         print()
-    print(f"{counted(result.runs_done, 'run')} done, {result.runs_skipped} already finished, "
-          f"{result.wall_time_s:.0f} s wall time")
+    print(
+        f"{counted(result.runs_done, 'run')} done, {result.runs_skipped} already finished, "
+        f"{result.wall_time_s:.0f} s wall time"
+    )
     print(f"table:     {result.table_markdown}  and  {result.table_csv}")
     for figure in result.figures:
         print(f"{'animation:' if figure.suffix == '.gif' else 'figure:   '} {figure}")
@@ -293,13 +376,24 @@ def main(argv: Sequence[str] | None = None) -> None:
         extra = EXTRAS.get((error.name or "").partition(".")[0])
         if extra is None:
             raise
-        raise SystemExit(f"sb3-er {command} needs {error.name}, which the {extra} extra installs: "
-                         f"pip install 'sb3-er[{extra}]' (or 'sb3-er[all]')") from error
+        raise SystemExit(
+            f"sb3-er {command} needs {error.name}, which the {extra} extra installs: "
+            f"pip install 'sb3-er[{extra}]' (or 'sb3-er[all]')"
+        ) from error
 
 
 #: The optional packages the commands import, and the extra of pyproject.toml that installs each.
-EXTRAS = {"rl_zoo3": "zoo", "optuna": "zoo", "pandas": "plots", "matplotlib": "plots", "ray": "ray",
-          "dm_control": "dmc", "mujoco": "dmc", "imageio": "dmc", "shimmy": "dmc"}
+EXTRAS = {
+    "rl_zoo3": "zoo",
+    "optuna": "zoo",
+    "pandas": "plots",
+    "matplotlib": "plots",
+    "ray": "ray",
+    "dm_control": "dmc",
+    "mujoco": "dmc",
+    "imageio": "dmc",
+    "shimmy": "dmc",
+}
 
 
 if __name__ == "__main__":

@@ -228,8 +228,16 @@ class Dyna(BufferedTileQAlgorithm):
 
     def _excluded_save_params(self) -> list[str]:
         return super()._excluded_save_params() + [
-            "dynamics_model", "_plan_slots", "_plan_next_slots", "_plan_actions", "_plan_rewards",
-            "_plan_continuation", "_plan_position", "_added_since_fit", "_model_error_sums", "_coverage_sums",
+            "dynamics_model",
+            "_plan_slots",
+            "_plan_next_slots",
+            "_plan_actions",
+            "_plan_rewards",
+            "_plan_continuation",
+            "_plan_position",
+            "_added_since_fit",
+            "_model_error_sums",
+            "_coverage_sums",
         ]
 
     def _on_buffer_replaced(self) -> None:
@@ -252,7 +260,9 @@ class Dyna(BufferedTileQAlgorithm):
         if self.dynamics_model is not None and self._added_since_fit > 0:
             held_out = slice(max(n - self._added_since_fit, 0), n)
             state_error, reward_error, _ = self.dynamics_model.errors(
-                data.observations[held_out], data.actions[held_out], data.rewards[held_out],
+                data.observations[held_out],
+                data.actions[held_out],
+                data.rewards[held_out],
                 data.next_observations[held_out],
             )
             self._model_error_sums += (state_error.sum(), reward_error.sum(), state_error.size)
@@ -272,8 +282,9 @@ class Dyna(BufferedTileQAlgorithm):
         predicted = self.dynamics_model.predict(data.observations[rows], actions)
         next_observations, rewards, continuation, covered = predicted
         next_slots = np.zeros((queries, coder.n_tilings), dtype=np.int64)
-        kernels.batch_state_slots(next_observations, coder.inv_widths, coder.offsets, coder.wrap_tiles,
-                                  coder.slot_mask, next_slots)
+        kernels.batch_state_slots(
+            next_observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask, next_slots
+        )
         self._plan_slots = np.ascontiguousarray(data.slots[rows])
         self._plan_next_slots = next_slots
         self._plan_actions = np.ascontiguousarray(actions, dtype=np.int64)
@@ -292,10 +303,28 @@ class Dyna(BufferedTileQAlgorithm):
         count = min(self.planning_steps, self._plan_actions.shape[0] - start)
         coder = self.policy.tile_coder
         delta, updates, sum_abs_delta, status = kernels.dyna_step(
-            self.policy.theta_array, self._slots, action, reward, terminated, next_obs, self._next_slots,
-            self._plan_slots, self._plan_actions, self._plan_rewards, self._plan_continuation, self._plan_next_slots,
-            start, count, *coder.kernel_arguments, TARGETS[self.target], self.current_learning_rate / coder.n_tilings,
-            self.gamma, self.exploration_rate, self.action_rng, self._q_scratch, self._watch_array,
+            self.policy.theta_array,
+            self._slots,
+            action,
+            reward,
+            terminated,
+            next_obs,
+            self._next_slots,
+            self._plan_slots,
+            self._plan_actions,
+            self._plan_rewards,
+            self._plan_continuation,
+            self._plan_next_slots,
+            start,
+            count,
+            *coder.kernel_arguments,
+            TARGETS[self.target],
+            self.current_learning_rate / coder.n_tilings,
+            self.gamma,
+            self.exploration_rate,
+            self.action_rng,
+            self._q_scratch,
+            self._watch_array,
         )
         self._plan_position = start + count
         self.planning_updates += updates

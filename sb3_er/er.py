@@ -159,7 +159,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         check_number("replays_per_stored_trajectory", self.replays_per_stored_trajectory, 0.0, optional=True)
         check_number("residual_zeta (Eq. 5.9)", self.residual_zeta, 0.0, 1.0, optional=True)
         if self.residual_action == "next" and self.target == "expected_sarsa":
-            raise ValueError('residual_action="next" needs a single a\' at s\': use the sarsa or q_learning target')
+            raise ValueError("residual_action=\"next\" needs a single a' at s': use the sarsa or q_learning target")
         check_choice("predecessors", self.predecessors, PREDECESSORS)
         check_number("priority_threshold", self.priority_threshold, 0.0, unit=" (a |delta|)")
         check_integer("max_predecessors", self.max_predecessors, minimum=0)
@@ -168,8 +168,9 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder,
-                                                    **(self.replay_buffer_kwargs or {}))
+        self.replay_buffer = TrajectoryReplayBuffer(
+            self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {})
+        )
         self._w_scratch = np.zeros(self.policy.tile_coder.n_actions, dtype=np.float64)
         self._priority_workspace: Optional[dict[str, np.ndarray]] = None
 
@@ -244,19 +245,42 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             if n_updates is None:
                 n_updates = round(n_trajectories * buffer.n_transitions / buffer.n_stored_trajectories)
             updates, sum_abs_delta, last_delta, status, evaluations = kernels.prioritized_phase(
-                self.policy.theta_array, buffer.visits, *buffer.replay_arguments(), coder.stride,
-                coder.action_columns, coder.columns_are_actions, int(n_updates), float(self.priority_threshold),
-                PREDECESSORS[self.predecessors], int(self.max_predecessors), *update_arguments, self.action_rng,
-                self._q_scratch, self._w_scratch, *self.policy.initial_arguments, *self._priority_arrays(),
+                self.policy.theta_array,
+                buffer.visits,
+                *buffer.replay_arguments(),
+                coder.stride,
+                coder.action_columns,
+                coder.columns_are_actions,
+                int(n_updates),
+                float(self.priority_threshold),
+                PREDECESSORS[self.predecessors],
+                int(self.max_predecessors),
+                *update_arguments,
+                self.action_rng,
+                self._q_scratch,
+                self._w_scratch,
+                *self.policy.initial_arguments,
+                *self._priority_arrays(),
                 self._watch_array,
             )
             self.priority_evaluations += evaluations
         else:
             updates, sum_abs_delta, last_delta, status = kernels.replay_phase(
-                self.policy.theta_array, buffer.visits, *buffer.replay_arguments(), coder.stride,
-                coder.action_columns, coder.columns_are_actions, int(n_trajectories),
-                REPLAY_ORDERS[self.replay_order], *update_arguments, self.replay_rng, self.action_rng,
-                self._q_scratch, self._w_scratch, *self.policy.initial_arguments, self._watch_array,
+                self.policy.theta_array,
+                buffer.visits,
+                *buffer.replay_arguments(),
+                coder.stride,
+                coder.action_columns,
+                coder.columns_are_actions,
+                int(n_trajectories),
+                REPLAY_ORDERS[self.replay_order],
+                *update_arguments,
+                self.replay_rng,
+                self.action_rng,
+                self._q_scratch,
+                self._w_scratch,
+                *self.policy.initial_arguments,
+                self._watch_array,
             )
         self.replay_updates += updates
         self.replay_phases += 1
@@ -269,8 +293,11 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         if period_shift is not None:
             shift_sum, shifted, raised, lowered = watch[SHIFT_ENTRIES]
             if shifted > 0:
-                result.update(sigma_shift=float(shift_sum / shifted), sigma_raised=float(raised / shifted),
-                              sigma_lowered=float(lowered / shifted))
+                result.update(
+                    sigma_shift=float(shift_sum / shifted),
+                    sigma_raised=float(raised / shifted),
+                    sigma_lowered=float(lowered / shifted),
+                )
             watch[SHIFT_ENTRIES] += period_shift
         if status == kernels.STATUS_OUT_OF_BOUNDS:
             first = int(watch[kernels.WATCH_FIRST_UPDATE] - updates_before) + 1
@@ -312,8 +339,19 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
                 space["index_rows"] = np.zeros(rows * coder.n_tilings, dtype=np.int64)
         elif space["index_start"].shape[0] == 0:
             space["index_start"] = np.zeros(1, dtype=np.int64)
-        return tuple(space[name] for name in ("heap_rows", "heap_keys", "heap_position", "heap_size", "index_start",
-                                              "index_rows", "stamp", "stamp_counter"))
+        return tuple(
+            space[name]
+            for name in (
+                "heap_rows",
+                "heap_keys",
+                "heap_position",
+                "heap_size",
+                "index_start",
+                "index_rows",
+                "stamp",
+                "stamp_counter",
+            )
+        )
 
     def _record_train_metrics(self) -> None:
         super()._record_train_metrics()

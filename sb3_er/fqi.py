@@ -72,8 +72,9 @@ class FQI(FittedTileQAlgorithm):
         self.solver_iterations = solver_iterations
         self.solver_tolerance = solver_tolerance
         self.warm_start = warm_start
-        super().__init__(policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge,
-                         buffer_size=buffer_size, **kwargs)
+        super().__init__(
+            policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge, buffer_size=buffer_size, **kwargs
+        )
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
@@ -101,8 +102,17 @@ class FQI(FittedTileQAlgorithm):
         bellman_error = 0.0
         for sweep in range(self.n_iterations):
             # Eq. 3.1: targets from the current Q (policy iteration: Q is fixed during the sweep)
-            kernels.greedy_next_values(theta, data.next_slots, data.terminal, coder.stride, coder.action_columns,
-                                       coder.columns_are_actions, self._q_scratch, next_values, next_actions)
+            kernels.greedy_next_values(
+                theta,
+                data.next_slots,
+                data.terminal,
+                coder.stride,
+                coder.action_columns,
+                coder.columns_are_actions,
+                self._q_scratch,
+                next_values,
+                next_actions,
+            )
             targets = data.rewards + self.gamma * next_values
             kernels.features_dot(x, columns, fitted)
             if sweep == 0:
@@ -112,8 +122,15 @@ class FQI(FittedTileQAlgorithm):
             kernels.features_transpose_dot(targets, columns, rhs)
             rhs += self.ridge * prior
             counter = _Counter()
-            x, _ = cg(normal, rhs, x0=x, rtol=self.solver_tolerance, maxiter=self.solver_iterations,
-                      M=preconditioner, callback=counter)
+            x, _ = cg(
+                normal,
+                rhs,
+                x0=x,
+                rtol=self.solver_tolerance,
+                maxiter=self.solver_iterations,
+                M=preconditioner,
+                callback=counter,
+            )
             cg_iterations += counter.calls
             theta[features.touched] = x
         kernels.features_dot(x, columns, fitted)

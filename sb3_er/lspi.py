@@ -65,8 +65,9 @@ class LSPI(FittedTileQAlgorithm):
     ):
         self.max_features = max_features
         self.policy_iterations = 0
-        super().__init__(policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge,
-                         buffer_size=buffer_size, **kwargs)
+        super().__init__(
+            policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge, buffer_size=buffer_size, **kwargs
+        )
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
@@ -96,8 +97,17 @@ class LSPI(FittedTileQAlgorithm):
         next_values = np.empty(n)
         policy = np.empty(n, dtype=np.int64)
         new_policy = np.empty(n, dtype=np.int64)
-        kernels.greedy_next_values(theta, data.next_slots, data.terminal, coder.stride, coder.action_columns,
-                                   coder.columns_are_actions, self._q_scratch, next_values, policy)
+        kernels.greedy_next_values(
+            theta,
+            data.next_slots,
+            data.terminal,
+            coder.stride,
+            coder.action_columns,
+            coder.columns_are_actions,
+            self._q_scratch,
+            next_values,
+            policy,
+        )
         w = theta[features.touched].copy()
         self._reset_weights(features.touched, w)
         bellman_error = float(np.mean(np.abs(data.rewards + self.gamma * next_values - phi @ w)))
@@ -113,10 +123,22 @@ class LSPI(FittedTileQAlgorithm):
             theta[features.touched] = w
             iterations += 1
             # policy improvement: greedy at every next state of the database
-            kernels.greedy_next_values(theta, data.next_slots, data.terminal, coder.stride, coder.action_columns,
-                                       coder.columns_are_actions, self._q_scratch, next_values, new_policy)
-            self._watch_batch(data.rewards + self.gamma * next_values, phi @ w,
-                              f"policy iteration {iterations} of fit {self.fits + 1}")
+            kernels.greedy_next_values(
+                theta,
+                data.next_slots,
+                data.terminal,
+                coder.stride,
+                coder.action_columns,
+                coder.columns_are_actions,
+                self._q_scratch,
+                next_values,
+                new_policy,
+            )
+            self._watch_batch(
+                data.rewards + self.gamma * next_values,
+                phi @ w,
+                f"policy iteration {iterations} of fit {self.fits + 1}",
+            )
             changed = int(np.count_nonzero(new_policy != policy))
             policy, new_policy = new_policy, policy
             if changed == 0:

@@ -87,7 +87,8 @@ def random_database(model, n: int, seed: int, low: float = 0.0, high: float = 5.
     terminal = np.arange(n) % 4 == 3
     buffer = TrajectoryReplayBuffer(10 * n, coder)
     for i in range(n):
-        buffer.add(observations[i], coder.slots(observations[i]), int(actions[i]), float(rewards[i]),
-                   next_observations[i])
+        buffer.add(
+            observations[i], coder.slots(observations[i]), int(actions[i]), float(rewards[i]), next_observations[i]
+        )
         buffer.close_trajectory(next_observations[i], bool(terminal[i]))
     return buffer, (observations, actions, rewards, next_observations, terminal)

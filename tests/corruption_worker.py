@@ -38,7 +38,8 @@ def buffer_state(buffer) -> dict:
 
 def same_state(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(
-        np.array_equal(a[k], b[k]) if isinstance(a[k], np.ndarray) else a[k] == b[k] for k in a)
+        np.array_equal(a[k], b[k]) if isinstance(a[k], np.ndarray) else a[k] == b[k] for k in a
+    )
 
 
 def try_buffer(case: str, path: Path, data: bytes, original: dict, target, field=None) -> None:
@@ -47,8 +48,14 @@ def try_buffer(case: str, path: Path, data: bytes, original: dict, target, field
     try:
         target.load_replay_buffer(path, truncate_last_traj=False)
     except ValueError as error:
-        report(kind="buffer", case=case, field=field, outcome="error", message=str(error),
-               kept=target.replay_buffer is previous)
+        report(
+            kind="buffer",
+            case=case,
+            field=field,
+            outcome="error",
+            message=str(error),
+            kept=target.replay_buffer is previous,
+        )
         return
     intact = same_state(buffer_state(target.replay_buffer), original)
     target.replay(5)  # the kernels index with every loaded array
@@ -101,14 +108,21 @@ def model_cases(directory: Path) -> None:
     model.save(path)
     data = path.read_bytes()
     with zipfile.ZipFile(path) as archive:
-        members = [(info.filename, info.header_offset + 30 + len(info.filename.encode()) + len(info.extra),
-                    info.compress_size) for info in archive.infolist()]
+        members = [
+            (info.filename, info.header_offset + 30 + len(info.filename.encode()) + len(info.extra), info.compress_size)
+            for info in archive.infolist()
+        ]
     for allow_pickle in (True, False):
         for name, start, size in members:
             for fraction in (0.1, 0.5, 0.9):
                 offset = start + int(size * fraction)
-                try_model(f"flip in {name} at {fraction} (allow_pickle={allow_pickle})", path, flipped(data, offset),
-                          member=name, allow_pickle=allow_pickle)
+                try_model(
+                    f"flip in {name} at {fraction} (allow_pickle={allow_pickle})",
+                    path,
+                    flipped(data, offset),
+                    member=name,
+                    allow_pickle=allow_pickle,
+                )
             try_model(f"truncated in {name}", path, data[: start + size // 2], allow_pickle=allow_pickle)
         for offset in range(0, len(data), max(1, len(data) // 30)):
             try_model(f"truncated at byte {offset}", path, data[:offset], allow_pickle=allow_pickle)

@@ -93,10 +93,26 @@ def replay_once(buffer, order):
     coder = buffer.tile_coder
     theta = np.zeros(coder.n_weights)
     kernels.replay_phase(
-        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
-        coder.columns_are_actions, 1, order,
-        kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, False, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions), *kernels.ZERO_INITIAL,
+        theta,
+        buffer.visits,
+        *buffer.replay_arguments(),
+        coder.stride,
+        coder.action_columns,
+        coder.columns_are_actions,
+        1,
+        order,
+        kernels.TARGET_SARSA,
+        kernels.SIGMA_NONE,
+        0.0,
+        False,
+        1.0,
+        1.0,
+        0.0,
+        kernels.new_rng_state(0, 1),
+        kernels.new_rng_state(0, 0),
+        np.zeros(coder.n_actions),
+        np.zeros(coder.n_actions),
+        *kernels.ZERO_INITIAL,
         kernels.NO_WATCH,
     )
     return [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(5)]
@@ -122,10 +138,26 @@ def test_the_open_episode_is_replayed_and_bootstraps_from_its_latest_state():
     theta = np.zeros(coder.n_weights)
     theta[coder.feature_indices(np.array([3.0]), 0)] = 2.0
     kernels.replay_phase(
-        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
-        coder.columns_are_actions, 1, kernels.ORDER_REVERSED,
-        kernels.TARGET_SARSA, kernels.SIGMA_NONE, 0.0, False, 1.0, 1.0, 0.0, kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0), np.zeros(coder.n_actions), np.zeros(coder.n_actions), *kernels.ZERO_INITIAL,
+        theta,
+        buffer.visits,
+        *buffer.replay_arguments(),
+        coder.stride,
+        coder.action_columns,
+        coder.columns_are_actions,
+        1,
+        kernels.ORDER_REVERSED,
+        kernels.TARGET_SARSA,
+        kernels.SIGMA_NONE,
+        0.0,
+        False,
+        1.0,
+        1.0,
+        0.0,
+        kernels.new_rng_state(0, 1),
+        kernels.new_rng_state(0, 0),
+        np.zeros(coder.n_actions),
+        np.zeros(coder.n_actions),
+        *kernels.ZERO_INITIAL,
         kernels.NO_WATCH,
     )
     # alpha 1, gamma 1, reversed: Q(2) = 5 + Q(3) = 7, then Q(1) = 0 + 7, Q(0) = 7 (not terminal: s' = 3 bootstraps)

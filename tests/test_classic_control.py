@@ -33,19 +33,20 @@ def widths_of(model):
 
 # --- the generic rule: min(10, floor(budget^(1/D))), at least 2 ------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "n_dims, budget, expected",
     [
-        (1, 2**14, 10),   # 16384 > 10: capped at 10
-        (2, 2**14, 10),   # sqrt(16384) = 128
-        (4, 2**14, 10),   # 16384^(1/4) = 11.3
-        (5, 2**14, 6),    # 6^5 = 7776 <= 16384 < 7^5 = 16807
-        (6, 2**14, 5),    # 5^6 = 15625 <= 16384 < 6^6 = 46656
-        (7, 2**14, 4),    # 4^7 = 16384 exactly (the float root gives 3.99999...)
-        (8, 2**14, 3),    # 3^8 = 6561 <= 16384 < 4^8 = 65536
-        (14, 2**14, 2),   # 2^14 exactly
-        (20, 2**14, 2),   # 16384^(1/20) = 1.6: at least 2
-        (6, 15625, 5),    # 5^6 exactly (the float root gives 4.99999...)
+        (1, 2**14, 10),  # 16384 > 10: capped at 10
+        (2, 2**14, 10),  # sqrt(16384) = 128
+        (4, 2**14, 10),  # 16384^(1/4) = 11.3
+        (5, 2**14, 6),  # 6^5 = 7776 <= 16384 < 7^5 = 16807
+        (6, 2**14, 5),  # 5^6 = 15625 <= 16384 < 6^6 = 46656
+        (7, 2**14, 4),  # 4^7 = 16384 exactly (the float root gives 3.99999...)
+        (8, 2**14, 3),  # 3^8 = 6561 <= 16384 < 4^8 = 65536
+        (14, 2**14, 2),  # 2^14 exactly
+        (20, 2**14, 2),  # 16384^(1/20) = 1.6: at least 2
+        (6, 15625, 5),  # 5^6 exactly (the float root gives 4.99999...)
         (6, 15624, 4),
         (3, 8, 2),
     ],
@@ -69,6 +70,7 @@ def test_constant_dimensions_do_not_count_in_the_budget():
 
 
 # --- sb3-er's tilings for the classic-control ids ------------------------------------------------------------------
+
 
 def test_package_data_is_declared_for_the_wheel():
     tomllib = pytest.importorskip("tomllib")  # Python 3.11+
@@ -184,12 +186,16 @@ class UnitBoxEnv(gym.Env):
 def test_verbose_prints_the_tiling_and_its_source(capsys):
     SarsaLambda("TileQ", "MountainCar-v0", verbose=1)
     out = capsys.readouterr().out
-    assert ("Tile coding: 16 tilings, tile widths [0.18, 0.014] from sb3-er's tiling for MountainCar-v0 "
-            "(Sutton & Barto (2018) section 10.1's tiling") in out
+    assert (
+        "Tile coding: 16 tilings, tile widths [0.18, 0.014] from sb3-er's tiling for MountainCar-v0 "
+        "(Sutton & Barto (2018) section 10.1's tiling"
+    ) in out
     SarsaLambda("TileQ", UnitBoxEnv(), policy_kwargs={"n_tilings": 4}, verbose=1)
     out = capsys.readouterr().out
-    assert "Tile coding: 4 tilings from policy_kwargs; tile widths [0.2, 0.2, 0.2, 0.2, 0.2, 0.2] from the generic " \
-           "rule: 5 tiles per bounded dimension" in out
+    assert (
+        "Tile coding: 4 tilings from policy_kwargs; tile widths [0.2, 0.2, 0.2, 0.2, 0.2, 0.2] from the generic "
+        "rule: 5 tiles per bounded dimension" in out
+    )
     SarsaLambda("TileQ", "MountainCar-v0", verbose=0)
     assert "Tile coding" not in capsys.readouterr().out
 
@@ -202,6 +208,7 @@ def test_a_saved_model_keeps_its_tiling(tmp_path):
 
 
 # --- rl-zoo entries ------------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("algo", zoo.ALGORITHM_NAMES)
 @pytest.mark.parametrize("env_id", CLASSIC_IDS)
@@ -227,8 +234,24 @@ def test_framework_zoo_entries_build_on_the_package_widths(algo, env_id):
 
 
 def test_sb3_er_train_er_sigma_on_acrobot(tmp_path):
-    zoo.train(["--algo", "er_sigma", "--env", "Acrobot-v1", "-n", "600", "-f", str(tmp_path), "--seed", "0",
-               "--eval-freq", "-1", "--verbose", "0"])
+    zoo.train(
+        [
+            "--algo",
+            "er_sigma",
+            "--env",
+            "Acrobot-v1",
+            "-n",
+            "600",
+            "-f",
+            str(tmp_path),
+            "--seed",
+            "0",
+            "--eval-freq",
+            "-1",
+            "--verbose",
+            "0",
+        ]
+    )
     model = ERSigma.load(tmp_path / "er_sigma" / "Acrobot-v1_1" / "Acrobot-v1.zip")
     assert model.num_timesteps == 600 and model.replay_phases >= 1
     assert widths_of(model) == pytest.approx(package_tilings()["Acrobot-v1"]["tile_widths"])

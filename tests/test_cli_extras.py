@@ -44,4 +44,5 @@ def test_runs_outside_a_checkout_say_so():
     from_a_checkout = [dict(record, git_commit="c" * 40, git_dirty=dirty) for dirty in (False, True, False)]
     assert code_versions_line(from_a_checkout + [record]) == (
         "Code: sb3-er 0.1.0, code hash ababababab (4 runs from commit ccccccc with uncommitted changes and outside a "
-        "git checkout).")
+        "git checkout)."
+    )

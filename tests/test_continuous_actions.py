@@ -46,8 +46,9 @@ class BoxActionEnv(gym.Env):
 
 
 def policy_for(action_space, **kwargs):
-    return TileQPolicy(spaces.Box(0.0, 10.0, (1,), dtype=np.float64), action_space, tile_widths=[1.0], n_tilings=4,
-                       **SMALL, **kwargs)
+    return TileQPolicy(
+        spaces.Box(0.0, 10.0, (1,), dtype=np.float64), action_space, tile_widths=[1.0], n_tilings=4, **SMALL, **kwargs
+    )
 
 
 def all_env_actions(policy):
@@ -55,6 +56,7 @@ def all_env_actions(policy):
 
 
 # --- levels by hand ------------------------------------------------------------------------------------------------
+
 
 def test_pendulum_torques_get_seven_levels_from_bound_to_bound():
     space = spaces.Box(-2.0, 2.0, (1,), dtype=np.float32)
@@ -95,8 +97,9 @@ def test_explicit_action_values_are_the_levels_the_env_receives(bound):
     space = spaces.Box(np.array([-bound, 0.0], dtype=np.float32), np.array([bound, 1.0], dtype=np.float32))
     policy = policy_for(space, action_values=[[-5.0, 0.0, 20.0], [0.25, 1.0]])
     actions = all_env_actions(policy)
-    np.testing.assert_array_equal(actions, np.array([[-5, 0.25], [-5, 1], [0, 0.25], [0, 1], [20, 0.25], [20, 1]],
-                                                    dtype=np.float32))
+    np.testing.assert_array_equal(
+        actions, np.array([[-5, 0.25], [-5, 1], [0, 0.25], [0, 1], [20, 0.25], [20, 1]], dtype=np.float32)
+    )
 
 
 def test_unbounded_actions_learn_with_action_values():
@@ -137,19 +140,27 @@ def test_levels_are_evenly_spaced_between_the_bounds_in_the_dtype(low, span, bin
     assert np.all(levels >= lo) and np.all(levels <= hi) and np.all(np.diff(levels) > 0)
     np.testing.assert_array_equal(levels, levels.astype(dtype).astype(np.float64))  # representable in the dtype
     step = (hi - lo) / (bins - 1)
-    np.testing.assert_allclose(np.diff(levels), step, rtol=1e-3 if dtype == np.float32 else 1e-9,
-                               atol=abs(lo) * 1e-6 + 1e-9)
+    np.testing.assert_allclose(
+        np.diff(levels), step, rtol=1e-3 if dtype == np.float32 else 1e-9, atol=abs(lo) * 1e-6 + 1e-9
+    )
 
 
 # --- predict: the Box's shape and dtype, single and batched ----------------------------------------------------------
+
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("shape", [(1,), (3,)])
 def test_predict_returns_actions_inside_the_box(dtype, shape):
     space = spaces.Box(-0.5, 2.0, shape, dtype=dtype)
     env = BoxActionEnv(space)
-    model = SarsaLambda("TileQ", env, trace_lambda=0.9, exploration_rate=0.5, seed=0,
-                        policy_kwargs=dict(n_tilings=4, **SMALL, action_bins=3 if shape == (3,) else 7))
+    model = SarsaLambda(
+        "TileQ",
+        env,
+        trace_lambda=0.9,
+        exploration_rate=0.5,
+        seed=0,
+        policy_kwargs=dict(n_tilings=4, **SMALL, action_bins=3 if shape == (3,) else 7),
+    )
     model.learn(200)
     levels = np.linspace(-0.5, 2.0, 3 if shape == (3,) else 7).astype(dtype)
     assert len(env.received) == 200
@@ -176,12 +187,14 @@ def test_evaluate_policy_and_policy_files_work_on_pendulum(tmp_path):
 
 # --- saving and loading ----------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("allow_pickle", [True, False])
 @pytest.mark.parametrize("discretisation", [{}, {"action_bins": [3, 5]}, {"action_values": [[-1.0, 1.0], [0.0, 0.5]]}])
 def test_save_load_round_trip_keeps_the_levels(tmp_path, allow_pickle, discretisation):
     space = spaces.Box(np.array([-1.0, 0.0], dtype=np.float32), np.array([1.0, 0.5], dtype=np.float32))
-    model = ERSigma("TileQ", BoxActionEnv(space), seed=1, n_replays=2,
-                    policy_kwargs=dict(n_tilings=4, **SMALL, **discretisation))
+    model = ERSigma(
+        "TileQ", BoxActionEnv(space), seed=1, n_replays=2, policy_kwargs=dict(n_tilings=4, **SMALL, **discretisation)
+    )
     model.learn(100)
     model.save(tmp_path / "model")
     loaded = ERSigma.load(tmp_path / "model", env=BoxActionEnv(space), allow_pickle=allow_pickle)
@@ -200,7 +213,6 @@ def test_replay_buffer_stores_joint_action_indices(tmp_path):
     loaded = ER("TileQ", "Pendulum-v1", seed=0, n_replays=2, policy_kwargs=SMALL)
     loaded.load_replay_buffer(tmp_path / "buffer.npz")
     np.testing.assert_array_equal(loaded.replay_buffer.actions[: buffer.n_transitions], actions)
-
 
 
 class LastObservations(gym.Wrapper):
@@ -231,14 +243,17 @@ def test_pendulum_time_limit_is_stored_as_a_truncation_that_bootstraps_from_the_
         np.testing.assert_array_equal(buffer.trajectory_next_slots[j], coder.slots(final_obs))
 
 
-@pytest.mark.parametrize("env_id, low, high", [
-    # Pendulum-v1: -(theta^2 + 0.1 theta_dot^2 + 0.001 u^2) in [-(pi^2 + 6.4 + 0.004), 0], no termination: with gamma
-    # 0.99 every return lies in [-100 * 16.2736, 0].
-    ("Pendulum-v1", -100.0 * (np.pi**2 + 6.4 + 0.004), 0.0),
-    # MountainCarContinuous-v0: -0.1 a^2 in [-0.1, 0] a step, the goal's transition 100 - 0.1 a^2 and terminal:
-    # returns in [-0.1 / 0.01, 100]; Q starting at 10 lies inside.
-    ("MountainCarContinuous-v0", -10.0, 100.0),
-])
+@pytest.mark.parametrize(
+    "env_id, low, high",
+    [
+        # Pendulum-v1: -(theta^2 + 0.1 theta_dot^2 + 0.001 u^2) in [-(pi^2 + 6.4 + 0.004), 0], no termination: with gamma
+        # 0.99 every return lies in [-100 * 16.2736, 0].
+        ("Pendulum-v1", -100.0 * (np.pi**2 + 6.4 + 0.004), 0.0),
+        # MountainCarContinuous-v0: -0.1 a^2 in [-0.1, 0] a step, the goal's transition 100 - 0.1 a^2 and terminal:
+        # returns in [-0.1 / 0.01, 100]; Q starting at 10 lies inside.
+        ("MountainCarContinuous-v0", -10.0, 100.0),
+    ],
+)
 def test_the_value_watch_bounds_of_the_continuous_tasks_lie_within_the_possible_returns(env_id, low, high):
     """The watch learns these bounds from the rewards it observes: after any run they lie within the hand-computed
     returns, so a value it flags above them is above every return the task can pay."""
@@ -249,6 +264,7 @@ def test_the_value_watch_bounds_of_the_continuous_tasks_lie_within_the_possible_
 
 # --- refusals ------------------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "space, kwargs, message",
     [
@@ -257,7 +273,11 @@ def test_the_value_watch_bounds_of_the_continuous_tasks_lie_within_the_possible_
         (spaces.Box(-1.0, 1.0, (4,), dtype=np.float32), {}, r"7\^4 = 2401 joint actions.*cap of 343.*action_bins"),
         (spaces.Box(-1.0, 1.0, (1,), dtype=np.float32), {"action_bins": 0}, "positive integers"),
         (spaces.Box(-1.0, 1.0, (2,), dtype=np.float32), {"action_bins": [3]}, "1 entries .* 2 dimensions"),
-        (spaces.Box(-1.0, 1.0, (1,), dtype=np.float32), {"action_values": [[0.0, 2.0]]}, "leave the action space's bounds"),
+        (
+            spaces.Box(-1.0, 1.0, (1,), dtype=np.float32),
+            {"action_values": [[0.0, 2.0]]},
+            "leave the action space's bounds",
+        ),
         (spaces.Box(-1.0, 1.0, (1,), dtype=np.float32), {"action_values": [[0.5, 0.5]]}, "repeat a level"),
         (spaces.Box(-1.0, 1.0, (1,), dtype=np.float32), {"action_values": [[0.0]], "action_bins": 3}, "not both"),
         (spaces.Box(-1, 1, (1,), dtype=np.int64), {}, "floating-point dtype"),
@@ -267,8 +287,11 @@ def test_the_value_watch_bounds_of_the_continuous_tasks_lie_within_the_possible_
 )
 def test_unusable_discretisations_are_refused_by_name(space, kwargs, message):
     with pytest.raises(ValueError, match=message):
-        SarsaLambda("TileQ", BoxActionEnv(space) if isinstance(space, spaces.Box) else _discrete_env(space),
-                    policy_kwargs=dict(n_tilings=4, **SMALL, **kwargs))
+        SarsaLambda(
+            "TileQ",
+            BoxActionEnv(space) if isinstance(space, spaces.Box) else _discrete_env(space),
+            policy_kwargs=dict(n_tilings=4, **SMALL, **kwargs),
+        )
 
 
 def _discrete_env(space):
@@ -297,6 +320,7 @@ def test_action_tiling_over_the_levels():
 
 # --- sb3-er's tilings and rl-zoo entries for the continuous-action ids ----------------------------------------------
 
+
 @pytest.mark.parametrize("env_id", CONTINUOUS_IDS)
 def test_package_tilings_cover_the_continuous_ids(env_id):
     entry = package_tilings()[env_id]
@@ -324,14 +348,31 @@ def test_every_algorithm_has_zoo_entries_that_build(algo, env_id):
 
 
 def test_sb3_er_train_on_pendulum(tmp_path):
-    zoo.train(["--algo", "er_sigma", "--env", "Pendulum-v1", "-n", "600", "-f", str(tmp_path), "--seed", "0",
-               "--eval-freq", "-1", "--verbose", "0"])
+    zoo.train(
+        [
+            "--algo",
+            "er_sigma",
+            "--env",
+            "Pendulum-v1",
+            "-n",
+            "600",
+            "-f",
+            str(tmp_path),
+            "--seed",
+            "0",
+            "--eval-freq",
+            "-1",
+            "--verbose",
+            "0",
+        ]
+    )
     model = ERSigma.load(tmp_path / "er_sigma" / "Pendulum-v1_1" / "Pendulum-v1.zip")
     assert model.num_timesteps == 600 and model.replay_phases >= 1
     assert model.predict(np.zeros(3, dtype=np.float32))[0].dtype == np.float32
 
 
 # --- learning ------------------------------------------------------------------------------------------------------
+
 
 @pytest.mark.slow
 def test_sarsa_lambda_on_pendulum_beats_a_random_policy():

@@ -41,8 +41,17 @@ def test_corrupt_buffers_are_refused_naming_file_and_field(corruption_report):
     directory, rows = corruption_report
     buffers = [row for row in rows if row["kind"] == "buffer"]
     flipped_fields = {row["field"] for row in buffers if row["field"]}
-    assert {"observations", "slots", "actions", "rewards", "visits", "trajectory_length", "trajectory_next_slots",
-            "open_new_features", "meta"} <= flipped_fields  # every field was hit, in the pickle or the npz
+    assert {
+        "observations",
+        "slots",
+        "actions",
+        "rewards",
+        "visits",
+        "trajectory_length",
+        "trajectory_next_slots",
+        "open_new_features",
+        "meta",
+    } <= flipped_fields  # every field was hit, in the pickle or the npz
     for row in buffers:
         if row["outcome"] == "loaded":  # a flip pickle never reads (a memo index): the data must be exactly as saved
             assert row["intact"], row
@@ -127,12 +136,14 @@ def assert_refused(model_with_buffer, path: Path, field: str) -> None:
 def _entry(name, value):
     def corrupt(state, coder):
         state[name] = value(state, coder) if callable(value) else value
+
     return corrupt
 
 
 def _set(name, index, value):
     def corrupt(state, coder):
         state[name][index] = value(state, coder) if callable(value) else value
+
     return corrupt
 
 
@@ -153,11 +164,23 @@ CRAFTED = {
     "NaN reward": ("rewards", _set("rewards", 1, np.nan)),
     "NaN observation": ("observations", _set("observations", (5, 0), np.nan)),
     "observation moved": ("slots", _shift_observation),
-    "observations of another width": ("observations", _entry("observations", lambda s, c: s["observations"][:, [0, 0]])),
-    "trajectory longer than its rows": ("trajectory_length", _set("trajectory_length", 0, lambda s, c: s["trajectory_length"][0] + 5)),
+    "observations of another width": (
+        "observations",
+        _entry("observations", lambda s, c: s["observations"][:, [0, 0]]),
+    ),
+    "trajectory longer than its rows": (
+        "trajectory_length",
+        _set("trajectory_length", 0, lambda s, c: s["trajectory_length"][0] + 5),
+    ),
     "empty trajectory": ("trajectory_length", _set("trajectory_length", 1, 0)),
-    "trajectory start off": ("trajectory_start", _set("trajectory_start", 1, lambda s, c: s["trajectory_start"][1] + 1)),
-    "terminal flags as integers": ("trajectory_terminated", _entry("trajectory_terminated", lambda s, c: s["trajectory_terminated"].astype(np.int64))),
+    "trajectory start off": (
+        "trajectory_start",
+        _set("trajectory_start", 1, lambda s, c: s["trajectory_start"][1] + 1),
+    ),
+    "terminal flags as integers": (
+        "trajectory_terminated",
+        _entry("trajectory_terminated", lambda s, c: s["trajectory_terminated"].astype(np.int64)),
+    ),
     "infinite last observation": ("trajectory_next_obs", _set("trajectory_next_obs", (0, 0), np.inf)),
     "open trajectory beyond the rows": ("open_length", _entry("open_length", lambda s, c: len(s["actions"]) + 1)),
     "open s' of another shape": ("open_next_obs", _entry("open_next_obs", np.zeros(3))),
@@ -175,7 +198,10 @@ CRAFTED = {
     "missing field": ("rewards", lambda s, c: s.pop("rewards")),
 }
 CRAFTED_PRUNED = {
-    "new feature out of range": ("open_new_features", _entry("open_new_features", lambda s, c: np.array([c.n_weights]))),
+    "new feature out of range": (
+        "open_new_features",
+        _entry("open_new_features", lambda s, c: np.array([c.n_weights])),
+    ),
     "covered beyond the open rows": ("open_covered", _entry("open_covered", lambda s, c: s["open_length"] + 1)),
     "more pruned than closed": ("pruned", _entry("pruned", (1, 5, 0))),
     "pruned counts not a triple": ("pruned", _entry("pruned", (1, 2))),
@@ -214,8 +240,13 @@ INDEX_FIELDS = {"slots": "n_slots", "trajectory_next_slots": "n_slots", "actions
 
 
 @settings(max_examples=40, deadline=None)
-@given(field=st.sampled_from(sorted(INDEX_FIELDS)), position=st.floats(0.0, 1.0, exclude_max=True),
-       beyond=st.integers(0, 2**62), negative=st.booleans(), suffix=st.sampled_from([".pkl", ".npz"]))
+@given(
+    field=st.sampled_from(sorted(INDEX_FIELDS)),
+    position=st.floats(0.0, 1.0, exclude_max=True),
+    beyond=st.integers(0, 2**62),
+    negative=st.booleans(),
+    suffix=st.sampled_from([".pkl", ".npz"]),
+)
 def test_any_index_out_of_range_anywhere_is_refused(saved_buffers, field, position, beyond, negative, suffix):
     """An index a kernel would follow, at any row and of any size outside its range, never reaches a kernel."""
     source = saved_buffers[None]
@@ -242,8 +273,9 @@ def test_npz_and_pickle_buffers_restore_the_same_buffer(saved_buffers, tmp_path)
     for source in saved_buffers.values():
         source.save_replay_buffer(tmp_path / "buffer.npz")
         source.save_replay_buffer(tmp_path / "buffer")
-        from_npz, from_pickle = (ER("TileQ", LineWalkEnv(), replay_buffer_kwargs=source.replay_buffer_kwargs, **KWARGS)
-                                 for _ in range(2))
+        from_npz, from_pickle = (
+            ER("TileQ", LineWalkEnv(), replay_buffer_kwargs=source.replay_buffer_kwargs, **KWARGS) for _ in range(2)
+        )
         from_npz.load_replay_buffer(tmp_path / "buffer.npz", truncate_last_traj=False, allow_pickle=False)
         from_pickle.load_replay_buffer(tmp_path / "buffer.pkl", truncate_last_traj=False)
         for loaded in (from_npz, from_pickle):
@@ -332,7 +364,9 @@ def test_bad_weights_are_refused_and_the_current_ones_kept(tmp_path):
     weights = model.policy.theta_array.copy()
     other = SarsaLambda("TileQ", LineWalkEnv(), policy_kwargs=dict(n_tilings=8, memory_size=2**14, tile_widths=[0.7]))
     other.save(tmp_path / "smaller")
-    with pytest.raises(ValueError, match=r"smaller.zip: (?s:.*)the weights theta have shape \(16384,\).*another tile coding"):
+    with pytest.raises(
+        ValueError, match=r"smaller.zip: (?s:.*)the weights theta have shape \(16384,\).*another tile coding"
+    ):
         model.set_parameters(tmp_path / "smaller.zip")
     broken = model.get_parameters()
     broken["policy"]["theta"] = broken["policy"]["theta"].clone()
@@ -342,7 +376,9 @@ def test_bad_weights_are_refused_and_the_current_ones_kept(tmp_path):
     np.testing.assert_array_equal(model.policy.theta_array, weights)
     model.policy.theta_array[3] = np.inf  # a diverged model saved as it was
     model.save(tmp_path / "diverged")
-    with pytest.raises(ValueError, match=r"diverged.zip: (?s:.*)the weights theta hold non-finite values \(at indices \[3\]\)"):
+    with pytest.raises(
+        ValueError, match=r"diverged.zip: (?s:.*)the weights theta hold non-finite values \(at indices \[3\]\)"
+    ):
         SarsaLambda.load(tmp_path / "diverged.zip")
 
 

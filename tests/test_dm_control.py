@@ -90,6 +90,7 @@ def test_the_value_watch_bounds_a_suite_task_by_the_suites_rewards(make, tmp_pat
     assert model._watch.source == "env" and model.value_bounds == pytest.approx((0.0, 100.0))
     model.learn(200)  # observing rewards no wider than declared changes nothing
     assert model.value_bounds == pytest.approx((0.0, 100.0))
+
     # an env of the user's own with a Dict observation keeps the observed bounds: nothing declares its rewards
     class DictCartPole(gym.ObservationWrapper):
         def __init__(self):
@@ -118,7 +119,8 @@ def test_a_dict_observation_that_holds_pixels_is_refused_with_the_key():
         def __init__(self, env):
             super().__init__(env)
             self.observation_space = spaces.Dict(
-                {**env.observation_space.spaces, "pixels": spaces.Box(0, 255, (84, 84, 3), np.uint8)})
+                {**env.observation_space.spaces, "pixels": spaces.Box(0, 255, (84, 84, 3), np.uint8)}
+            )
 
         def observation(self, observation):
             return {**observation, "pixels": np.zeros((84, 84, 3), np.uint8)}
@@ -151,7 +153,8 @@ def test_a_tiling_whose_key_order_differs_from_the_env_is_refused():
             inner = env.observation_space.spaces
             # an OrderedDict keeps this order (Gymnasium's Dict sorts the keys of a plain dict, as shimmy's are)
             self.observation_space = spaces.Dict(
-                OrderedDict([("velocity", inner["velocity"]), ("orientation", inner["orientation"])]))
+                OrderedDict([("velocity", inner["velocity"]), ("orientation", inner["orientation"])])
+            )
 
         def observation(self, observation):
             return OrderedDict([("velocity", observation["velocity"]), ("orientation", observation["orientation"])])
@@ -166,8 +169,24 @@ def test_sb3_er_train_on_a_dm_control_id(tmp_path):
     from sb3_er import zoo
 
     assert zoo.load_hyperparameters("sarsa_lambda", IDS[1])["env_wrapper"] == "gymnasium.wrappers.FlattenObservation"
-    zoo.train(["--algo", "sarsa_lambda", "--env", IDS[1], "-n", "1000", "-f", str(tmp_path), "--seed", "0",
-               "--eval-freq", "-1", "--verbose", "0"])
+    zoo.train(
+        [
+            "--algo",
+            "sarsa_lambda",
+            "--env",
+            IDS[1],
+            "-n",
+            "1000",
+            "-f",
+            str(tmp_path),
+            "--seed",
+            "0",
+            "--eval-freq",
+            "-1",
+            "--verbose",
+            "0",
+        ]
+    )
     run = tmp_path / "sarsa_lambda" / "dm_control-pendulum-swingup-v0_1"  # rl-zoo writes the id's "/" as "-"
     model = SarsaLambda.load(run / "dm_control-pendulum-swingup-v0.zip")
     assert model.num_timesteps == 1000

@@ -46,8 +46,13 @@ def page_text(path: Path) -> str:
 def built(tmp_path_factory) -> Path:
     """The HTML site, built from scratch as `make docs` builds it (-W: any warning fails)."""
     out = tmp_path_factory.mktemp("html")
-    result = subprocess.run([sys.executable, "-m", "sphinx", "-E", "-W", "--keep-going", "-q", "-b", "html",
-                             str(DOCS), str(out)], capture_output=True, text=True, timeout=900, cwd=ROOT)
+    result = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-E", "-W", "--keep-going", "-q", "-b", "html", str(DOCS), str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        cwd=ROOT,
+    )
     assert result.returncode == 0, f"the docs build has warnings or errors:\n{result.stderr[-6000:]}"
     return out
 
@@ -65,12 +70,15 @@ def test_every_results_folder_is_shown_by_a_page(built):
             rows = summary.read_text().splitlines()
             first_row = next(line for line in rows if line.startswith("| ") and "---" not in line)
             cells = [cell.strip() for cell in first_row.strip("|").split("|") if cell.strip()]
-            assert any(all(html.unescape(cell).replace("`", "") in text for cell in cells[:3]) for text in
-                       (pages[path] for path in shown)), f"results/measured/{folder}/summary.md is not included"
+            assert any(
+                all(html.unescape(cell).replace("`", "") in text for cell in cells[:3])
+                for text in (pages[path] for path in shown)
+            ), f"results/measured/{folder}/summary.md is not included"
         for figure in (ROOT / "results" / "measured" / folder).rglob("*.png"):
             if "runs" not in figure.relative_to(ROOT / "results" / "measured" / folder).parts:
-                assert (built / "_images" / figure.name).is_file() or list((built / "_images").glob(
-                    f"{figure.stem}*{figure.suffix}")), f"{figure} is not on any page"
+                assert (built / "_images" / figure.name).is_file() or list(
+                    (built / "_images").glob(f"{figure.stem}*{figure.suffix}")
+                ), f"{figure} is not on any page"
 
 
 @pytest.mark.slow
@@ -150,22 +158,37 @@ def test_verdicts_say_not_judged_yet_without_findings_and_read_them_when_present
     (measured / "table_6_2").mkdir(parents=True)
     (measured / "leo").mkdir()
     (measured / "extra").mkdir()
-    assert generator.verdict_rows(measured) == [("table_6_2", generator.THESIS_RESULTS["table_6_2"].thesis, "",
-                                                 "not judged yet"),
-                                                ("leo", generator.THESIS_RESULTS["leo"].thesis, "", "not judged yet")]
-    (measured / "table_6_2" / "findings.json").write_text(json.dumps({"findings": [
-        {"claim": "ER-sigma rises faster than Sarsa(lambda)", "holds": False, "evidence": "2400 s against 1800 s"},
-        {"claim": "vanilla ER walks", "holds": True}]}))
-    (measured / "extra" / "findings.json").write_text(json.dumps({"thesis": "Figure 7.1", "findings": [
-        {"claim": "a | b", "holds": None}]}))
+    assert generator.verdict_rows(measured) == [
+        ("table_6_2", generator.THESIS_RESULTS["table_6_2"].thesis, "", "not judged yet"),
+        ("leo", generator.THESIS_RESULTS["leo"].thesis, "", "not judged yet"),
+    ]
+    (measured / "table_6_2" / "findings.json").write_text(
+        json.dumps(
+            {
+                "findings": [
+                    {
+                        "claim": "ER-sigma rises faster than Sarsa(lambda)",
+                        "holds": False,
+                        "evidence": "2400 s against 1800 s",
+                    },
+                    {"claim": "vanilla ER walks", "holds": True},
+                ]
+            }
+        )
+    )
+    (measured / "extra" / "findings.json").write_text(
+        json.dumps({"thesis": "Figure 7.1", "findings": [{"claim": "a | b", "holds": None}]})
+    )
     rows = generator.verdict_rows(measured)
-    assert rows[:2] == [("table_6_2", "Table 6.2, Figures 6.1b and 6.2a", "ER-sigma rises faster than Sarsa(lambda)",
-                         "does not hold"),
-                        ("table_6_2", "Table 6.2, Figures 6.1b and 6.2a", "vanilla ER walks", "holds")]
+    assert rows[:2] == [
+        ("table_6_2", "Table 6.2, Figures 6.1b and 6.2a", "ER-sigma rises faster than Sarsa(lambda)", "does not hold"),
+        ("table_6_2", "Table 6.2, Figures 6.1b and 6.2a", "vanilla ER walks", "holds"),
+    ]
     assert rows[2][3] == "not judged yet" and rows[3] == ("extra", "Figure 7.1", "a | b", "inconclusive")
     table = generator.verdict_table(lambda name: f"{name}.md", measured)
-    assert ("| [Simplest walker](table_6_2.md) | Table 6.2, Figures 6.1b and 6.2a | vanilla ER walks | holds | — |"
-            in table)
+    assert (
+        "| [Simplest walker](table_6_2.md) | Table 6.2, Figures 6.1b and 6.2a | vanilla ER walks | holds | — |" in table
+    )
     assert "a \\| b" in table  # a bar in a claim cannot break the table
 
 
@@ -179,7 +202,8 @@ def test_each_table_says_which_regime_er_sigma_was_in(tmp_path):
     (measured / "sigma_regime" / "summary.csv").write_text(
         "reading,results,runs,phases,mean_shift,raised,lowered,left_bounds,diverged\n"
         "pendulum-0.33,table_6_1,4,400,-20.6,0.003,0.125,0,0\n"
-        "walker-optimistic,,4,4275,1030000.0,0.23,0.072,3,0\n")
+        "walker-optimistic,,4,4275,1030000.0,0.23,0.072,3,0\n"
+    )
     sentence = generator.sigma_regime("table_6_1", measured)
     assert sentence.startswith("ER-σ's σ lowered its targets") and "-20.6 over 400 replay phases of 4 runs" in sentence
     assert "raised 0.3%, lowered 12.5%" in sentence and "in 0 of 4 runs" in sentence
@@ -188,13 +212,16 @@ def test_each_table_says_which_regime_er_sigma_was_in(tmp_path):
     assert "| c | holds | lowered targets |" in table
 
 
-@pytest.mark.parametrize("content, problem", [
-    ("{", "not JSON"),
-    ("[]", "a list 'findings'"),
-    ('{"findings": [{"holds": true}]}', "'claim'"),
-    ('{"findings": [{"claim": "x", "holds": "yes"}]}', "'holds': true, false or null"),
-    ('{"findings": [{"claim": "x", "holds": true, "evidence": 3}]}', "'evidence'"),
-])
+@pytest.mark.parametrize(
+    "content, problem",
+    [
+        ("{", "not JSON"),
+        ("[]", "a list 'findings'"),
+        ('{"findings": [{"holds": true}]}', "'claim'"),
+        ('{"findings": [{"claim": "x", "holds": "yes"}]}', "'holds': true, false or null"),
+        ('{"findings": [{"claim": "x", "holds": true, "evidence": 3}]}', "'evidence'"),
+    ],
+)
 def test_a_malformed_findings_file_is_an_error_naming_it(tmp_path, content, problem):
     (tmp_path / "walker").mkdir()
     (tmp_path / "walker" / "findings.json").write_text(content)
@@ -214,26 +241,40 @@ NUMBER = r"[-−+]?\d[\d,]*(?:\.\d+)?"
 # A figure with one of these units, a decimal number or one of 4 or more digits looks measured.
 UNIT = r"(?:%|×|s\b|ms\b|µs\b|min\b|h\b|m\b|MB\b|steps/s|updates/s)"
 # What a number after these words is: a reference, a version or a year, not a figure.
-REFERENCE = re.compile(r"(?:Tables?|Figures?|Fig\.|Eqs?\.|Alg\.|Algorithms?|Appendix|[Ss]ections?|[Cc]hapter|"
-                       r"Python|Ray|version|v)\s*[-–\d.,]*$")
+REFERENCE = re.compile(
+    r"(?:Tables?|Figures?|Fig\.|Eqs?\.|Alg\.|Algorithms?|Appendix|[Ss]ections?|[Cc]hapter|"
+    r"Python|Ray|version|v)\s*[-–\d.,]*$"
+)
 # Numbers of the prose that are no measurement and appear in no file: each with what it is.
 NOT_MEASURED = {
     "docs/benchmarks/performance.md": {"1.25": "a target ratio of whole-process wall times, not a measurement"},
-    "docs/continuous_actions.md": {"-1.33": "a torque level, 2 * (k / 3 - 1)", "-0.67": "a torque level",
-                                   "1.33": "a torque level", "1.71": "the outermost bin centre of 7 bins of [-2, 2]",
-                                   "-1627.4": "Pendulum-v1's return bound, computed",
-                                   "105.5": "MountainCarContinuous-v0's watch limit, 100 + 5 % of 110, computed"},
+    "docs/continuous_actions.md": {
+        "-1.33": "a torque level, 2 * (k / 3 - 1)",
+        "-0.67": "a torque level",
+        "1.33": "a torque level",
+        "1.71": "the outermost bin centre of 7 bins of [-2, 2]",
+        "-1627.4": "Pendulum-v1's return bound, computed",
+        "105.5": "MountainCarContinuous-v0's watch limit, 100 + 5 % of 110, computed",
+    },
     "docs/envs/dm_control.md": {"1801.00690": "the arXiv number of Tassa et al. 2018"},
     "docs/envs/leo.md": {"0.167": "the RX-28 motor's torque constant", "0.320": "its back-EMF constant"},
     "docs/guide/install.md": {"3.11": "the Python version tested"},
     "docs/guide/distributed.md": {"2.59": "a Ray release", "2.61": "a Ray release"},
     "docs/guide/zoo.md": {"5432": "PostgreSQL's port in an example URL"},
-    "docs/readings.md": {"162000": "5 * 180^2, a cost in degrees", "8.04": "m l^2 of Table 4.1, computed",
-                         "3.77": "Table 4.1's J (3.773e-3), printed and rounded"},
+    "docs/readings.md": {
+        "162000": "5 * 180^2, a cost in degrees",
+        "8.04": "m l^2 of Table 4.1, computed",
+        "3.77": "Table 4.1's J (3.773e-3), printed and rounded",
+    },
     "docs/value_growth.md": {"0.265": "a closed-form factor", "0.60": "a closed-form overlap"},
-    "docs/value_watch.md": {"-209.7": "a reward bound, computed", "-0.96": "a reward bound, computed",
-                            "-10485": "a return bound, computed", "65900": "a return bound, computed",
-                            "-16.27": "Pendulum-v1's worst reward, computed", "-1627": "its return bound, computed"},
+    "docs/value_watch.md": {
+        "-209.7": "a reward bound, computed",
+        "-0.96": "a reward bound, computed",
+        "-10485": "a return bound, computed",
+        "65900": "a return bound, computed",
+        "-16.27": "Pendulum-v1's worst reward, computed",
+        "-1627": "its return bound, computed",
+    },
 }
 
 
@@ -252,8 +293,8 @@ def measured_looking_numbers(text: str) -> list[str]:
     found = []
     for match in re.finditer(rf"(?<![\w.^]){NUMBER}(?:\s?{UNIT})?", text):
         number = _plain(re.match(NUMBER, match.group(0)).group(0))
-        unit = match.group(0)[len(re.match(NUMBER, match.group(0)).group(0)):].strip()
-        if REFERENCE.search(text[max(0, match.start() - 14):match.start()]):
+        unit = match.group(0)[len(re.match(NUMBER, match.group(0)).group(0)) :].strip()
+        if REFERENCE.search(text[max(0, match.start() - 14) : match.start()]):
             continue
         digits = number.lstrip("-")
         if re.fullmatch(r"(19|20)\d\d", digits) and not unit:
@@ -267,10 +308,21 @@ def source_numbers(folders: set[str] | None = None) -> list[float]:
     """Every number of the results files the pages show (of `folders` of results/measured only, when given), and of
     the package's code and configuration (parameters, the thesis's printed figures in sb3_er/experiments/thesis.py,
     the Makefile's commands), sorted."""
-    shown = [path for path in generator.shown_results_files()
-             if folders is None or path.relative_to(generator.MEASURED).parts[0] in folders]
-    paths = shown + [ROOT / "Makefile"] + [path for folder in ("sb3_er", "envs", "zoo_configs")
-                                           for path in (ROOT / folder).rglob("*") if path.suffix in (".py", ".yml")]
+    shown = [
+        path
+        for path in generator.shown_results_files()
+        if folders is None or path.relative_to(generator.MEASURED).parts[0] in folders
+    ]
+    paths = (
+        shown
+        + [ROOT / "Makefile"]
+        + [
+            path
+            for folder in ("sb3_er", "envs", "zoo_configs")
+            for path in (ROOT / folder).rglob("*")
+            if path.suffix in (".py", ".yml")
+        ]
+    )
     numbers = set()
     for path in paths:
         numbers.update(re.findall(r"[-−]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", path.read_text(encoding="utf-8")))
@@ -305,8 +357,10 @@ def test_appears_in_accepts_a_rounded_figure_and_refuses_another():
     assert appears_in("-17400", sources) and appears_in("1100000", sources) and appears_in("12.0", sources)
     assert not appears_in("-17500", sources) and not appears_in("1200000", sources) and not appears_in("12.1", sources)
     assert not appears_in("0.40", sources) and appears_in("0.4", sources)
-    assert measured_looking_numbers("Sarsa rises in 1,000 s (Table 6.2, Eq. 5.7): 12.0 m, +45 % and 20 seeds; "
-                                    "`--budget 2500` [x](a/1.5.md) Python 3.11, 2013, MushroomRL 1.10.1") == ["1000", "12.0", "45%"]
+    assert measured_looking_numbers(
+        "Sarsa rises in 1,000 s (Table 6.2, Eq. 5.7): 12.0 m, +45 % and 20 seeds; "
+        "`--budget 2500` [x](a/1.5.md) Python 3.11, 2013, MushroomRL 1.10.1"
+    ) == ["1000", "12.0", "45%"]
     assert appears_in("84%", sorted([0.844])) and not appears_in("85%", sorted([0.844]))
 
 
@@ -328,11 +382,14 @@ def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file(
         if path.parent == DOCS / "_notes" and path.stem.startswith("results_"):
             folders.add(path.stem.removeprefix("results_"))
         own = source_numbers(folders)
-        figures = [number for number in measured_looking_numbers(text)
-                   if number not in allowed and not appears_in(number, own)]
-        assert not figures, (f"{name} quotes figures that no results file of the folders it names "
-                             f"({', '.join(sorted(folders)) or 'none'}) holds: {figures[:12]}; name the folder the "
-                             "figure comes from, and include the file (or generate the table from it) instead of copying")
+        figures = [
+            number for number in measured_looking_numbers(text) if number not in allowed and not appears_in(number, own)
+        ]
+        assert not figures, (
+            f"{name} quotes figures that no results file of the folders it names "
+            f"({', '.join(sorted(folders)) or 'none'}) holds: {figures[:12]}; name the folder the "
+            "figure comes from, and include the file (or generate the table from it) instead of copying"
+        )
     for name, numbers in NOT_MEASURED.items():  # the exceptions stay true to the pages
         text = (ROOT / name).read_text(encoding="utf-8")
         assert all(number in map(_plain, re.findall(NUMBER, text)) for number in numbers), name
@@ -355,18 +412,27 @@ def test_the_analyses_of_the_results_pages_hold_no_tables_of_figures():
     of measured figures in it is a copy, or a compilation that belongs in a results file."""
     for path in sorted((DOCS / "_notes").glob("results_*.md")):
         text = re.sub(r"```.*?```", "", path.read_text(encoding="utf-8"), flags=re.DOTALL)
-        rows = [line for line in text.splitlines() if line.strip().startswith("|")
-                and measured_looking_numbers(line.replace("|", " "))]
+        rows = [
+            line
+            for line in text.splitlines()
+            if line.strip().startswith("|") and measured_looking_numbers(line.replace("|", " "))
+        ]
         assert not rows, f"{path.relative_to(ROOT)} holds a table of figures: {rows[0][:100]}"
 
 
 def test_no_page_copies_a_table_of_a_results_file():
-    results = {row: path for path in generator.shown_results_files() if path.suffix == ".md"
-               for row in table_rows(path.read_text(encoding="utf-8"))}
+    results = {
+        row: path
+        for path in generator.shown_results_files()
+        if path.suffix == ".md"
+        for row in table_rows(path.read_text(encoding="utf-8"))
+    }
     for path in [ROOT / "README.md", *hand_written_pages()]:
         copied = [row for row in table_rows(path.read_text(encoding="utf-8")) if row in results]
-        assert not copied, (f"{path.relative_to(ROOT)} copies rows of {results[copied[0]].relative_to(ROOT)} "
-                            f"(e.g. {' | '.join(copied[0][:4])}): include the file instead")
+        assert not copied, (
+            f"{path.relative_to(ROOT)} copies rows of {results[copied[0]].relative_to(ROOT)} "
+            f"(e.g. {' | '.join(copied[0][:4])}): include the file instead"
+        )
 
 
 def test_no_commit_hashes_or_history_in_the_prose_a_user_reads():
@@ -385,6 +451,8 @@ def test_nothing_in_the_package_cites_a_file_outside_the_repository():
         text = path.read_text(encoding="utf-8")
         for citation in outside:
             assert citation not in text, f"{name} cites {citation}"
+
+
 def test_the_readme_table_holds_the_default_readings_only(tmp_path):
     measured = tmp_path / "measured"
     for name in ("table_6_1", "table_6_1_earlier_default", "extra"):

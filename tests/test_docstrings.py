@@ -25,15 +25,20 @@ def public_modules() -> list:
     modules = []
     for package in (sb3_er, sb3_er_envs):
         found = pkgutil.walk_packages(package.__path__, package.__name__ + ".")
-        names = [package.__name__] + [info.name for info in found
-                                      if not any(part.startswith("_") for part in info.name.split(".")[1:])]
+        names = [package.__name__] + [
+            info.name for info in found if not any(part.startswith("_") for part in info.name.split(".")[1:])
+        ]
         modules += [importlib.import_module(name) for name in names]
     return modules
 
 
 def public_classes() -> list[type]:
-    classes = [obj for module in public_modules() for key, obj in vars(module).items()
-               if inspect.isclass(obj) and not key.startswith("_") and obj.__module__ == module.__name__]
+    classes = [
+        obj
+        for module in public_modules()
+        for key, obj in vars(module).items()
+        if inspect.isclass(obj) and not key.startswith("_") and obj.__module__ == module.__name__
+    ]
     return sorted(set(classes), key=lambda cls: f"{cls.__module__}.{cls.__qualname__}")
 
 
@@ -74,9 +79,23 @@ FUNCTIONS = public_functions()
 
 def test_the_public_classes_are_found():
     names = {cls.__name__ for cls in CLASSES}
-    assert {"ER", "ERSigma", "ResidualER", "ResidualERSigma", "SarsaLambda", "Dyna", "FQI", "LSPI", "TileCoder",
-            "TileQPolicy", "TrajectoryReplayBuffer", "WindyCliffEnv", "PendulumSwingupEnv", "SimplestWalkerEnv",
-            "LeoEnv"} <= names
+    assert {
+        "ER",
+        "ERSigma",
+        "ResidualER",
+        "ResidualERSigma",
+        "SarsaLambda",
+        "Dyna",
+        "FQI",
+        "LSPI",
+        "TileCoder",
+        "TileQPolicy",
+        "TrajectoryReplayBuffer",
+        "WindyCliffEnv",
+        "PendulumSwingupEnv",
+        "SimplestWalkerEnv",
+        "LeoEnv",
+    } <= names
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=[f"{cls.__module__}.{cls.__qualname__}" for cls in CLASSES])
@@ -86,9 +105,14 @@ def test_every_constructor_parameter_is_documented(cls):
 
 
 def test_the_public_functions_are_found():
-    assert {"sb3_er.common.tile_coding.default_tile_widths", "sb3_er.common.kernels.replay_phase",
-            "sb3_er.common.policies.TileQPolicy.q_values", "sb3_er.common.base_class.TileQAlgorithm.learn",
-            "sb3_er_envs.windy_cliff.WindyCliffEnv.reset", "sb3_er.zoo.config_path"} <= set(FUNCTIONS)
+    assert {
+        "sb3_er.common.tile_coding.default_tile_widths",
+        "sb3_er.common.kernels.replay_phase",
+        "sb3_er.common.policies.TileQPolicy.q_values",
+        "sb3_er.common.base_class.TileQAlgorithm.learn",
+        "sb3_er_envs.windy_cliff.WindyCliffEnv.reset",
+        "sb3_er.zoo.config_path",
+    } <= set(FUNCTIONS)
     assert "sb3_er_envs.pendulum.PendulumSwingupEnv.step" not in FUNCTIONS  # gymnasium's docstring documents it
 
 
@@ -113,8 +137,19 @@ def test_a_parameter_described_only_in_prose_counts_as_undocumented():
     assert undocumented_parameters(fields) == []
 
 
-@pytest.mark.parametrize("cls", [sb3_er.SarsaLambda, sb3_er.ER, sb3_er.ERSigma, sb3_er.ResidualER,
-                                 sb3_er.ResidualERSigma, sb3_er.Dyna, sb3_er.FQI, sb3_er.LSPI])
+@pytest.mark.parametrize(
+    "cls",
+    [
+        sb3_er.SarsaLambda,
+        sb3_er.ER,
+        sb3_er.ERSigma,
+        sb3_er.ResidualER,
+        sb3_er.ResidualERSigma,
+        sb3_er.Dyna,
+        sb3_er.FQI,
+        sb3_er.LSPI,
+    ],
+)
 def test_algorithms_state_every_default(cls):
     fields = parameter_fields(cls.__doc__)
     for name, parameter in inspect.signature(cls).parameters.items():

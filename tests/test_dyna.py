@@ -48,10 +48,28 @@ def test_direct_and_planning_updates_by_hand(target):
     slots = lambda states: np.array([coder.slots(np.array([s])) for s in states])  # noqa: E731
     next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
     delta, updates, _, status = kernels.dyna_step(
-        theta, coder.slots(np.array([real[0]])), real[1], real[2], False, np.array([real[3]]), next_slots,
-        slots([p[0] for p in planned]), np.array([p[1] for p in planned]), np.array([p[2] for p in planned]),
-        np.array([p[4] for p in planned]), slots([p[3] for p in planned]), 0, 3, *coder.kernel_arguments, target,
-        ALPHA / coder.n_tilings, GAMMA, 0.0, kernels.new_rng_state(0), np.zeros(coder.n_actions), kernels.NO_WATCH,
+        theta,
+        coder.slots(np.array([real[0]])),
+        real[1],
+        real[2],
+        False,
+        np.array([real[3]]),
+        next_slots,
+        slots([p[0] for p in planned]),
+        np.array([p[1] for p in planned]),
+        np.array([p[2] for p in planned]),
+        np.array([p[4] for p in planned]),
+        slots([p[3] for p in planned]),
+        0,
+        3,
+        *coder.kernel_arguments,
+        target,
+        ALPHA / coder.n_tilings,
+        GAMMA,
+        0.0,
+        kernels.new_rng_state(0),
+        np.zeros(coder.n_actions),
+        kernels.NO_WATCH,
     )
     assert (updates, status) == (2, kernels.STATUS_OK)
     np.testing.assert_array_equal(next_slots, coder.slots(np.array([real[3]])))
@@ -92,8 +110,18 @@ def test_tabular_dyna_q_with_an_exact_model_reaches_q_star(planning_actions):
     """One tiling of width 1 and a model radius below one state: the model is the chain's exact transition table, and
     Q-learning planning converges to value iteration's Q*."""
     n_states = 5
-    model = Dyna("TileQ", ChainEnv(n_states), gamma=GAMMA, learning_rate=ALPHA, exploration_rate=1.0,
-                 planning_steps=20, planning_actions=planning_actions, model_radius=0.5, policy_kwargs=ONE_HOT, seed=0)
+    model = Dyna(
+        "TileQ",
+        ChainEnv(n_states),
+        gamma=GAMMA,
+        learning_rate=ALPHA,
+        exploration_rate=1.0,
+        planning_steps=20,
+        planning_actions=planning_actions,
+        model_radius=0.5,
+        policy_kwargs=ONE_HOT,
+        seed=0,
+    )
     model.learn(500)
     states = np.repeat(np.arange(n_states - 1.0), 2)[:, None]
     actions = np.tile([0, 1], n_states - 1)
@@ -119,14 +147,30 @@ def test_sb3_verbs_eval_callback_and_tensorboard(tmp_path):
 
     eval_env = Monitor(ChainEnv())
     callback = EvalCallback(eval_env, eval_freq=200, n_eval_episodes=2, log_path=str(tmp_path / "eval"), verbose=0)
-    model = Dyna("TileQ", LineWalkEnv(), planning_steps=3, model_refit_every=50, seed=0, tensorboard_log=str(tmp_path),
-                 policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+    model = Dyna(
+        "TileQ",
+        LineWalkEnv(),
+        planning_steps=3,
+        model_refit_every=50,
+        seed=0,
+        tensorboard_log=str(tmp_path),
+        policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+    )
     model.learn(600, tb_log_name="dyna")
     events = EventAccumulator(str(next(tmp_path.glob("dyna_*")))).Reload()
     tags = set(events.Tags()["scalars"])
-    assert {"rollout/ep_rew_mean", "rollout/falls", "train/td_error", "train/model_error", "train/model_reward_error",
-            "train/model_coverage", "train/planning_updates", "train/model_fits", "train/transitions",
-            "time/fps"} <= tags
+    assert {
+        "rollout/ep_rew_mean",
+        "rollout/falls",
+        "train/td_error",
+        "train/model_error",
+        "train/model_reward_error",
+        "train/model_coverage",
+        "train/planning_updates",
+        "train/model_fits",
+        "train/transitions",
+        "time/fps",
+    } <= tags
     logged = [e.value for e in events.Scalars("train/planning_updates")]
     assert logged == sorted(logged) and 0 < logged[-1] <= model.planning_updates
     assert all(e.value >= 0 for e in events.Scalars("train/model_error"))
@@ -142,8 +186,16 @@ def test_sb3_verbs_eval_callback_and_tensorboard(tmp_path):
 @pytest.mark.parametrize("target", ["q_learning", "sarsa"])
 def test_seeded_runs_are_bit_identical(target):
     def weights(seed):
-        model = Dyna("TileQ", LineWalkEnv(), target=target, planning_actions="uniform", exploration_rate=0.3,
-                     model_refit_every=100, seed=seed, policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+        model = Dyna(
+            "TileQ",
+            LineWalkEnv(),
+            target=target,
+            planning_actions="uniform",
+            exploration_rate=0.3,
+            model_refit_every=100,
+            seed=seed,
+            policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+        )
         return model.learn(1500).policy.theta_array.copy()
 
     a, b, c = weights(7), weights(7), weights(8)
@@ -152,15 +204,32 @@ def test_seeded_runs_are_bit_identical(target):
 
 
 def test_save_load_round_trip_with_buffer_and_model(tmp_path):
-    kwargs = dict(planning_steps=4, target="sarsa", planning_actions="uniform", n_neighbors=3, model_radius=0.8,
-                  model_refit_every=77, gamma=0.95, policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+    kwargs = dict(
+        planning_steps=4,
+        target="sarsa",
+        planning_actions="uniform",
+        n_neighbors=3,
+        model_radius=0.8,
+        model_refit_every=77,
+        gamma=0.95,
+        policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+    )
     model = Dyna("TileQ", LineWalkEnv(), seed=3, **kwargs).learn(700)
     model.save(tmp_path / "dyna.zip")
     model.save_replay_buffer(tmp_path / "buffer")
     loaded = Dyna.load(tmp_path / "dyna.zip", env=LineWalkEnv())
     np.testing.assert_array_equal(loaded.policy.theta_array, model.policy.theta_array)
-    for name in ("planning_steps", "target", "planning_actions", "n_neighbors", "model_radius", "model_refit_every",
-                 "gamma", "planning_updates", "model_fits"):
+    for name in (
+        "planning_steps",
+        "target",
+        "planning_actions",
+        "n_neighbors",
+        "model_radius",
+        "model_refit_every",
+        "gamma",
+        "planning_updates",
+        "model_fits",
+    ):
         assert getattr(loaded, name) == getattr(model, name)
     np.testing.assert_array_equal(loaded.action_rng, model.action_rng)
     assert loaded.dynamics_model is None  # rebuilt from the buffer
@@ -202,8 +271,15 @@ def test_nan_observation_is_reported():
 @pytest.mark.slow
 def test_learns_mountain_car():
     """Random play never reaches the goal within MountainCar's 200 steps (return -200); Dyna-Q does after 15,000."""
-    model = Dyna("TileQ", "MountainCar-v0", learning_rate=0.2, gamma=1.0, exploration_rate=0.0, seed=0,
-                 policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8)).learn(15_000)
+    model = Dyna(
+        "TileQ",
+        "MountainCar-v0",
+        learning_rate=0.2,
+        gamma=1.0,
+        exploration_rate=0.0,
+        seed=0,
+        policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8),
+    ).learn(15_000)
     mean_return, _ = evaluate_policy(model, Monitor(gym.make("MountainCar-v0")), n_eval_episodes=10)
     assert mean_return > -170.0
 

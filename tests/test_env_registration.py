@@ -11,8 +11,13 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import sb3_er_envs
 
-ALL_IDS = ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0", "sb3_er/SimplestWalker-v0", "sb3_er/CompassWalker-v0",
-           "sb3_er/Leo-v0"]
+ALL_IDS = [
+    "sb3_er/WindyCliff-v0",
+    "sb3_er/PendulumSwingup-v0",
+    "sb3_er/SimplestWalker-v0",
+    "sb3_er/CompassWalker-v0",
+    "sb3_er/Leo-v0",
+]
 
 
 def make(env_id, **kwargs):

@@ -56,13 +56,19 @@ def test_gridworld_reproduction_with_value_maps(tmp_path):
     algos = ["sarsa_lambda", "er_sigma"]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ValueBoundWarning)
-        result = reproduce("gridworld", n_seeds=2, algos=algos, out_dir=tmp_path, budget=15, n_workers=1,
-                           show_progress=False)
+        result = reproduce(
+            "gridworld", n_seeds=2, algos=algos, out_dir=tmp_path, budget=15, n_workers=1, show_progress=False
+        )
     # the table's runs and the value maps count the values outside the possible returns instead of warning
     assert not [warning for warning in caught if issubclass(warning.category, ValueBoundWarning)]
     table, markdown = _assert_well_formed(result, algos, [0, 1], ["episode", "return", "length"], 15)
-    assert {"Rise time [episodes]", "Settling time [episodes]", "End performance", "Falls",
-            "Runs whose values left the possible returns"} <= set(table["metric"])
+    assert {
+        "Rise time [episodes]",
+        "Settling time [episodes]",
+        "End performance",
+        "Falls",
+        "Runs whose values left the possible returns",
+    } <= set(table["metric"])
     assert {path.name for path in result.figures} >= {"value_maps_after_goal.png", "value_maps_long_replay.png"}
     statistics = pd.read_csv(tmp_path / "value_maps.csv")
     # two situations x two cases x (Sarsa(lambda) + four replay variants), each variant replaying the same count
@@ -75,8 +81,7 @@ def test_gridworld_reproduction_with_value_maps(tmp_path):
 
 def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
     algos = ["er", "residual_er_sigma"]
-    result = reproduce("pendulum", n_seeds=2, algos=algos, out_dir=tmp_path, budget=2, n_workers=2,
-                       show_progress=False)
+    result = reproduce("pendulum", n_seeds=2, algos=algos, out_dir=tmp_path, budget=2, n_workers=2, show_progress=False)
     table, markdown = _assert_well_formed(result, algos, [0, 1], ["episode", "return", "goal_reached"], 2)
     assert result.runs_done == 4
     assert "-4065" in markdown and "Table 6.1" in markdown  # the thesis's vanilla-ER end performance beside ours
@@ -85,8 +90,9 @@ def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
     findings = json.loads((tmp_path / "findings.json").read_text())
     assert findings["thesis"] == "Table 6.1"
     # without a Sarsa(lambda) run every printed difference is inconclusive, and says why
-    assert findings["findings"] and all(f["holds"] is None and "no complete run" in f["evidence"]
-                                        for f in findings["findings"])
+    assert findings["findings"] and all(
+        f["holds"] is None and "no complete run" in f["evidence"] for f in findings["findings"]
+    )
 
 
 # The walker's earlier default reading (GRL's fall test, coordinates and start), on which Sarsa(lambda) walks within
@@ -96,10 +102,22 @@ EARLIER_WALKER = {"fall": "angles", "observation": "grl", "start": "grl"}
 
 def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
     algos = ["sarsa_lambda", "er_sigma"]
-    first = reproduce("walker", n_seeds=2, algos=algos, out_dir=tmp_path, budget=200, n_workers=1,
-                      show_progress=False, env_kwargs=EARLIER_WALKER)
+    first = reproduce(
+        "walker",
+        n_seeds=2,
+        algos=algos,
+        out_dir=tmp_path,
+        budget=200,
+        n_workers=1,
+        show_progress=False,
+        env_kwargs=EARLIER_WALKER,
+    )
     _, markdown = _assert_well_formed(
-        first, algos, [0, 1], ["learning_time_s", "distance", "episodes"], 3  # evaluations at 0, 100 and 200 s
+        first,
+        algos,
+        [0, 1],
+        ["learning_time_s", "distance", "episodes"],
+        3,  # evaluations at 0, 100 and 200 s
     )
     assert "11.7" in markdown  # Table 6.2's Sarsa(lambda) end performance
     names = {path.name for path in first.figures}
@@ -117,18 +135,36 @@ def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
     finished = {path: path.stat().st_mtime_ns for path in (tmp_path / "runs").rglob("*.csv")}
 
     run_csv_path(tmp_path, "er_sigma", 1).unlink()  # as if interrupted before this run finished
-    resumed = reproduce("walker", n_seeds=2, algos=algos, out_dir=tmp_path, budget=200, n_workers=1,
-                        show_progress=False, env_kwargs=EARLIER_WALKER)
+    resumed = reproduce(
+        "walker",
+        n_seeds=2,
+        algos=algos,
+        out_dir=tmp_path,
+        budget=200,
+        n_workers=1,
+        show_progress=False,
+        env_kwargs=EARLIER_WALKER,
+    )
     assert (resumed.runs_done, resumed.runs_skipped) == (1, 3)
     for path, mtime in finished.items():
         if path != run_csv_path(tmp_path, "er_sigma", 1):
             assert path.stat().st_mtime_ns == mtime
-    pd.testing.assert_frame_equal(pd.read_csv(run_csv_path(tmp_path, "er_sigma", 1)).drop(columns="wall_time_s"),
-                                  frame.drop(columns="wall_time_s"))  # a seeded run repeats itself exactly
+    pd.testing.assert_frame_equal(
+        pd.read_csv(run_csv_path(tmp_path, "er_sigma", 1)).drop(columns="wall_time_s"),
+        frame.drop(columns="wall_time_s"),
+    )  # a seeded run repeats itself exactly
 
     with pytest.raises(ValueError, match="resume with the same settings"):
-        reproduce("walker", n_seeds=2, algos=algos, out_dir=tmp_path, budget=300, n_workers=1, show_progress=False,
-                  env_kwargs=EARLIER_WALKER)
+        reproduce(
+            "walker",
+            n_seeds=2,
+            algos=algos,
+            out_dir=tmp_path,
+            budget=300,
+            n_workers=1,
+            show_progress=False,
+            env_kwargs=EARLIER_WALKER,
+        )
 
 
 def test_leo_reproduction(tmp_path):
@@ -196,8 +232,23 @@ def test_missing_ray_names_the_extra(tmp_path, monkeypatch, capsys):
     with pytest.raises(ImportError, match=re.escape("pip install 'sb3-er[ray]'")):
         run_jobs(jobs, backend="ray", show_progress=False)
     with pytest.raises(SystemExit) as exit_info:
-        main(["reproduce", "gridworld", "--backend", "ray", "--seeds", "1", "--algos", "er", "--budget", "2",
-              "--out", str(tmp_path), "--no-progress"])
+        main(
+            [
+                "reproduce",
+                "gridworld",
+                "--backend",
+                "ray",
+                "--seeds",
+                "1",
+                "--algos",
+                "er",
+                "--budget",
+                "2",
+                "--out",
+                str(tmp_path),
+                "--no-progress",
+            ]
+        )
     assert exit_info.value.code == 2
     assert "pip install 'sb3-er[ray]'" in capsys.readouterr().err
     assert not run_csv_path(tmp_path, "er", 0).exists()
@@ -231,9 +282,29 @@ def test_cli_usage_and_errors(capsys):
 def test_a_reading_other_than_the_defaults_runs_and_is_recorded(tmp_path):
     from sb3_er.experiments import records
 
-    main(["reproduce", "walker", "--seeds", "1", "--algos", "sarsa_lambda", "er", "--budget", "100", "--jobs", "1",
-          "--no-progress", "--out", str(tmp_path), "--env-kwargs", "n_actions:3", "fall:angles",
-          "--algo-kwargs", "replay_unit:segment"])
+    main(
+        [
+            "reproduce",
+            "walker",
+            "--seeds",
+            "1",
+            "--algos",
+            "sarsa_lambda",
+            "er",
+            "--budget",
+            "100",
+            "--jobs",
+            "1",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+            "--env-kwargs",
+            "n_actions:3",
+            "fall:angles",
+            "--algo-kwargs",
+            "replay_unit:segment",
+        ]
+    )
     er = records.read_record(run_csv_path(tmp_path, "er", 0))
     sarsa = records.read_record(run_csv_path(tmp_path, "sarsa_lambda", 0))
     assert er["config"]["env_kwargs"] == {"n_actions": 3, "fall": "angles"}
@@ -242,8 +313,16 @@ def test_a_reading_other_than_the_defaults_runs_and_is_recorded(tmp_path):
     assert er["resolved"]["env"]["n_actions"] == 3
     assert "n_actions=3, fall='angles', replay_unit='segment'" in (tmp_path / "summary.md").read_text()
     with pytest.raises(ValueError, match="no chosen algorithm has the parameters \\['replay_units'\\]"):
-        reproduce("walker", n_seeds=1, algos=["er"], out_dir=tmp_path / "other", budget=100, n_workers=1,
-                  show_progress=False, algo_kwargs={"replay_units": "segment"})
+        reproduce(
+            "walker",
+            n_seeds=1,
+            algos=["er"],
+            out_dir=tmp_path / "other",
+            budget=100,
+            n_workers=1,
+            show_progress=False,
+            algo_kwargs={"replay_units": "segment"},
+        )
     with pytest.raises(SystemExit):
         main(["reproduce", "walker", "--env-kwargs", "n_actions=3"])
 

@@ -33,6 +33,7 @@ VOLATILE = {"host", "finished_at", "wall_time_s", "checksum"}  # differ between 
 
 # --- what the files hold, without the volatile parts ---
 
+
 def _comparable(folder: Path) -> dict[str, object]:
     """Every kept file under `folder` by relative path: CSVs without their wall times, records without host, times
     and checksums (the CSV's checksum covers its wall times), summary.md without its wall-time line, other files as
@@ -88,8 +89,12 @@ def _start_driver(folder: Path, *options: str) -> subprocess.Popen:
     would hold up the test)."""
     log = folder.parent / f"driver-{time.monotonic_ns()}"
     with open(f"{log}.out", "w") as out, open(f"{log}.err", "w") as err:
-        driver = subprocess.Popen([sys.executable, "-m", "sb3_er.cli", *COMMAND, "--out", str(folder), *options],
-                                  stdout=out, stderr=err, text=True)
+        driver = subprocess.Popen(
+            [sys.executable, "-m", "sb3_er.cli", *COMMAND, "--out", str(folder), *options],
+            stdout=out,
+            stderr=err,
+            text=True,
+        )
     driver.log = log
     return driver
 
@@ -101,6 +106,7 @@ def _finish(driver: subprocess.Popen, timeout: float = 120) -> tuple[str, str]:
 
 
 # --- killed processes ---
+
 
 def test_a_killed_worker_fails_no_run_and_the_others_go_on(tmp_path, uninterrupted):
     driver = _start_driver(tmp_path / "out", "--jobs", "2")
@@ -148,6 +154,7 @@ def test_sigterm_ends_the_driver_and_its_workers(tmp_path):
 
 # --- two drivers on one folder ---
 
+
 def test_a_second_driver_is_refused_and_changes_nothing(tmp_path, uninterrupted, capsys):
     folder = tmp_path / "out"
     first = _start_driver(folder, "--jobs", "1")
@@ -176,8 +183,12 @@ def test_the_lock_names_its_holder_and_is_released_when_it_ends(tmp_path):
         text = (tmp_path / files.LOCK_NAME).read_text()
         assert f"pid {os.getpid()} " in text and "host " in text
         # another process's flock on the same file (plain fcntl, not the package's) is refused while we hold it
-        probe = [sys.executable, "-c", "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDWR), "
-                 "fcntl.LOCK_EX | fcntl.LOCK_NB)", str(tmp_path / files.LOCK_NAME)]
+        probe = [
+            sys.executable,
+            "-c",
+            "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDWR), fcntl.LOCK_EX | fcntl.LOCK_NB)",
+            str(tmp_path / files.LOCK_NAME),
+        ]
         assert "BlockingIOError" in subprocess.run(probe, capture_output=True, text=True).stderr
     assert subprocess.run(probe, capture_output=True).returncode == 0  # released
     with files.FolderLock(tmp_path):  # taken again at once
@@ -185,6 +196,7 @@ def test_the_lock_names_its_holder_and_is_released_when_it_ends(tmp_path):
 
 
 # --- damaged files ---
+
 
 def _cut(path: Path, how: str) -> None:
     data = path.read_bytes()
@@ -283,6 +295,7 @@ def test_read_errors_name_the_file_and_what_to_do(tmp_path):
 
 # --- settings and the runner's own arguments ---
 
+
 @pytest.mark.parametrize("name", ["seed", "env", "policy", "self", "verbose", "tensorboard_log"])
 def test_algo_kwargs_that_the_runner_sets_are_refused_before_anything_is_written(tmp_path, capsys, name):
     with pytest.raises(SystemExit) as refusal:
@@ -298,7 +311,16 @@ def test_a_folder_whose_runs_all_failed_takes_the_corrected_command(tmp_path, un
     folder = tmp_path / "out"
     folder.mkdir()
     # what a command whose every run failed left behind before settings waited for a finished run
-    (folder / "settings.json").write_text(json.dumps({"experiment": "pendulum", "env_id": "sb3_er/PendulumSwingup-v0",
-                                                      "budget": 2.0, "algo_kwargs": {"seed": 5}, "env_kwargs": {}}))
+    (folder / "settings.json").write_text(
+        json.dumps(
+            {
+                "experiment": "pendulum",
+                "env_id": "sb3_er/PendulumSwingup-v0",
+                "budget": 2.0,
+                "algo_kwargs": {"seed": 5},
+                "env_kwargs": {},
+            }
+        )
+    )
     reproduce("pendulum", out_dir=folder, n_workers=1, **SETTINGS)
     _assert_same_files(folder, uninterrupted)

@@ -34,7 +34,14 @@ def test_signed_figures_in_one_notation():
     assert signed == ["-700", "+2800", "+14,900", "-3.44"]
     assert [format_figure(v, 33, signed=True, whole=True) for v in (-8, -33, 1)] == ["-8", "-33", "+1"]  # episodes
     assert [format_figure(v) for v in (-49_312.0, 1_234_567.0, 3e12, 512.4, 12.34, 1.234, float("nan"))] == [
-        "-49,300", "1,230,000", "3e+12", "512", "12.3", "1.23", "NA"]  # the tables' figures, unsigned
+        "-49,300",
+        "1,230,000",
+        "3e+12",
+        "512",
+        "12.3",
+        "1.23",
+        "NA",
+    ]  # the tables' figures, unsigned
 
 
 @given(st.floats(-1e8, 1e8), st.floats(0, 1e8))
@@ -43,8 +50,11 @@ def test_a_signed_figure_is_its_value_at_the_precision_of_its_scale(value, scale
     assert re.fullmatch(r"[+-](\d{1,3}(,\d{3})+|\d+)(\.\d+)?", text), text  # no exponent, one sign
     shown = max(abs(value), scale)
     # the largest figure keeps three significant digits: the rounding error is under half a unit of its third
-    step = 10.0 ** (math.floor(math.log10(shown)) - 2) if shown >= 1e4 else (1.0 if shown >= 100 else (
-        0.1 if shown >= 10 else 0.01))
+    step = (
+        10.0 ** (math.floor(math.log10(shown)) - 2)
+        if shown >= 1e4
+        else (1.0 if shown >= 100 else (0.1 if shown >= 10 else 0.01))
+    )
     assert abs(float(text.replace(",", "")) - value) <= step / 2 * (1 + 1e-9)
 
 
@@ -96,10 +106,15 @@ def test_a_metric_undefined_in_most_resamples_states_no_interval(tmp_path):
     walker = EXPERIMENTS["walker"]
     x = np.linspace(200.0, 5000.0, 25)
     walking = np.tile(np.linspace(0.0, 40.0, x.size), (5, 1))
-    curves = {"sarsa_lambda": Curves(x, walking, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ()),
-              "er_sigma": Curves(x, np.zeros_like(walking), np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())}
-    found = {f["metric"]: f for f in table_findings(walker, curves, budget=5000.0, n_resamples=200)
-             if f.get("algorithm") == "er_sigma"}
+    curves = {
+        "sarsa_lambda": Curves(x, walking, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ()),
+        "er_sigma": Curves(x, np.zeros_like(walking), np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ()),
+    }
+    found = {
+        f["metric"]: f
+        for f in table_findings(walker, curves, budget=5000.0, n_resamples=200)
+        if f.get("algorithm") == "er_sigma"
+    }
     end = found["end_performance"]
     assert end["holds"] is None and end["ci95"] == [None, None]
     assert "no interval" in end["evidence"] and "200 bootstrap resamples" in end["evidence"]
@@ -116,8 +131,11 @@ def test_a_printed_na_is_judged_as_learning_no_gait():
     reference = Curves(x, walking, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())
     for performance, expected in ((np.full_like(walking, 0.1), True), (walking, False)):
         ours = Curves(x, performance, np.zeros_like(walking), tuple(range(5)), (), 1.0, (), ())
-        found = [f for f in table_findings(leo, {"sarsa_lambda": reference, "er": ours}, budget=12000.0,
-                                           n_resamples=200) if f["metric"] == "no_gait"]
+        found = [
+            f
+            for f in table_findings(leo, {"sarsa_lambda": reference, "er": ours}, budget=12000.0, n_resamples=200)
+            if f["metric"] == "no_gait"
+        ]
         assert len(found) == 1 and found[0]["holds"] is expected, found
         assert found[0]["claim"].startswith("vanilla-ER learns no gait")
 
@@ -137,10 +155,13 @@ def test_a_side_with_fewer_than_five_averaged_runs_gets_no_verdict():
     reference = _curves([-500.0, -520.0, -480.0, -510.0, -490.0], [6, 6, 6, 6, 6])
     for n, verdict in ((1, None), (4, None), (5, True)):
         ours = _curves([-100.0, -110.0, -90.0, -105.0, -95.0][:n], [2] * n)
-        ours = Curves(ours.x, ours.performance, ours.cumulative_falls, ours.seeds, (), 1.0,
-                      out_of_bounds_seeds=tuple(range(n, 5)))
-        found = {f["metric"]: f for f in table_findings(PENDULUM, {"sarsa_lambda": reference, "er": ours}, budget=10,
-                                                        n_resamples=400)}
+        ours = Curves(
+            ours.x, ours.performance, ours.cumulative_falls, ours.seeds, (), 1.0, out_of_bounds_seeds=tuple(range(n, 5))
+        )
+        found = {
+            f["metric"]: f
+            for f in table_findings(PENDULUM, {"sarsa_lambda": reference, "er": ours}, budget=10, n_resamples=400)
+        }
         assert found["end_performance"]["holds"] is verdict, n
         if verdict is None:
             evidence = found["end_performance"]["evidence"]

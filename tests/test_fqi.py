@@ -25,8 +25,17 @@ def test_one_sweep_is_the_dense_ridge_least_squares_fit(initial_value):
     with two overlapping tilings."""
     ridge = 0.3
     tiles = dict(n_tilings=2, memory_size=2**12, initial_value=initial_value, initial_value_seed=9)
-    model = FQI("TileQ", ChainEnv(), gamma=GAMMA, n_iterations=1, ridge=ridge, solver_iterations=500,
-                solver_tolerance=1e-14, policy_kwargs=tiles, seed=0)
+    model = FQI(
+        "TileQ",
+        ChainEnv(),
+        gamma=GAMMA,
+        n_iterations=1,
+        ridge=ridge,
+        solver_iterations=500,
+        solver_tolerance=1e-14,
+        policy_kwargs=tiles,
+        seed=0,
+    )
     buffer, (obs, actions, rewards, next_obs, terminal) = random_database(model, 60, seed=1)
     model.replay_buffer = buffer
     coder = model.policy.tile_coder
@@ -77,8 +86,16 @@ def test_ridge_fixed_point_on_a_chain():
                 target = r if terminal else r + GAMMA * q[s_next].max()
                 new[s, a] = copies(s, a) / (copies(s, a) + ridge) * target
         q = new
-    model = FQI("TileQ", ChainEnv(n_states), gamma=GAMMA, n_iterations=500, ridge=ridge, solver_iterations=50,
-                solver_tolerance=1e-13, policy_kwargs=ONE_HOT)
+    model = FQI(
+        "TileQ",
+        ChainEnv(n_states),
+        gamma=GAMMA,
+        n_iterations=500,
+        ridge=ridge,
+        solver_iterations=50,
+        solver_tolerance=1e-13,
+        policy_kwargs=ONE_HOT,
+    )
     model.replay_buffer = chain_database(model, n_states, repeats=copies)
     model.fit()
     states = np.arange(n_states - 1, dtype=np.float64)[:, None]
@@ -99,8 +116,14 @@ def test_cold_start_restarts_from_zero():
 
 def test_stored_transitions_match_the_buffers_trajectories():
     """The database view (also across the ring's wrap-around and evictions) against buffer.trajectories()."""
-    model = FQI("TileQ", LineWalkEnv(segment_every=7), policy_kwargs=dict(n_tilings=4, memory_size=2**14), seed=0,
-                buffer_size=150, fit_every=10**6)
+    model = FQI(
+        "TileQ",
+        LineWalkEnv(segment_every=7),
+        policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+        seed=0,
+        buffer_size=150,
+        fit_every=10**6,
+    )
     model.learn(1000)
     buffer = model.replay_buffer
     data = stored_transitions(buffer)
@@ -139,14 +162,29 @@ def test_sb3_verbs_eval_callback_and_tensorboard(tmp_path):
     mean_reward, _ = evaluate_policy(model, eval_env, n_eval_episodes=2)
     assert np.isfinite(mean_reward)
     tags = set(EventAccumulator(str(next(tmp_path.glob("fqi_*")))).Reload().Tags()["scalars"])
-    assert {"rollout/ep_rew_mean", "train/fits", "train/bellman_error", "train/fit_residual", "train/features",
-            "train/solver_iterations", "train/transitions", "train/td_error", "time/fps"} <= tags
+    assert {
+        "rollout/ep_rew_mean",
+        "train/fits",
+        "train/bellman_error",
+        "train/fit_residual",
+        "train/features",
+        "train/solver_iterations",
+        "train/transitions",
+        "train/td_error",
+        "time/fps",
+    } <= tags
 
 
 def test_seeded_runs_are_bit_identical():
     def weights(seed):
-        model = FQI("TileQ", LineWalkEnv(), fit_every=2, seed=seed, exploration_rate=0.3,
-                    policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+        model = FQI(
+            "TileQ",
+            LineWalkEnv(),
+            fit_every=2,
+            seed=seed,
+            exploration_rate=0.3,
+            policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+        )
         return model.learn(1200).policy.theta_array.copy()
 
     a, b, c = weights(5), weights(5), weights(6)
@@ -155,8 +193,15 @@ def test_seeded_runs_are_bit_identical():
 
 
 def test_save_load_round_trip(tmp_path):
-    kwargs = dict(fit_every=2, n_iterations=7, ridge=0.7, solver_iterations=12, warm_start=False, gamma=0.95,
-                  policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+    kwargs = dict(
+        fit_every=2,
+        n_iterations=7,
+        ridge=0.7,
+        solver_iterations=12,
+        warm_start=False,
+        gamma=0.95,
+        policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+    )
     model = FQI("TileQ", LineWalkEnv(), seed=3, **kwargs).learn(600)
     model.save(tmp_path / "fqi.zip")
     model.save_replay_buffer(tmp_path / "buffer")
@@ -204,8 +249,15 @@ def test_buffer_of_another_tile_coding_is_refused(tmp_path):
 @pytest.mark.slow
 def test_learns_mountain_car():
     """Random play never reaches the goal within MountainCar's 200 steps (return -200); FQI does after 12,000 steps."""
-    model = FQI("TileQ", "MountainCar-v0", gamma=0.99, fit_every=2, exploration_rate=0.0, seed=0,
-                policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8)).learn(12_000)
+    model = FQI(
+        "TileQ",
+        "MountainCar-v0",
+        gamma=0.99,
+        fit_every=2,
+        exploration_rate=0.0,
+        seed=0,
+        policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8),
+    ).learn(12_000)
     mean_return, _ = evaluate_policy(model, Monitor(gym.make("MountainCar-v0")), n_eval_episodes=10)
     assert mean_return > -170.0
 

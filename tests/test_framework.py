@@ -22,12 +22,21 @@ def test_tiny_reproduction_writes_table_3_1_and_resumes(tmp_path):
     """Every method on the grid world and MountainCar, one seed of 2 episodes: the per-run CSVs with the protocol's
     columns, summary.md with the thesis's rows (NFQ and KADP named out of scope) and one measured table per problem,
     summary.csv with a row per (problem, method); a second call finds every run finished."""
-    result = reproduce_framework(n_seeds=1, budget=2, problems=["gridworld", "mountaincar"], n_workers=1,
-                                 show_progress=False, out_dir=tmp_path)
+    result = reproduce_framework(
+        n_seeds=1, budget=2, problems=["gridworld", "mountaincar"], n_workers=1, show_progress=False, out_dir=tmp_path
+    )
     assert (result.runs_done, result.runs_skipped) == (14, 0)
     run = pd.read_csv(tmp_path / "mountaincar" / "runs" / "er_prioritized" / "seed_0.csv")
-    assert run.columns.tolist() == ["episode", "timesteps", "return", "length", "updates", "cpu_time_s",
-                                    "wall_time_s", "diverged"]
+    assert run.columns.tolist() == [
+        "episode",
+        "timesteps",
+        "return",
+        "length",
+        "updates",
+        "cpu_time_s",
+        "wall_time_s",
+        "diverged",
+    ]
     assert run["timesteps"].tolist() == [200, 400] and run["updates"].iloc[-1] > 0
     text = result.table_markdown.read_text()
     for row in TABLE_3_1:
@@ -41,8 +50,9 @@ def test_tiny_reproduction_writes_table_3_1_and_resumes(tmp_path):
         assert all(f"\n| {method.label} |" in section for method in METHODS.values())
     table = pd.read_csv(result.table_csv)
     assert len(table) == 14 and set(table["method"]) == set(METHODS)
-    again = reproduce_framework(n_seeds=1, budget=2, problems=["gridworld", "mountaincar"], n_workers=1,
-                                show_progress=False, out_dir=tmp_path)
+    again = reproduce_framework(
+        n_seeds=1, budget=2, problems=["gridworld", "mountaincar"], n_workers=1, show_progress=False, out_dir=tmp_path
+    )
     assert (again.runs_done, again.runs_skipped) == (0, 14)
     with pytest.raises(ValueError, match="holds runs made with"):
         reproduce_framework(n_seeds=1, budget=3, problems=["gridworld"], n_workers=1, out_dir=tmp_path)

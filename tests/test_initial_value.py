@@ -12,8 +12,13 @@ OBSERVATIONS = np.linspace(0.0, 10.0, 57)[:, None]
 
 
 def model(initial_value, seed=0, algo=SarsaLambda, **kwargs):
-    return algo("TileQ", LineWalkEnv(), seed=seed,
-                policy_kwargs=dict(n_tilings=16, memory_size=2**16, initial_value=initial_value), **kwargs)
+    return algo(
+        "TileQ",
+        LineWalkEnv(),
+        seed=seed,
+        policy_kwargs=dict(n_tilings=16, memory_size=2**16, initial_value=initial_value),
+        **kwargs,
+    )
 
 
 def test_a_constant_starts_every_q_value_there():
@@ -60,6 +65,7 @@ def test_bad_initial_values_are_named(bad):
 
 # ER-sigma: the initial values of unvisited features are replaced by sigma(s') (Eq. 5.4's intent, "provided theta is
 # initialised with zeros ... not required"): Q~ is computed from what experience put into the visited features.
+
 
 def _sigma_case(initial):
     """The test_updates ER-sigma case (s' = 1.7: a0 both features visited, Q 1.0; a1 one feature visited, -3.0; a2

@@ -68,7 +68,7 @@ SETTINGS_BEYOND_DEFAULTS = {LSPI: {"policy_kwargs": {"n_tilings": 4}, "fit_every
 RESIDUAL_ON_ACROBOT = pytest.mark.xfail(
     strict=True,
     reason="zeta = 1 (Eq. 5.7) nearly cancels the update where successive states share most tiles "
-           "(docs/algorithms/residual_er.md); the zoo entries use zeta = 0.5",
+    "(docs/algorithms/residual_er.md); the zoo entries use zeta = 0.5",
 )
 
 

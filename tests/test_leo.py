@@ -63,8 +63,12 @@ def gait_episode():
 
     def recording_step(action):
         result = step(action)
-        raw_rates.append({name: env.physics.joint_rate(name) for name in ("hip_left", "hip_right", "knee_left",
-                                                                          "knee_right", "torso")})
+        raw_rates.append(
+            {
+                name: env.physics.joint_rate(name)
+                for name in ("hip_left", "hip_right", "knee_left", "knee_right", "torso")
+            }
+        )
         return result
 
     env.step = recording_step
@@ -74,6 +78,7 @@ def gait_episode():
 
 
 # --- the model against the reference -------------------------------------------------------------------------------
+
 
 def test_total_mass_includes_the_boom_virtual_mass(physics):
     assert physics.total_mass() == pytest.approx(TORSO_MASS + BOOM_MASS_X + LIMB_MASSES, abs=1e-6)
@@ -87,8 +92,11 @@ def test_torso_carries_the_boom_mass_at_the_hip(physics):
     mass = TORSO_MASS + BOOM_MASS_X
     cm_x = (TORSO_MASS * TORSO_CM[0] + BOOM_MASS_X * HIP_ANCHOR[0]) / mass
     cm_z = (TORSO_MASS * TORSO_CM[1] + BOOM_MASS_X * HIP_ANCHOR[1]) / mass
-    iyy = (TORSO_IYY + TORSO_MASS * ((TORSO_CM[0] - cm_x) ** 2 + (TORSO_CM[1] - cm_z) ** 2)
-           + BOOM_MASS_X * ((HIP_ANCHOR[0] - cm_x) ** 2 + (HIP_ANCHOR[1] - cm_z) ** 2))
+    iyy = (
+        TORSO_IYY
+        + TORSO_MASS * ((TORSO_CM[0] - cm_x) ** 2 + (TORSO_CM[1] - cm_z) ** 2)
+        + BOOM_MASS_X * ((HIP_ANCHOR[0] - cm_x) ** 2 + (HIP_ANCHOR[1] - cm_z) ** 2)
+    )
     assert model.body_mass[torso] == pytest.approx(mass, abs=1e-6)
     assert model.body_ipos[torso][[0, 2]] == pytest.approx([cm_x, cm_z], abs=1e-6)
     assert model.body_inertia[torso][1] == pytest.approx(iyy, rel=1e-6)
@@ -111,8 +119,10 @@ def test_boom_force_makes_the_vertical_load_robot_plus_boom_mass_z(physics):
 def test_zero_pose_geometry_matches_the_reference(physics):
     with physics.reset_context():
         physics.set_pose({})
-    anchor = {name: physics.data.xanchor[physics.model.name2id(name, "joint")][[0, 2]]
-              for name in ("hip_left", "knee_left", "ankle_left")}
+    anchor = {
+        name: physics.data.xanchor[physics.model.name2id(name, "joint")][[0, 2]]
+        for name in ("hip_left", "knee_left", "ankle_left")
+    }
     assert anchor["hip_left"] - anchor["knee_left"] == pytest.approx([0.0, 0.116], abs=1e-9)
     assert anchor["knee_left"] - anchor["ankle_left"] == pytest.approx([-0.00405, 0.1045], abs=1e-9)
     heel, toe = (physics.data.geom_xpos[physics.model.name2id(name, "geom")] for name in ("heel_left", "toe_left"))
@@ -124,8 +134,11 @@ def test_zero_pose_geometry_matches_the_reference(physics):
 
 
 def test_joint_ranges_match_the_reference(physics):
-    expected = {"hip": (-0.785398163397448, 2.548180707911721), "knee": (-2.617993877991494, 0.034906585039887),
-                "ankle": (-1.570796326794897, 1.448623279155294)}
+    expected = {
+        "hip": (-0.785398163397448, 2.548180707911721),
+        "knee": (-2.617993877991494, 0.034906585039887),
+        "ankle": (-1.570796326794897, 1.448623279155294),
+    }
     model = physics.model
     for joint, limits in expected.items():
         for side in ("left", "right"):
@@ -172,12 +185,14 @@ def test_start_noise_varies_the_pose_within_its_bound_and_keeps_the_stance_foot_
     heel, toe = (physics.data.geom_xpos[physics.model.name2id(n, "geom")] for n in ("heel_left", "toe_left"))
     assert heel[2] == pytest.approx(toe[2], abs=1e-12)
     radius = physics.model.geom_size[physics.model.name2id("heel_left", "geom"), 0]
-    lowest = min(physics.data.geom_xpos[i, 2] - physics.model.geom_size[i, 0]
-                 for i in set(physics.model.pair_geom2.tolist()))  # the robot's collision geoms
+    lowest = min(
+        physics.data.geom_xpos[i, 2] - physics.model.geom_size[i, 0] for i in set(physics.model.pair_geom2.tolist())
+    )  # the robot's collision geoms
     assert lowest == pytest.approx(0.0, abs=1e-12) and heel[2] >= radius - 1e-12
 
 
 # --- the motor ------------------------------------------------------------------------------------------------------
+
 
 def held_torso_physics():
     """LEO without gravity and contacts, its root made immovable by a huge armature: each motor turns an unloaded
@@ -250,6 +265,7 @@ def test_ankle_controller_holds_the_foot_at_3_72_degrees_to_the_shank_or_to_the_
 
 # --- standing and walking -------------------------------------------------------------------------------------------
 
+
 def test_zero_learned_voltages_for_25_s_stay_finite_and_feet_do_not_sink():
     """With 0 V on the hips LEO cannot hold its torso: it folds onto its foam bumper, but the simulation stays
     finite and no foot contact penetrates the floor by 2 mm or more (K = 2.5e4 N/m per contact)."""
@@ -316,8 +332,13 @@ def test_observation_maps_stance_and_swing_and_swaps_them_at_each_footstep(gait_
             previous_raw[name] = rates[name]
         stance = infos[k]["stance_leg"]
         swing = "right" if stance == "left" else "left"
-        expected_rates = [rates["torso"], filtered[f"hip_{stance}"][-1], filtered[f"hip_{swing}"][-1],
-                          filtered[f"knee_{stance}"][-1], filtered[f"knee_{swing}"][-1]]
+        expected_rates = [
+            rates["torso"],
+            filtered[f"hip_{stance}"][-1],
+            filtered[f"hip_{swing}"][-1],
+            filtered[f"knee_{stance}"][-1],
+            filtered[f"knee_{swing}"][-1],
+        ]
         assert observations[k][1::2] == pytest.approx(expected_rates, abs=1e-4)
         if infos[k]["footstep"]:
             swaps += 1
@@ -335,8 +356,10 @@ def test_reward_is_time_energy_swing_progress(gait_episode):
 
     def swing_ahead(observation):
         torso, stance_hip, swing_hip, stance_knee, swing_knee = observation[::2]
-        ankle = [0.116 * math.sin(torso + hip) + 0.1045 * math.sin(torso + hip + knee)
-                 for hip, knee in ((stance_hip, stance_knee), (swing_hip, swing_knee))]
+        ankle = [
+            0.116 * math.sin(torso + hip) + 0.1045 * math.sin(torso + hip + knee)
+            for hip, knee in ((stance_hip, stance_knee), (swing_hip, swing_knee))
+        ]
         return ankle[1] - ankle[0]
 
     for k in range(len(rewards)):
@@ -377,6 +400,7 @@ def test_time_limit_truncates():
 
 # --- contract, errors, rendering ------------------------------------------------------------------------------------
 
+
 def test_registered_env_exposes_the_contract():
     env = gym.make("sb3_er/Leo-v0")
     leo = env.unwrapped
@@ -411,11 +435,14 @@ def test_contacts_are_explicit_floor_pairs_with_the_parameters_mujoco_mixed_befo
     assert model.pair_geom1.tolist() == [floor] * 10
     assert {model.id2name(g, "geom") for g in model.pair_geom2} == rubber | foam
     assert list(model.pair_geom2) == sorted(model.pair_geom2)  # geom order: contacts come in the old order
-    mixed_rubber = ([0.5 * 0.0083 + 0.5 * 0.02, 0.5 * 0.78 + 0.5 * 1.0],
-                    [0.5 * 0.99 + 0.5 * 0.9, 0.5 * 0.999 + 0.5 * 0.95, 0.001, 0.5, 2.0])
+    mixed_rubber = (
+        [0.5 * 0.0083 + 0.5 * 0.02, 0.5 * 0.78 + 0.5 * 1.0],
+        [0.5 * 0.99 + 0.5 * 0.9, 0.5 * 0.999 + 0.5 * 0.95, 0.001, 0.5, 2.0],
+    )
     for pair, geom in enumerate(model.pair_geom2):
-        solref, solimp = mixed_rubber if model.id2name(geom, "geom") in rubber else ([0.02, 1.0],
-                                                                                     [0.9, 0.95, 0.001, 0.5, 2.0])
+        solref, solimp = (
+            mixed_rubber if model.id2name(geom, "geom") in rubber else ([0.02, 1.0], [0.9, 0.95, 0.001, 0.5, 2.0])
+        )
         assert model.pair_solref[pair].tolist() == solref
         assert model.pair_solimp[pair].tolist() == solimp
         assert model.pair_friction[pair].tolist() == [2.0, 2.0, 0.005, 0.0001, 0.0001]
@@ -455,8 +482,21 @@ def test_reset_for_leaves_the_data_of_dm_controls_reset_context():
             tasks[0].initialize_episode(twins[0])
         twins[1].reset_for(tasks[1])
         a, b = (physics.data.ptr for physics in twins)
-        for field in ("qpos", "qvel", "qacc", "qacc_warmstart", "qfrc_actuator", "actuator_force", "efc_force",
-                      "xanchor", "geom_xpos", "ctrl", "time", "qM", "cinert"):
+        for field in (
+            "qpos",
+            "qvel",
+            "qacc",
+            "qacc_warmstart",
+            "qfrc_actuator",
+            "actuator_force",
+            "efc_force",
+            "xanchor",
+            "geom_xpos",
+            "ctrl",
+            "time",
+            "qM",
+            "cinert",
+        ):
             field = "M" if field == "qM" and not hasattr(a, "qM") else field
             assert np.array_equal(getattr(a, field), getattr(b, field)), (episode, field)
         assert a.ncon == b.ncon and np.array_equal(a.contact.dist, b.contact.dist)
@@ -509,8 +549,10 @@ def test_step_control_raises_physics_error_like_dm_control():
     assert np.all(np.isfinite(physics.data.qvel))  # MuJoCo reset the diverged state
 
 
-@pytest.mark.parametrize("action", [np.array([1, 3, 6]), np.array([1, 3, 6], dtype=np.int32), [1, 3, 6],
-                                    np.array([1.0, 3.0, 6.0]), (1, 3, 6)])
+@pytest.mark.parametrize(
+    "action",
+    [np.array([1, 3, 6]), np.array([1, 3, 6], dtype=np.int32), [1, 3, 6], np.array([1.0, 3.0, 6.0]), (1, 3, 6)],
+)
 def test_every_form_of_a_valid_action_gives_the_same_step(action):
     results = []
     for form in (np.array([1, 3, 6]), action):
@@ -529,8 +571,9 @@ def test_gait_action_is_the_nearest_voltage_level():
 
     levels = leo_domain.VOLTAGE_LEVELS
     rng = np.random.default_rng(0)
-    voltages = np.concatenate([rng.uniform(-12.0, 12.0, 2000), levels, (levels[:-1] + levels[1:]) / 2.0,
-                               [-20.0, 20.0, 0.0, -0.0]])
+    voltages = np.concatenate(
+        [rng.uniform(-12.0, 12.0, 2000), levels, (levels[:-1] + levels[1:]) / 2.0, [-20.0, 20.0, 0.0, -0.0]]
+    )
     for voltage in voltages:
         assert _nearest_level(float(voltage)) == int(np.abs(voltage - levels).argmin())
 
@@ -556,9 +599,11 @@ def test_bad_settings_are_refused():
 
 
 def test_missing_dm_control_names_the_extra():
-    code = ("import sys; sys.modules['dm_control'] = None\n"
-            "import sb3_er_envs.leo as leo\n"
-            "try:\n    leo.LeoEnv\nexcept ImportError as error:\n    print(error)\n")
+    code = (
+        "import sys; sys.modules['dm_control'] = None\n"
+        "import sb3_er_envs.leo as leo\n"
+        "try:\n    leo.LeoEnv\nexcept ImportError as error:\n    print(error)\n"
+    )
     output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120).stdout
     assert "sb3-er[dmc]" in output
 

@@ -37,27 +37,78 @@ SOLVER_RTOL = 1e-9
 
 #: name -> (class, env id, keyword arguments, learn steps, log_interval)
 RUNS = {
-    "sarsa_lambda_compass_walker": (SarsaLambda, "sb3_er/CompassWalker-v0", dict(
-        learning_rate=0.4, gamma=0.99, trace_lambda=0.92, exploration_rate=0.05,
-        policy_kwargs=dict(initial_value=(0.0, 1.0))), 10_000, 5),
-    "sarsa_lambda_cartpole": (SarsaLambda, "CartPole-v1", dict(policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
-                              5_000, 20),
-    "er_walker_segments": (ER, "sb3_er/SimplestWalker-v0", dict(
-        replay_trigger="segment", n_replays=10, policy_kwargs=dict(SMALL_TABLE)), 3_000, 5),
-    "er_online_lambda_prioritized": (ER, "CartPole-v1", dict(
-        online_lambda=0.8, replay_order="prioritized", n_replays=5, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
-        2_000, 3),
-    "er_sigma_compass_walker": (ERSigma, "sb3_er/CompassWalker-v0", dict(
-        replays_per_stored_trajectory=2, policy_kwargs=dict(initial_value=(0.0, 1.0), **SMALL_TABLE)), 3_000, 2),
+    "sarsa_lambda_compass_walker": (
+        SarsaLambda,
+        "sb3_er/CompassWalker-v0",
+        dict(
+            learning_rate=0.4,
+            gamma=0.99,
+            trace_lambda=0.92,
+            exploration_rate=0.05,
+            policy_kwargs=dict(initial_value=(0.0, 1.0)),
+        ),
+        10_000,
+        5,
+    ),
+    "sarsa_lambda_cartpole": (
+        SarsaLambda,
+        "CartPole-v1",
+        dict(policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
+        5_000,
+        20,
+    ),
+    "er_walker_segments": (
+        ER,
+        "sb3_er/SimplestWalker-v0",
+        dict(replay_trigger="segment", n_replays=10, policy_kwargs=dict(SMALL_TABLE)),
+        3_000,
+        5,
+    ),
+    "er_online_lambda_prioritized": (
+        ER,
+        "CartPole-v1",
+        dict(
+            online_lambda=0.8, replay_order="prioritized", n_replays=5, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)
+        ),
+        2_000,
+        3,
+    ),
+    "er_sigma_compass_walker": (
+        ERSigma,
+        "sb3_er/CompassWalker-v0",
+        dict(replays_per_stored_trajectory=2, policy_kwargs=dict(initial_value=(0.0, 1.0), **SMALL_TABLE)),
+        3_000,
+        2,
+    ),
     "residual_er_windy_cliff": (ResidualER, "sb3_er/WindyCliff-v0", dict(n_replays=10), 3_000, 5),
-    "residual_er_sigma_cartpole": (ResidualERSigma, "CartPole-v1", dict(
-        n_replays=10, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)), 3_000, 3),
-    "dyna_mountain_car": (Dyna, "MountainCar-v0", dict(
-        planning_steps=5, model_refit_every=250, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)), 2_000, 1),
-    "fqi_cartpole": (FQI, "CartPole-v1", dict(
-        fit_every=10, n_iterations=3, policy_kwargs=dict(n_tilings=4, **SMALL_TABLE)), 2_000, 5),
-    "lspi_cartpole": (LSPI, "CartPole-v1", dict(
-        fit_every=10, n_iterations=3, policy_kwargs=dict(n_tilings=4, **SMALL_TABLE)), 2_000, 5),
+    "residual_er_sigma_cartpole": (
+        ResidualERSigma,
+        "CartPole-v1",
+        dict(n_replays=10, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
+        3_000,
+        3,
+    ),
+    "dyna_mountain_car": (
+        Dyna,
+        "MountainCar-v0",
+        dict(planning_steps=5, model_refit_every=250, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
+        2_000,
+        1,
+    ),
+    "fqi_cartpole": (
+        FQI,
+        "CartPole-v1",
+        dict(fit_every=10, n_iterations=3, policy_kwargs=dict(n_tilings=4, **SMALL_TABLE)),
+        2_000,
+        5,
+    ),
+    "lspi_cartpole": (
+        LSPI,
+        "CartPole-v1",
+        dict(fit_every=10, n_iterations=3, policy_kwargs=dict(n_tilings=4, **SMALL_TABLE)),
+        2_000,
+        5,
+    ),
 }
 
 
@@ -82,12 +133,21 @@ class Witness(BaseCallback):
 
     def _on_step(self) -> bool:
         # info values as Python scalars: an env's flag may be a NumPy bool where the value is the same
-        infos = [{k: v.item() if isinstance(v, np.generic) else v for k, v in info.items() if k != "episode"}
-                 for info in self.locals["infos"]]
+        infos = [
+            {k: v.item() if isinstance(v, np.generic) else v for k, v in info.items() if k != "episode"}
+            for info in self.locals["infos"]
+        ]
         episodes = [info["episode"]["r"] for info in self.locals["infos"] if "episode" in info]
-        seen = (self.num_timesteps, self.n_calls, repr(np.asarray(self.locals["actions"]).tolist()),
-                repr(np.asarray(self.locals["new_obs"]).tolist()), repr(np.asarray(self.locals["rewards"]).tolist()),
-                repr(np.asarray(self.locals["dones"]).tolist()), repr(infos), repr(episodes))
+        seen = (
+            self.num_timesteps,
+            self.n_calls,
+            repr(np.asarray(self.locals["actions"]).tolist()),
+            repr(np.asarray(self.locals["new_obs"]).tolist()),
+            repr(np.asarray(self.locals["rewards"]).tolist()),
+            repr(np.asarray(self.locals["dones"]).tolist()),
+            repr(infos),
+            repr(episodes),
+        )
         self.digest.update(repr(seen).encode())
         return self.num_timesteps != self.stop_at
 
@@ -133,7 +193,8 @@ def run(name: str, mode: str) -> dict:
 #: Stopping and continuing for the two loops with a different after-transition path (online only, and replay)
 STOP_AND_CONTINUE = ("sarsa_lambda_compass_walker", "er_walker_segments", "dyna_mountain_car")
 CASES = [(name, mode) for name in RUNS for mode in ("no_callback", "callback")] + [
-    (name, "stop_and_continue") for name in STOP_AND_CONTINUE]
+    (name, "stop_and_continue") for name in STOP_AND_CONTINUE
+]
 
 
 def case_id(name: str, mode: str) -> str:
@@ -177,9 +238,16 @@ def close_reprs(value: str, want: str) -> bool:
         return False
 
 
-@pytest.mark.parametrize("value, want, same", [
-    ("1.0", "1.0", True), ("0.09723489597709245", "0.09723489597709244", True), ("0.0972349", "0.0972348", False),
-    ("3", "4", False), ("nan", "1", False)])
+@pytest.mark.parametrize(
+    "value, want, same",
+    [
+        ("1.0", "1.0", True),
+        ("0.09723489597709245", "0.09723489597709244", True),
+        ("0.0972349", "0.0972348", False),
+        ("3", "4", False),
+        ("nan", "1", False),
+    ],
+)
 def test_close_reprs(value, want, same):
     assert close_reprs(value, want) is same
 

@@ -78,14 +78,28 @@ def test_sb3_verbs_eval_callback_and_tensorboard(tmp_path):
     batch, _ = model.predict(np.array([[0.0], [2.0]]))
     assert single.shape == () and batch.shape == (2,)
     tags = set(EventAccumulator(str(next(tmp_path.glob("lspi_*")))).Reload().Tags()["scalars"])
-    assert {"rollout/ep_rew_mean", "train/fits", "train/bellman_error", "train/policy_iterations",
-            "train/policy_changes", "train/features", "train/transitions", "time/fps"} <= tags
+    assert {
+        "rollout/ep_rew_mean",
+        "train/fits",
+        "train/bellman_error",
+        "train/policy_iterations",
+        "train/policy_changes",
+        "train/features",
+        "train/transitions",
+        "time/fps",
+    } <= tags
 
 
 def test_seeded_runs_are_bit_identical():
     def weights(seed):
-        model = LSPI("TileQ", LineWalkEnv(), fit_every=2, seed=seed, exploration_rate=0.3,
-                     policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+        model = LSPI(
+            "TileQ",
+            LineWalkEnv(),
+            fit_every=2,
+            seed=seed,
+            exploration_rate=0.3,
+            policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+        )
         return model.learn(1200).policy.theta_array.copy()
 
     a, b, c = weights(5), weights(5), weights(6)
@@ -94,8 +108,14 @@ def test_seeded_runs_are_bit_identical():
 
 
 def test_save_load_round_trip(tmp_path):
-    kwargs = dict(fit_every=2, n_iterations=4, ridge=0.3, max_features=5000, gamma=0.95,
-                  policy_kwargs=dict(n_tilings=4, memory_size=2**14))
+    kwargs = dict(
+        fit_every=2,
+        n_iterations=4,
+        ridge=0.3,
+        max_features=5000,
+        gamma=0.95,
+        policy_kwargs=dict(n_tilings=4, memory_size=2**14),
+    )
     model = LSPI("TileQ", LineWalkEnv(), seed=3, **kwargs).learn(600)
     model.save(tmp_path / "lspi.zip")
     model.save_replay_buffer(tmp_path / "buffer")
@@ -127,8 +147,15 @@ def test_bad_hyperparameters_are_named(kwargs, message):
 @pytest.mark.slow
 def test_learns_mountain_car():
     """Random play never reaches the goal within MountainCar's 200 steps (return -200); LSPI does after 12,000 steps."""
-    model = LSPI("TileQ", "MountainCar-v0", gamma=0.99, fit_every=5, exploration_rate=0.0, seed=0,
-                 policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8)).learn(12_000)
+    model = LSPI(
+        "TileQ",
+        "MountainCar-v0",
+        gamma=0.99,
+        fit_every=5,
+        exploration_rate=0.0,
+        seed=0,
+        policy_kwargs=dict(n_tilings=8, tiles_per_dimension=8),
+    ).learn(12_000)
     mean_return, _ = evaluate_policy(model, Monitor(gym.make("MountainCar-v0")), n_eval_episodes=10)
     assert mean_return > -170.0
 

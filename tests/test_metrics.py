@@ -195,8 +195,15 @@ def _write_run(folder, algo, seed, returns, out_of_range):
 
     path = run_csv_path(folder, algo, seed)
     path.parent.mkdir(parents=True, exist_ok=True)
-    frame = pd.DataFrame({"episode": np.arange(1, len(returns) + 1), "return": returns, "cumulative_falls": 0,
-                          "wall_time_s": 1.0, "diverged": False})
+    frame = pd.DataFrame(
+        {
+            "episode": np.arange(1, len(returns) + 1),
+            "return": returns,
+            "cumulative_falls": 0,
+            "wall_time_s": 1.0,
+            "diverged": False,
+        }
+    )
     if out_of_range is not None:
         frame["values_out_of_range"] = out_of_range
     frame.to_csv(path, index=False)
@@ -232,7 +239,8 @@ def test_runs_before_the_watch_say_not_measured(tmp_path):
     curves = {"er": load_curves(pendulum, tmp_path, "er", range(2))}
     table = summary_table(pendulum, curves, budget=2).set_index(["algorithm", "metric"])
     assert table.loc[("vanilla-ER", "Runs whose values left the possible returns"), "average_text"] == (
-        "0 of 2 (1 not measured)")
+        "0 of 2 (1 not measured)"
+    )
     _write_run(tmp_path, "er", 1, [-100.0, -20.0], None)
     curves = {"er": load_curves(pendulum, tmp_path, "er", range(2))}
     table = summary_table(pendulum, curves, budget=2).set_index(["algorithm", "metric"])

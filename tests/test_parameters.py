@@ -53,7 +53,8 @@ def test_every_accepted_parameter_is_taken_and_every_other_is_refused(algo):
             continue
         assert constructs(cls, name, parameter.default) == (name in accepted), (
             f"{cls.__name__}({name}=...) {'fails' if name in accepted else 'works'}, but accepted_parameters says "
-            f"{'it is' if name in accepted else 'it is not'} accepted")
+            f"{'it is' if name in accepted else 'it is not'} accepted"
+        )
 
 
 def test_er_refuses_the_trace_lambda_it_sets_itself():

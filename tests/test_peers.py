@@ -13,8 +13,21 @@ from pathlib import Path
 import pytest
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "peers.py"
-TINY = ["--envs", "CartPole-v1", "--seeds", "1", "--budget", "1000", "--eval-freq", "500", "--eval-episodes", "1",
-        "--final-episodes", "2", "--no-build"]
+TINY = [
+    "--envs",
+    "CartPole-v1",
+    "--seeds",
+    "1",
+    "--budget",
+    "1000",
+    "--eval-freq",
+    "500",
+    "--eval-episodes",
+    "1",
+    "--final-episodes",
+    "2",
+    "--no-build",
+]
 
 
 def load_peers():
@@ -25,8 +38,13 @@ def load_peers():
 
 
 def run(*methods):
-    result = subprocess.run([sys.executable, str(SCRIPT), *TINY, "--methods", *methods], check=False,
-                            capture_output=True, text=True, timeout=900)
+    result = subprocess.run(
+        [sys.executable, str(SCRIPT), *TINY, "--methods", *methods],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     return result.stdout
 
@@ -75,11 +93,21 @@ def test_tiny_benchmark_with_mushroom_rl():
 @pytest.mark.slow
 def test_json_resume_skips_finished_runs_and_tables_cover_them(tmp_path):
     results = tmp_path / "peers.json"
-    first = subprocess.run([sys.executable, str(SCRIPT), *TINY, "--methods", "sarsa_lambda", "--json", str(results)],
-                           check=True, capture_output=True, text=True, timeout=900)
+    first = subprocess.run(
+        [sys.executable, str(SCRIPT), *TINY, "--methods", "sarsa_lambda", "--json", str(results)],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert "sarsa_lambda seed 0" in first.stderr
-    second = subprocess.run([sys.executable, str(SCRIPT), *TINY, "--methods", "sarsa_lambda", "er_sigma",
-                             "--json", str(results)], check=True, capture_output=True, text=True, timeout=900)
+    second = subprocess.run(
+        [sys.executable, str(SCRIPT), *TINY, "--methods", "sarsa_lambda", "er_sigma", "--json", str(results)],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert "sarsa_lambda seed 0" not in second.stderr  # finished: skipped
     assert "er_sigma seed 0" in second.stderr
     labels = [row.split("|")[2].strip() for row in table_rows(second.stdout, "CartPole-v1")]
@@ -104,10 +132,32 @@ def test_methods_run_only_on_tasks_of_their_kind():
 
 @pytest.mark.slow
 def test_tiny_continuous_benchmark_with_sac():
-    result = subprocess.run([sys.executable, str(SCRIPT), "--envs", "Pendulum-v1", "--seeds", "1", "--budget", "400",
-                             "--eval-freq", "200", "--eval-episodes", "1", "--final-episodes", "1",
-                             "--methods", "sarsa_lambda", "sac", "dqn"], check=False, capture_output=True, text=True,
-                            timeout=900)
+    result = subprocess.run(
+        [
+            sys.executable,
+            str(SCRIPT),
+            "--envs",
+            "Pendulum-v1",
+            "--seeds",
+            "1",
+            "--budget",
+            "400",
+            "--eval-freq",
+            "200",
+            "--eval-episodes",
+            "1",
+            "--final-episodes",
+            "1",
+            "--methods",
+            "sarsa_lambda",
+            "sac",
+            "dqn",
+        ],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     rows = table_rows(result.stdout, "Pendulum-v1")
     assert any("| SB3 SAC (rl-zoo tuned) | 400 | no threshold |" in row for row in rows)

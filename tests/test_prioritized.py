@@ -18,8 +18,12 @@ from sb3_er.common.buffers import TrajectoryReplayBuffer
 
 
 def _heap(capacity):
-    return (np.zeros(capacity, dtype=np.int64), np.zeros(capacity), np.full(capacity, -1, dtype=np.int64),
-            np.zeros(1, dtype=np.int64))
+    return (
+        np.zeros(capacity, dtype=np.int64),
+        np.zeros(capacity),
+        np.full(capacity, -1, dtype=np.int64),
+        np.zeros(1, dtype=np.int64),
+    )
 
 
 # priorities drawn from few values, so that ties (broken by the lower row) are common
@@ -44,9 +48,11 @@ def test_heapify_then_pop_gives_heapqs_order(keys):
 
 
 operations = st.lists(
-    st.one_of(st.tuples(st.just("set"), st.integers(0, 19), priorities),
-              st.tuples(st.just("remove"), st.integers(0, 19), st.just(0.0)),
-              st.tuples(st.just("pop"), st.just(0), st.just(0.0))),
+    st.one_of(
+        st.tuples(st.just("set"), st.integers(0, 19), priorities),
+        st.tuples(st.just("remove"), st.integers(0, 19), st.just(0.0)),
+        st.tuples(st.just("pop"), st.just(0), st.just(0.0)),
+    ),
     max_size=120,
 )
 
@@ -90,8 +96,18 @@ def chain_model(order, seed=0, **kwargs):
     backs a value up by one state exactly, holding a hand-built database: four wandering trajectories that never
     reach the goal (time limits) and one straight walk from state 0 to the goal."""
     env = ChainEnv(n_states=N_STATES)
-    model = ER("TileQ", env, replay_order=order, learning_rate=1.0, gamma=GAMMA, exploration_rate=0.0,
-               target="q_learning", policy_kwargs={"n_tilings": 1, "memory_size": 2**10}, seed=seed, **kwargs)
+    model = ER(
+        "TileQ",
+        env,
+        replay_order=order,
+        learning_rate=1.0,
+        gamma=GAMMA,
+        exploration_rate=0.0,
+        target="q_learning",
+        policy_kwargs={"n_tilings": 1, "memory_size": 2**10},
+        seed=seed,
+        **kwargs,
+    )
     coder = model.policy.tile_coder
     buffer = TrajectoryReplayBuffer(1000, coder)
     rng = np.random.default_rng(1)
@@ -161,14 +177,42 @@ def test_predecessor_index_by_hand():
     model = chain_model("prioritized")
     buffer = model.replay_buffer
     arguments = buffer.replay_arguments()
-    (slots, _, _, transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
-     trajectory_next_slots, _, _, first_row, n_transitions, open_trajectory, open_length, open_next_slots) = arguments
+    (
+        slots,
+        _,
+        _,
+        transition_trajectory,
+        trajectory_start,
+        trajectory_length,
+        trajectory_terminated,
+        trajectory_next_slots,
+        _,
+        _,
+        first_row,
+        n_transitions,
+        open_trajectory,
+        open_length,
+        open_next_slots,
+    ) = arguments
     coder = model.policy.tile_coder
     index_start = np.zeros(coder.slot_mask + 2, dtype=np.int64)
     index_rows = np.zeros(n_transitions, dtype=np.int64)
-    kernels.build_predecessor_index(slots, transition_trajectory, trajectory_start, trajectory_length,
-                                    trajectory_terminated, trajectory_next_slots, first_row, n_transitions,
-                                    open_trajectory, 0, open_length, open_next_slots, index_start, index_rows)
+    kernels.build_predecessor_index(
+        slots,
+        transition_trajectory,
+        trajectory_start,
+        trajectory_length,
+        trajectory_terminated,
+        trajectory_next_slots,
+        first_row,
+        n_transitions,
+        open_trajectory,
+        0,
+        open_length,
+        open_next_slots,
+        index_start,
+        index_rows,
+    )
     expected = {}
     row = 0
     for trajectory in buffer.trajectories():
@@ -179,7 +223,7 @@ def test_predecessor_index_by_hand():
                 expected.setdefault(int(coder.slots(np.array([states[t + 1]]))[0]), []).append(row)
             row += 1
     for slot in range(coder.slot_mask + 1):
-        assert index_rows[index_start[slot]:index_start[slot + 1]].tolist() == expected.get(slot, [])
+        assert index_rows[index_start[slot] : index_start[slot + 1]].tolist() == expected.get(slot, [])
 
 
 # --- the ER variants, learning, save/load, errors -------------------------------------------------------------------
@@ -189,8 +233,9 @@ def test_predecessor_index_by_hand():
 @pytest.mark.parametrize("predecessors", ["tiles", "trajectory"])
 def test_every_er_variant_replays_prioritized(algo, predecessors):
     """ER, ER-sigma, residual ER and residual ER-sigma all replay in priority order, with 16 tilings."""
-    model = algo("TileQ", ChainEnv(n_states=8), replay_order="prioritized", predecessors=predecessors, n_replays=3,
-                 seed=0)
+    model = algo(
+        "TileQ", ChainEnv(n_states=8), replay_order="prioritized", predecessors=predecessors, n_replays=3, seed=0
+    )
     model.learn(300)
     assert model.replay_updates > 0 and model.priority_evaluations > model.replay_updates
     assert np.all(np.isfinite(model.policy.theta_array))
@@ -198,8 +243,9 @@ def test_every_er_variant_replays_prioritized(algo, predecessors):
 
 def test_prioritized_learns_the_chain():
     """Greedy from every start state after 600 steps: always right."""
-    model = ER("TileQ", ChainEnv(n_states=8), replay_order="prioritized", n_replays=10, exploration_rate=0.2,
-               gamma=0.9, seed=0).learn(600)
+    model = ER(
+        "TileQ", ChainEnv(n_states=8), replay_order="prioritized", n_replays=10, exploration_rate=0.2, gamma=0.9, seed=0
+    ).learn(600)
     states = np.arange(7, dtype=np.float64)[:, None]
     np.testing.assert_array_equal(model.predict(states, deterministic=True)[0], np.ones(7))
 
@@ -207,8 +253,15 @@ def test_prioritized_learns_the_chain():
 def test_save_load_continues_exactly(tmp_path):
     """The settings, the generators and (with save_replay_buffer) the database survive save/load: a reloaded model
     continues exactly as the original (the queue is rebuilt at every phase, so there is nothing else to keep)."""
-    settings_ = {"replay_order": "prioritized", "predecessors": "trajectory", "priority_threshold": 0.01,
-                     "max_predecessors": 4, "prioritized_updates": 50, "n_replays": 2, "seed": 3}
+    settings_ = {
+        "replay_order": "prioritized",
+        "predecessors": "trajectory",
+        "priority_threshold": 0.01,
+        "max_predecessors": 4,
+        "prioritized_updates": 50,
+        "n_replays": 2,
+        "seed": 3,
+    }
     model = ER("TileQ", ChainEnv(n_states=8), **settings_).learn(200)
     model.save(tmp_path / "model")
     model.save_replay_buffer(tmp_path / "buffer")

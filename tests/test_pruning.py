@@ -31,15 +31,25 @@ def test_tabular_coverage_by_hand():
     (0.67), kept. [6, 6] right: (6, right) new, kept."""
     coder = TileCoder([1.0], [2], n_tilings=1, memory_size=2**10)
     buffer = TrajectoryReplayBuffer(100, coder, prune="coverage", prune_threshold=0.9)
-    kept = [store(buffer, [0, 1, 2], [1, 1, 1]), store(buffer, [0, 1, 2, 3], [1, 1, 1, 1]),
-            store(buffer, [1, 0, 1, 2], [1, 1, 1, 1]), store(buffer, [5, 5, 5, 5], [0, 0, 0, 0]),
-            store(buffer, [3, 2, 6], [1, 1, 0]), store(buffer, [6, 6], [1, 1])]
+    kept = [
+        store(buffer, [0, 1, 2], [1, 1, 1]),
+        store(buffer, [0, 1, 2, 3], [1, 1, 1, 1]),
+        store(buffer, [1, 0, 1, 2], [1, 1, 1, 1]),
+        store(buffer, [5, 5, 5, 5], [0, 0, 0, 0]),
+        store(buffer, [3, 2, 6], [1, 1, 0]),
+        store(buffer, [6, 6], [1, 1]),
+    ]
     assert kept == [True, True, False, True, True, True]
     assert (buffer.n_trajectories, buffer.n_transitions) == (5, 3 + 4 + 4 + 3 + 2)
     assert (buffer.n_pruned_trajectories, buffer.n_pruned_transitions) == (1, 4)
     assert buffer.pruned_share() == pytest.approx(1 / 6)
     assert [t["observations"][:, 0].tolist() for t in buffer.trajectories()] == [
-        [0, 1, 2], [0, 1, 2, 3], [5, 5, 5, 5], [3, 2, 6], [6, 6]]
+        [0, 1, 2],
+        [0, 1, 2, 3],
+        [5, 5, 5, 5],
+        [3, 2, 6],
+        [6, 6],
+    ]
 
 
 def test_threshold_and_unmarking_by_hand():
@@ -62,8 +72,13 @@ def test_coverage_needs_every_tiling():
     [3]: t1 = 2 new, kept; [0, 1, 2, 3]: 4 of 4, dropped; [4, 1]: 1 of 2, kept."""
     coder = TileCoder([2.0], [1], n_tilings=2, memory_size=2**10)
     buffer = TrajectoryReplayBuffer(100, coder, prune="coverage")
-    kept = [store(buffer, [0], [0]), store(buffer, [1, 2], [0, 0]), store(buffer, [3], [0]),
-            store(buffer, [0, 1, 2, 3], [0, 0, 0, 0]), store(buffer, [4, 1], [0, 0])]
+    kept = [
+        store(buffer, [0], [0]),
+        store(buffer, [1, 2], [0, 0]),
+        store(buffer, [3], [0]),
+        store(buffer, [0, 1, 2, 3], [0, 0, 0, 0]),
+        store(buffer, [4, 1], [0, 0]),
+    ]
     assert kept == [True, True, True, False, True]
     assert (buffer.n_transitions, buffer.n_pruned_transitions) == (6, 4)
 
@@ -98,8 +113,15 @@ def test_pickle_keeps_the_open_trajectory_and_the_counts():
 def test_pruned_share_reaches_the_logger(tmp_path):
     """ER with replay_buffer_kwargs=dict(prune="coverage") logs train/buffer_fill and train/pruned_share (to every
     output format, TensorBoard included); on the chain, whose states are soon all covered, some trajectories go."""
-    model = ER("TileQ", ChainEnv(n_states=5), replay_buffer_kwargs={"prune": "coverage", "prune_threshold": 0.8},
-               n_replays=2, exploration_rate=0.3, policy_kwargs={"memory_size": 2**12}, seed=0)
+    model = ER(
+        "TileQ",
+        ChainEnv(n_states=5),
+        replay_buffer_kwargs={"prune": "coverage", "prune_threshold": 0.8},
+        n_replays=2,
+        exploration_rate=0.3,
+        policy_kwargs={"memory_size": 2**12},
+        seed=0,
+    )
     model.set_logger(configure(str(tmp_path), ["csv"]))
     model.learn(1500, log_interval=10)
     model.dump_logs()
@@ -113,8 +135,10 @@ def test_pruned_share_reaches_the_logger(tmp_path):
 def test_batch_methods_take_the_option_and_bad_options_are_refused():
     model = FQI("TileQ", ChainEnv(), replay_buffer_kwargs={"prune": "coverage"})
     assert model.replay_buffer.prune == "coverage"
-    for kwargs, message in [({"prune": "evenly"}, "prune must be one of"), ({"prune_threshold": 0.0},
-                                                                             "prune_threshold"),
-                            ({"size": 3}, "unknown")]:
+    for kwargs, message in [
+        ({"prune": "evenly"}, "prune must be one of"),
+        ({"prune_threshold": 0.0}, "prune_threshold"),
+        ({"size": 3}, "unknown"),
+    ]:
         with pytest.raises(ValueError, match=message):
             ER("TileQ", ChainEnv(), replay_buffer_kwargs=kwargs)

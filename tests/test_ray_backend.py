@@ -40,8 +40,9 @@ def test_ray_runs_equal_local_runs_and_resume(tmp_path, local_ray):
         for seed in SEEDS:
             local_csv, ray_csv = run_csv_path(local.out_dir, algo, seed), run_csv_path(on_ray.out_dir, algo, seed)
             # the same learning on a Ray worker; only the wall times differ
-            pd.testing.assert_frame_equal(pd.read_csv(ray_csv).drop(columns="wall_time_s"),
-                                          pd.read_csv(local_csv).drop(columns="wall_time_s"))
+            pd.testing.assert_frame_equal(
+                pd.read_csv(ray_csv).drop(columns="wall_time_s"), pd.read_csv(local_csv).drop(columns="wall_time_s")
+            )
             local_record, ray_record = read_record(local_csv), read_record(ray_csv)
             for field in ("run", "config", "resolved", "sb3_er_version", "git_commit", "dependencies"):
                 assert ray_record[field] == local_record[field]
@@ -86,11 +87,33 @@ def test_ray_usage_statistics_stay_off(monkeypatch):
 def test_a_killed_driver_leaves_no_ray_process_behind(tmp_path):
     """SIGKILL of a driver that started its own local Ray instance: Ray's agents, which outlive a killed driver on
     their own, are ended by the driver's reaper, and nothing of the instance is left."""
-    driver = subprocess.Popen([sys.executable, "-m", "sb3_er.cli", "reproduce", "pendulum", "--seeds", "2", "--algos",
-                               "er", "--budget", "30", "--backend", "ray", "--jobs", "2", "--out", str(tmp_path),
-                               "--no-progress"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    wait_for(lambda: any("execute_run" in command for command in tree(driver.pid).values()) or None,
-              "a Ray task to run", 180)
+    driver = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sb3_er.cli",
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "2",
+            "--algos",
+            "er",
+            "--budget",
+            "30",
+            "--backend",
+            "ray",
+            "--jobs",
+            "2",
+            "--out",
+            str(tmp_path),
+            "--no-progress",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for(
+        lambda: any("execute_run" in command for command in tree(driver.pid).values()) or None, "a Ray task to run", 180
+    )
     started = tree(driver.pid)
     assert any("raylet" in command for command in started.values())
     os.kill(driver.pid, signal.SIGKILL)

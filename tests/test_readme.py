@@ -27,8 +27,11 @@ def documentation_pages() -> list[Path]:
 
 
 BLOCKS = [(f"README.md:{index}", block) for index, block in enumerate(python_blocks(README))]
-BLOCKS += [(f"{page.relative_to(ROOT)}:{index}", block) for page in documentation_pages()
-           for index, block in enumerate(python_blocks(page))]
+BLOCKS += [
+    (f"{page.relative_to(ROOT)}:{index}", block)
+    for page in documentation_pages()
+    for index, block in enumerate(python_blocks(page))
+]
 # A block shown twice (the README's quickstart is also the docs' quickstart) runs once.
 BLOCKS = list({block: (name, block) for name, block in reversed(BLOCKS)}.values())[::-1]
 
@@ -42,8 +45,7 @@ def test_the_readme_and_the_docs_have_python_blocks():
 @pytest.mark.slow
 @pytest.mark.parametrize("name, block", BLOCKS, ids=[name for name, _ in BLOCKS])
 def test_python_block_runs_as_written(name, block, tmp_path):
-    result = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, capture_output=True, text=True,
-                            timeout=600)
+    result = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     if result.returncode != 0 and "RenderingUnavailable" in result.stderr:
         if os.environ.get("CI", "").lower() in ("true", "1"):
             pytest.fail(f"CI must render the block {name}:\n{result.stderr[-2000:]}")

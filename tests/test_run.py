@@ -86,10 +86,19 @@ def test_replay_schedule_segment_trigger_and_stored_multiple():
     whole = ER("TileQ", LineWalkEnv(segment_every=5), replay_trigger="segment", n_replays=3, seed=0, **SMALL)
     whole.learn(200)  # the default unit: whole episodes, replayed at every segment end and episode end
     episodes = whole.replay_buffer.trajectories()
-    assert len(episodes) == whole._episode_num and sum(len(t["rewards"]) for t in episodes) + (
-        whole.replay_buffer.open_length) == 200
-    ends = sum(1 for t in episodes for step in range(1, len(t["rewards"]) + 1) if step % 5 == 0 or step == len(
-        t["rewards"])) + whole.replay_buffer.open_length // 5
+    assert (
+        len(episodes) == whole._episode_num
+        and sum(len(t["rewards"]) for t in episodes) + (whole.replay_buffer.open_length) == 200
+    )
+    ends = (
+        sum(
+            1
+            for t in episodes
+            for step in range(1, len(t["rewards"]) + 1)
+            if step % 5 == 0 or step == len(t["rewards"])
+        )
+        + whole.replay_buffer.open_length // 5
+    )
     assert whole.replay_phases == ends
     model = ER("TileQ", LineWalkEnv(), replays_per_stored_trajectory=2.0, replay_every=2, seed=0, **SMALL)
     model.learn(400)
@@ -121,8 +130,17 @@ def test_tensorboard_scalars(tmp_path):
     model.learn(400, tb_log_name="run")
     events = EventAccumulator(str(next(tmp_path.glob("run_*")))).Reload()
     tags = set(events.Tags()["scalars"])
-    expected = {"rollout/ep_rew_mean", "rollout/ep_len_mean", "rollout/falls", "train/replay_updates",
-                "train/td_error", "train/weights_abs_mean", "train/memory_fill", "train/trajectories", "time/fps"}
+    expected = {
+        "rollout/ep_rew_mean",
+        "rollout/ep_len_mean",
+        "rollout/falls",
+        "train/replay_updates",
+        "train/td_error",
+        "train/weights_abs_mean",
+        "train/memory_fill",
+        "train/trajectories",
+        "time/fps",
+    }
     assert expected <= tags
     updates = [e.value for e in events.Scalars("train/replay_updates")]
     assert updates[-1] == model.replay_updates and updates == sorted(updates)

@@ -24,7 +24,9 @@ def test_save_load_predict_and_continue(algo, tmp_path):
     loaded = algo.load(path, env=LineWalkEnv())
     np.testing.assert_array_equal(loaded.policy.theta_array, model.policy.theta_array)
     np.testing.assert_array_equal(loaded.policy.q_values(PROBES), model.policy.q_values(PROBES))
-    np.testing.assert_array_equal(loaded.predict(PROBES, deterministic=True)[0], model.predict(PROBES, deterministic=True)[0])
+    np.testing.assert_array_equal(
+        loaded.predict(PROBES, deterministic=True)[0], model.predict(PROBES, deterministic=True)[0]
+    )
     assert loaded.policy.tile_coder.config() == model.policy.tile_coder.config()
     assert (loaded.gamma, loaded.exploration_rate, loaded.num_timesteps) == (0.95, 0.1, 800)
     np.testing.assert_array_equal(loaded.action_rng, model.action_rng)
@@ -98,8 +100,11 @@ def test_same_data_same_replays_across_variants():
 # --- one weight array through every copy ------------------------------------------------------------------------------
 
 EVERY_ALGO = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma, Dyna, FQI, LSPI]
-EVERY_KWARGS = {Dyna: dict(planning_steps=3, model_refit_every=50), FQI: dict(fit_every=1, n_iterations=2),
-                LSPI: dict(fit_every=1, n_iterations=2)}
+EVERY_KWARGS = {
+    Dyna: dict(planning_steps=3, model_refit_every=50),
+    FQI: dict(fit_every=1, n_iterations=2),
+    LSPI: dict(fit_every=1, n_iterations=2),
+}
 
 
 def fresh_model(algo, seed=0):
@@ -130,8 +135,13 @@ def set_parameters_copy(model, tmp_path):
     return target
 
 
-COPIES = {"deepcopy": lambda model, tmp_path: copy.deepcopy(model), "pickle": pickle_round_trip,
-          "load": load_round_trip, "set_env": set_env_copy, "set_parameters": set_parameters_copy}
+COPIES = {
+    "deepcopy": lambda model, tmp_path: copy.deepcopy(model),
+    "pickle": pickle_round_trip,
+    "load": load_round_trip,
+    "set_env": set_env_copy,
+    "set_parameters": set_parameters_copy,
+}
 
 
 def assert_one_weight_array(model, tmp_path):
@@ -142,8 +152,9 @@ def assert_one_weight_array(model, tmp_path):
     model.save(tmp_path / "check")
     reloaded = type(model).load(tmp_path / "check.zip")
     np.testing.assert_array_equal(reloaded.policy.q_values(PROBES), policy.q_values(PROBES))
-    np.testing.assert_array_equal(reloaded.predict(PROBES, deterministic=True)[0],
-                                  model.predict(PROBES, deterministic=True)[0])
+    np.testing.assert_array_equal(
+        reloaded.predict(PROBES, deterministic=True)[0], model.predict(PROBES, deterministic=True)[0]
+    )
 
 
 @pytest.mark.parametrize("how", list(COPIES))

@@ -48,17 +48,28 @@ def test_policy_save_and_load_round_trip(algo, allow_pickle, tmp_path):
     stream = io.BytesIO()
     model.policy.save(stream)
     stream.seek(0)
-    np.testing.assert_array_equal(TileQPolicy.load(stream, allow_pickle=allow_pickle).q_values(PROBES),
-                                  model.policy.q_values(PROBES))
+    np.testing.assert_array_equal(
+        TileQPolicy.load(stream, allow_pickle=allow_pickle).q_values(PROBES), model.policy.q_values(PROBES)
+    )
 
 
 def test_a_policy_file_in_sb3s_own_format_needs_pickle(tmp_path):
     """SB3's BasePolicy.save pickles the spaces (and writes normalize_images): it loads, unless pickles are refused."""
     model = ER("TileQ", LineWalkEnv(), seed=0, **SMALL).learn(200)
-    th.save({"state_dict": model.policy.state_dict(),
-             "data": {**BasePolicy._get_constructor_parameters(model.policy), **model.policy._get_constructor_parameters(),
-                      "normalize_images": True}}, tmp_path / "sb3.pth")
-    np.testing.assert_array_equal(TileQPolicy.load(tmp_path / "sb3.pth").q_values(PROBES), model.policy.q_values(PROBES))
+    th.save(
+        {
+            "state_dict": model.policy.state_dict(),
+            "data": {
+                **BasePolicy._get_constructor_parameters(model.policy),
+                **model.policy._get_constructor_parameters(),
+                "normalize_images": True,
+            },
+        },
+        tmp_path / "sb3.pth",
+    )
+    np.testing.assert_array_equal(
+        TileQPolicy.load(tmp_path / "sb3.pth").q_values(PROBES), model.policy.q_values(PROBES)
+    )
     with pytest.raises(ValueError, match=r"sb3.pth: a policy file with pickled settings, refused"):
         TileQPolicy.load(tmp_path / "sb3.pth", allow_pickle=False)
 
@@ -81,8 +92,16 @@ def test_a_logger_without_outputs_receives_every_key(algo):
     logger = InMemoryLogger()
     model.set_logger(logger)
     model.learn(200, log_interval=1)
-    for key in ("rollout/ep_rew_mean", "rollout/ep_len_mean", "rollout/falls", "time/episodes", "time/fps",
-                "time/total_timesteps", "train/learning_rate", "train/weights_abs_mean"):
+    for key in (
+        "rollout/ep_rew_mean",
+        "rollout/ep_len_mean",
+        "rollout/falls",
+        "time/episodes",
+        "time/fps",
+        "time/total_timesteps",
+        "train/learning_rate",
+        "train/weights_abs_mean",
+    ):
         assert key in logger.name_to_value, key
     assert logger.name_to_value["time/total_timesteps"] <= 200
 
@@ -112,8 +131,9 @@ class SuccessEveryFourth(gym.Env):
 @pytest.mark.parametrize("algo", [SarsaLambda, ER, FQI])
 def test_success_rate_is_logged_from_the_episodes(algo):
     env = Monitor(SuccessEveryFourth(), info_keywords=("is_success",))
-    model = algo("TileQ", env, stats_window_size=1000, policy_kwargs=dict(n_tilings=2, memory_size=2**10,
-                                                                       tile_widths=[1.0]))
+    model = algo(
+        "TileQ", env, stats_window_size=1000, policy_kwargs=dict(n_tilings=2, memory_size=2**10, tile_widths=[1.0])
+    )
     logger = InMemoryLogger()
     model.set_logger(logger)
     model.learn(5 * 40, log_interval=40)
@@ -147,8 +167,17 @@ def test_predict_names_the_gym_vecenv_mix_up(algo):
 # --- hyperparameter types: every numeric parameter of every algorithm --------------------------------------------------
 
 COMMON = ["learning_rate", "gamma", "exploration_rate", "trace_cutoff", "stats_window_size", "seed"]
-ER_NUMERIC = ["buffer_size", "replay_every", "n_replays", "replays_per_stored_trajectory", "residual_zeta",
-              "priority_threshold", "max_predecessors", "prioritized_updates", "online_lambda"]
+ER_NUMERIC = [
+    "buffer_size",
+    "replay_every",
+    "n_replays",
+    "replays_per_stored_trajectory",
+    "residual_zeta",
+    "priority_threshold",
+    "max_predecessors",
+    "prioritized_updates",
+    "online_lambda",
+]
 FITTED = ["buffer_size", "fit_every", "n_iterations", "ridge"]
 NUMERIC = {
     SarsaLambda: [*COMMON, "trace_lambda"],
@@ -162,9 +191,15 @@ NUMERIC = {
 }
 CASES = [(algo, name) for algo, names in NUMERIC.items() for name in names]
 NOT_A_NUMBER = st.one_of(
-    st.text(max_size=6), st.text(alphabet="0123456789.", min_size=1, max_size=5),  # "0.99", "5"
-    st.tuples(st.floats(0.0, 1.0)), st.lists(st.integers(0, 9), min_size=1, max_size=3), st.booleans(),
-    st.just(math.nan), st.just(math.inf), st.just(-math.inf), st.just({"value": 0.5}),
+    st.text(max_size=6),
+    st.text(alphabet="0123456789.", min_size=1, max_size=5),  # "0.99", "5"
+    st.tuples(st.floats(0.0, 1.0)),
+    st.lists(st.integers(0, 9), min_size=1, max_size=3),
+    st.booleans(),
+    st.just(math.nan),
+    st.just(math.inf),
+    st.just(-math.inf),
+    st.just({"value": 0.5}),
 )
 
 
@@ -176,8 +211,10 @@ def test_a_numeric_hyperparameter_given_a_non_number_is_named(case, value):
         algo("TileQ", LineWalkEnv(), **{**SMALL, name: value})
 
 
-@pytest.mark.parametrize("algo, name", [(ER, "replay_order"), (ER, "sigma"), (Dyna, "target"),
-                                        (Dyna, "planning_actions"), (ER, "predecessors")])
+@pytest.mark.parametrize(
+    "algo, name",
+    [(ER, "replay_order"), (ER, "sigma"), (Dyna, "target"), (Dyna, "planning_actions"), (ER, "predecessors")],
+)
 def test_a_choice_given_an_unhashable_value_is_named(algo, name):
     with pytest.raises(ValueError, match=f"{name} must be one of"):
         algo("TileQ", LineWalkEnv(), **{**SMALL, name: ["reversed"]})
@@ -205,7 +242,8 @@ def test_save_and_load_through_file_objects(allow_pickle):
     buffer_file.seek(0)
     loaded.load_replay_buffer(buffer_file)
     assert loaded.replay_buffer.n_trajectories == model.replay_buffer.n_trajectories + (
-        1 if model.replay_buffer.open_length else 0)
+        1 if model.replay_buffer.open_length else 0
+    )
 
 
 @pytest.mark.parametrize("allow_pickle", [True, False])
@@ -240,8 +278,12 @@ def _same(a, b) -> bool:
     if isinstance(a, np.random.Generator):
         return a.bit_generator.state == b.bit_generator.state
     if isinstance(a, (list, tuple)) or type(a).__name__ == "deque":
-        return type(a) is type(b) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b)) and (
-            getattr(a, "maxlen", None) == getattr(b, "maxlen", None))
+        return (
+            type(a) is type(b)
+            and len(a) == len(b)
+            and all(_same(x, y) for x, y in zip(a, b))
+            and (getattr(a, "maxlen", None) == getattr(b, "maxlen", None))
+        )
     if isinstance(a, dict):
         return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     return a == b and type(a) is type(b)
@@ -257,8 +299,15 @@ def test_loading_without_pickle_restores_what_unpickling_does(algo, tmp_path):
     with_pickle = algo.load(tmp_path / "model.zip")
     without = algo.load(tmp_path / "model.zip", allow_pickle=False)
     plain = plain_state(model)
-    assert {"observation_space", "action_space", "action_rng", "predict_rng", "ep_info_buffer", "_last_obs",
-            "policy_class"} <= set(plain)
+    assert {
+        "observation_space",
+        "action_space",
+        "action_rng",
+        "predict_rng",
+        "ep_info_buffer",
+        "_last_obs",
+        "policy_class",
+    } <= set(plain)
     for name in plain:
         assert _same(getattr(without, name), getattr(with_pickle, name)), name
     np.testing.assert_array_equal(without.policy.q_values(PROBES), with_pickle.policy.q_values(PROBES))

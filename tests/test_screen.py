@@ -75,8 +75,9 @@ def test_a_screen_ranks_its_candidates_and_writes_its_summary(tmp_path):
     from sb3_er.experiments.screen import seal_finished_runs
 
     path = run_csv_path(tmp_path / "weak", "sarsa_lambda", 1)
-    legacy = {key: value for key, value in records.read_record(path).items()
-              if key not in (records.CHECKSUM_FIELD, "files")}
+    legacy = {
+        key: value for key, value in records.read_record(path).items() if key not in (records.CHECKSUM_FIELD, "files")
+    }
     records.record_path(path).write_text(json.dumps({**legacy, "format": 1}))
     assert seal_finished_runs("pendulum", candidates, tmp_path, n_seeds=2) == 1
     assert records.check_sealed(records.read_record(path), path) is None
@@ -93,8 +94,14 @@ def test_the_rule_keeps_a_printed_value_only_when_a_candidate_with_it_comes_with
         Candidate("open_fall", {}, "", frozenset()),  # the best score, but drops a printed value that stays
         Candidate("other_width", {}, "", frozenset({fall}), check=True),  # a check chooses nothing
     ]
-    table = pd.DataFrame({"candidate": ["other_width", "open_fall", "printed_fall", "printed_everything"],
-                          "score": [0.1, 0.3, 0.4, 2.0], "within_50": [True, True, True, False], "seeds": 10})
+    table = pd.DataFrame(
+        {
+            "candidate": ["other_width", "open_fall", "printed_fall", "printed_everything"],
+            "score": [0.1, 0.3, 0.4, 2.0],
+            "within_50": [True, True, True, False],
+            "seeds": 10,
+        }
+    )
     decision = decide(table, candidates)
     assert decision.kept == {fall: "printed_fall", reward: None}
     assert decision.winner == "printed_fall"
@@ -108,11 +115,21 @@ def test_tiling_screen_command_runs_the_chosen_jobs_in_order_and_refuses_unknown
 
     candidates = {"A-v0": {"a1": {}, "a2": {}}, "B-v0": {"b1": {}}}
     calls, summaries = [], []
-    command = dict(description="test", candidates=candidates, run_one=lambda *job: calls.append(job),
-                   summarize=lambda: summaries.append(1))
+    command = dict(
+        description="test",
+        candidates=candidates,
+        run_one=lambda *job: calls.append(job),
+        summarize=lambda: summaries.append(1),
+    )
     tiling_screen_command(**command, argv=["--seeds", "0", "1"])
-    assert calls == [("A-v0", "a1", 0), ("A-v0", "a1", 1), ("A-v0", "a2", 0), ("A-v0", "a2", 1), ("B-v0", "b1", 0),
-                     ("B-v0", "b1", 1)]
+    assert calls == [
+        ("A-v0", "a1", 0),
+        ("A-v0", "a1", 1),
+        ("A-v0", "a2", 0),
+        ("A-v0", "a2", 1),
+        ("B-v0", "b1", 0),
+        ("B-v0", "b1", 1),
+    ]
     calls.clear()
     tiling_screen_command(**command, seeds_outermost=True, argv=["--seeds", "0", "1", "--candidates", "a2", "b1"])
     assert calls == [("A-v0", "a2", 0), ("B-v0", "b1", 0), ("A-v0", "a2", 1), ("B-v0", "b1", 1)]

@@ -10,8 +10,9 @@ from sb3_er.experiments.sigma_regime import READINGS, reproduce_sigma_regime, su
 
 
 def test_a_tiny_run_writes_phases_and_the_summary(tmp_path):
-    result = reproduce_sigma_regime(n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1,
-                                    out_dir=tmp_path, show_progress=False)
+    result = reproduce_sigma_regime(
+        n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1, out_dir=tmp_path, show_progress=False
+    )
     frame = pd.read_csv(run_csv_path(tmp_path / "gridworld", "er_sigma", 0))
     assert len(frame) == 4  # one replay phase per episode (the grid world replays at each episode's end)
     assert frame["updates"].gt(0).all() and frame["phase"].tolist() == [1, 2, 3, 4]
@@ -19,16 +20,35 @@ def test_a_tiny_run_writes_phases_and_the_summary(tmp_path):
     text = result.table_markdown.read_text()
     assert "| windy cliff grid world | results/measured/gridworld | 4 episodes | 4 |" in text
     assert "pendulum, earlier default (velocity tiles 3.3 rad/s, goal 0.1 rad and 1 rad/s)" in text
-    again = reproduce_sigma_regime(n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1,
-                                   out_dir=tmp_path, show_progress=False)
+    again = reproduce_sigma_regime(
+        n_seeds=1, budget=4, readings=["gridworld", "pendulum-3.3"], n_workers=1, out_dir=tmp_path, show_progress=False
+    )
     assert (again.runs_done, again.runs_skipped) == (0, 2)
 
 
 def test_the_summary_weights_phases_by_their_updates():
-    frames = {0: pd.DataFrame({"updates": [10, 30], "sigma_shift": [1.0, -1.0], "sigma_raised": [1.0, 0.0],
-                               "sigma_lowered": [0.0, 1.0], "values_out_of_range": [0, 3], "diverged": False}),
-              1: pd.DataFrame({"updates": [20], "sigma_shift": [np.nan], "sigma_raised": [np.nan],
-                               "sigma_lowered": [np.nan], "values_out_of_range": [0], "diverged": False})}
+    frames = {
+        0: pd.DataFrame(
+            {
+                "updates": [10, 30],
+                "sigma_shift": [1.0, -1.0],
+                "sigma_raised": [1.0, 0.0],
+                "sigma_lowered": [0.0, 1.0],
+                "values_out_of_range": [0, 3],
+                "diverged": False,
+            }
+        ),
+        1: pd.DataFrame(
+            {
+                "updates": [20],
+                "sigma_shift": [np.nan],
+                "sigma_raised": [np.nan],
+                "sigma_lowered": [np.nan],
+                "values_out_of_range": [0],
+                "diverged": False,
+            }
+        ),
+    }
     summary = summarize_regime(frames)
     assert summary["mean_shift"] == pytest.approx((10 - 30) / 40)
     assert summary["raised"] == pytest.approx(0.25) and summary["lowered"] == pytest.approx(0.75)
@@ -54,8 +74,14 @@ def test_each_reading_is_its_tables_reading():
 
     assert set(SIGMA_REGIME_READINGS) == set(READINGS)
     measured = Path(__file__).resolve().parents[1] / "results" / "measured"
-    tables = {"table_6_1": "pendulum", "table_6_1_earlier_default": "pendulum", "table_6_2": "walker",
-              "table_6_2_earlier_default": "walker", "gridworld": "gridworld", "table_6_3": "leo"}
+    tables = {
+        "table_6_1": "pendulum",
+        "table_6_1_earlier_default": "pendulum",
+        "table_6_2": "walker",
+        "table_6_2_earlier_default": "walker",
+        "gridworld": "gridworld",
+        "table_6_3": "leo",
+    }
     for name, reading in READINGS.items():
         if not reading.results:
             continue
@@ -71,10 +97,12 @@ def test_each_reading_is_its_tables_reading():
 def test_running_one_reading_keeps_the_rows_of_the_others(tmp_path):
     """The summary covers the folder: a later command for one reading keeps the earlier readings' rows, lengths and
     runs, and says how many runs each row has when they differ."""
-    reproduce_sigma_regime(n_seeds=2, budget=3, readings=["gridworld"], n_workers=1, out_dir=tmp_path,
-                           show_progress=False)
-    result = reproduce_sigma_regime(n_seeds=1, budget=2, readings=["pendulum-3.3"], n_workers=1, out_dir=tmp_path,
-                                    show_progress=False)
+    reproduce_sigma_regime(
+        n_seeds=2, budget=3, readings=["gridworld"], n_workers=1, out_dir=tmp_path, show_progress=False
+    )
+    result = reproduce_sigma_regime(
+        n_seeds=1, budget=2, readings=["pendulum-3.3"], n_workers=1, out_dir=tmp_path, show_progress=False
+    )
     text = result.table_markdown.read_text()
     gridworld = next(line for line in text.splitlines() if line.startswith("| windy cliff grid world"))
     assert "| 3 episodes | 6 |" in gridworld and gridworld.endswith("of 2 |")  # 2 runs of 3 episodes

@@ -18,7 +18,9 @@ NEVER_AT_IMPORT = ("ray", "optuna", "rl_zoo3", "matplotlib", "pandas", "scipy.sp
 def imported_after(code: str) -> dict:
     """What a fresh interpreter holds after running ``code``: its modules, and the numba kernels compiled or loaded
     (kernel name -> number of signatures) of sb3-er's kernels and the walker's simulation, where imported."""
-    probe = code + """
+    probe = (
+        code
+        + """
 import json, sys
 kernels = {}
 for name in ("sb3_er.common.kernels", "sb3_er_envs.simplest_walker"):
@@ -28,6 +30,7 @@ for name in ("sb3_er.common.kernels", "sb3_er_envs.simplest_walker"):
             kernels[f"{name}.{attribute}"] = len(value.signatures)
 print(json.dumps({"modules": sorted(sys.modules), "kernels": kernels}))
 """
+    )
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600, check=True)
     return json.loads(result.stdout.strip().splitlines()[-1])
 
@@ -62,8 +65,13 @@ SarsaLambda("TileQ", "sb3_er/CompassWalker-v0", policy_kwargs=dict(initial_value
     for package in (*NEVER_AT_IMPORT, "scipy.sparse", "sb3_er.dyna", "sb3_er.er"):
         assert not loaded(state["modules"], package), package
     kernels = {name.rsplit(".", 1)[1] for name in state["kernels"]}
-    assert kernels == {"fill_initial_weights", "select_action", "sarsa_lambda_step", "clear_trace",
-                       "simulate_control_step"}
+    assert kernels == {
+        "fill_initial_weights",
+        "select_action",
+        "sarsa_lambda_step",
+        "clear_trace",
+        "simulate_control_step",
+    }
     assert set(state["kernels"].values()) == {1}, "a kernel compiled for two signatures"
 
 

@@ -25,8 +25,14 @@ from sb3_er.zoo import model_kwargs
 
 PNG = b"\x89PNG"
 PENDULUM = "sb3_er/PendulumSwingup-v0"
-TINY_REPLAY_ORDER = {"n_seeds": 2, "budget": 2000, "database_episodes": 2, "eval_every": 1000, "n_workers": 1,
-                     "show_progress": False}
+TINY_REPLAY_ORDER = {
+    "n_seeds": 2,
+    "budget": 2000,
+    "database_episodes": 2,
+    "eval_every": 1000,
+    "n_workers": 1,
+    "show_progress": False,
+}
 
 
 def test_er_with_online_lambda_and_no_replay_learns_exactly_like_sarsa_lambda():
@@ -62,8 +68,25 @@ def test_replaying_one_trajectory_at_a_time_equals_one_phase():
 
 
 def test_replay_order_command_writes_table_and_figure_and_replays_one_database_per_seed(tmp_path, capsys):
-    main(["reproduce", "replay-order", "--seeds", "2", "--budget", "2000", "--database-episodes", "2",
-          "--eval-every", "1000", "--jobs", "1", "--no-progress", "--out", str(tmp_path)])
+    main(
+        [
+            "reproduce",
+            "replay-order",
+            "--seeds",
+            "2",
+            "--budget",
+            "2000",
+            "--database-episodes",
+            "2",
+            "--eval-every",
+            "1000",
+            "--jobs",
+            "1",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert "replay_orders.png" in capsys.readouterr().out
     assert (tmp_path / "replay_orders.png").read_bytes()[:4] == PNG
     markdown = (tmp_path / "summary.md").read_text()
@@ -86,8 +109,10 @@ def test_replay_order_command_writes_table_and_figure_and_replays_one_database_p
         assert frame["database_sha256"].nunique() == 1
         assert set(frame["weights_at_start_sha256"]) == {zero_weights}
         # checkpoints are passed by less than one trajectory (at most one 1500-step episode)
-        assert ((frame["replayed_updates"] >= frame["checkpoint"])
-                & (frame["replayed_updates"] < frame["checkpoint"] + 1500)).all()
+        assert (
+            (frame["replayed_updates"] >= frame["checkpoint"])
+            & (frame["replayed_updates"] < frame["checkpoint"] + 1500)
+        ).all()
         assert (frame[frame["checkpoint"] == 0]["return"].nunique()) == 1  # zero weights: one greedy policy
         assert (frame["database_episodes"] == 2).all() and (frame["return"] < 0).all()
         record = read_record(csv)
@@ -97,8 +122,14 @@ def test_replay_order_command_writes_table_and_figure_and_replays_one_database_p
         assert record["config"]["budget_unit"] == "replayed updates"
         assert record["resolved"]["env"]["episode_seconds"] == 15.0  # the env's defaults, recorded
     # the database is the collector's: collecting it again with the same seed gives the same transitions
-    job = RunJob(ANALYSES["replay-order"].with_settings(database_episodes=2), "er", 1, 2000, tmp_path / "x.csv",
-                 algo_kwargs=tuple(sorted(COLLECTOR_KWARGS.items())))
+    job = RunJob(
+        ANALYSES["replay-order"].with_settings(database_episodes=2),
+        "er",
+        1,
+        2000,
+        tmp_path / "x.csv",
+        algo_kwargs=tuple(sorted(COLLECTOR_KWARGS.items())),
+    )
     collector, _ = replay_order.collect_database(job, gym.make(PENDULUM))
     assert replay_order.database_digest(collector.replay_buffer) == frame["database_sha256"].iloc[0]
 
@@ -109,8 +140,21 @@ def test_replay_order_command_writes_table_and_figure_and_replays_one_database_p
 
 
 def test_sigma_command_runs_every_definition_under_its_own_name(tmp_path, capsys):
-    main(["reproduce", "sigma", "--seeds", "1", "--budget", "100", "--jobs", "1", "--no-progress",
-          "--out", str(tmp_path)])
+    main(
+        [
+            "reproduce",
+            "sigma",
+            "--seeds",
+            "1",
+            "--budget",
+            "100",
+            "--jobs",
+            "1",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert "sigma_scores.png" in capsys.readouterr().out
     for figure in ("sigma_scores.png", "learning_curves.png"):
         assert (tmp_path / figure).read_bytes()[:4] == PNG
@@ -138,8 +182,21 @@ def test_sigma_command_runs_every_definition_under_its_own_name(tmp_path, capsys
 
 
 def test_pessimistic_command_starts_at_the_chosen_value_on_the_same_data_and_replays(tmp_path, capsys):
-    main(["reproduce", "pessimistic", "--seeds", "1", "--budget", "2", "--jobs", "1", "--no-progress",
-          "--out", str(tmp_path)])
+    main(
+        [
+            "reproduce",
+            "pessimistic",
+            "--seeds",
+            "1",
+            "--budget",
+            "2",
+            "--jobs",
+            "1",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     out = capsys.readouterr().out
     names = ["value_maps_pessimistic_after_goal.png", "value_maps_pessimistic_long_replay.png", "positive_cells.png"]
     for name in names:
@@ -200,8 +257,10 @@ def test_analysis_options_are_checked(tmp_path, capsys):
     with pytest.raises(ValueError, match="address .* is for the Ray backend only"):
         reproduce_replay_order(address="auto", out_dir=tmp_path)
     assert not any(tmp_path.iterdir())  # nothing was written
-    assert json.loads(json.dumps(ANALYSES["replay-order"].settings)) == [["database_episodes", 200],
-                                                                         ["eval_every", 75000]]
+    assert json.loads(json.dumps(ANALYSES["replay-order"].settings)) == [
+        ["database_episodes", 200],
+        ["eval_every", 75000],
+    ]
 
 
 def test_replay_order_on_ray_equals_local(tmp_path):
@@ -213,10 +272,11 @@ def test_replay_order_on_ray_equals_local(tmp_path):
     try:
         settings = {**TINY_REPLAY_ORDER, "n_seeds": 1}
         local = reproduce_replay_order(out_dir=tmp_path / "local", **settings)
-        on_ray = reproduce_replay_order(out_dir=tmp_path / "ray", backend="ray",
-                                        **{**settings, "n_workers": None})
+        on_ray = reproduce_replay_order(out_dir=tmp_path / "ray", backend="ray", **{**settings, "n_workers": None})
     finally:
         ray.shutdown()
     assert on_ray.runs_done == 1
-    pd.testing.assert_frame_equal(pd.read_csv(run_csv_path(on_ray.out_dir, "replay_order", 0)).drop(columns="wall_time_s"),
-                                  pd.read_csv(run_csv_path(local.out_dir, "replay_order", 0)).drop(columns="wall_time_s"))
+    pd.testing.assert_frame_equal(
+        pd.read_csv(run_csv_path(on_ray.out_dir, "replay_order", 0)).drop(columns="wall_time_s"),
+        pd.read_csv(run_csv_path(local.out_dir, "replay_order", 0)).drop(columns="wall_time_s"),
+    )

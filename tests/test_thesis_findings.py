@@ -25,8 +25,16 @@ class LineEnv(gym.Env):
 
 
 def model_with_trajectory(algo, n_actions, n_tilings, transitions, next_state, terminated, **kwargs):
-    model = algo("TileQ", LineEnv(n_actions), learning_rate=0.25, gamma=GAMMA, exploration_rate=0.0,
-                 policy_kwargs=dict(n_tilings=n_tilings, tile_widths=[1.0], memory_size=2**12), seed=0, **kwargs)
+    model = algo(
+        "TileQ",
+        LineEnv(n_actions),
+        learning_rate=0.25,
+        gamma=GAMMA,
+        exploration_rate=0.0,
+        policy_kwargs=dict(n_tilings=n_tilings, tile_widths=[1.0], memory_size=2**12),
+        seed=0,
+        **kwargs,
+    )
     coder = model.policy.tile_coder
     next_states = [s for s, _, _ in transitions[1:]] + [next_state]
     for (s, a, r), s_next in zip(transitions, next_states):

@@ -36,16 +36,42 @@ def one_transition_buffer(coder, s, a, r, s_next, terminated=False):
     return buffer
 
 
-def run_replay(theta, buffer, *, target=kernels.TARGET_SARSA, sigma=kernels.SIGMA_NONE, zeta=0.0, epsilon=0.0,
-               residual_next_action=False, initial=kernels.ZERO_INITIAL):
+def run_replay(
+    theta,
+    buffer,
+    *,
+    target=kernels.TARGET_SARSA,
+    sigma=kernels.SIGMA_NONE,
+    zeta=0.0,
+    epsilon=0.0,
+    residual_next_action=False,
+    initial=kernels.ZERO_INITIAL,
+):
     coder = buffer.tile_coder
     q_scratch = np.zeros(coder.n_actions)
     w_scratch = np.zeros(coder.n_actions)
     return kernels.replay_phase(
-        theta, buffer.visits, *buffer.replay_arguments(), coder.stride, coder.action_columns,
-        coder.columns_are_actions, 1,
-        kernels.ORDER_REVERSED, target, sigma, zeta, residual_next_action, ALPHA / coder.n_tilings, GAMMA, epsilon,
-        kernels.new_rng_state(0, 1), kernels.new_rng_state(0, 0), q_scratch, w_scratch, *initial, kernels.NO_WATCH,
+        theta,
+        buffer.visits,
+        *buffer.replay_arguments(),
+        coder.stride,
+        coder.action_columns,
+        coder.columns_are_actions,
+        1,
+        kernels.ORDER_REVERSED,
+        target,
+        sigma,
+        zeta,
+        residual_next_action,
+        ALPHA / coder.n_tilings,
+        GAMMA,
+        epsilon,
+        kernels.new_rng_state(0, 1),
+        kernels.new_rng_state(0, 0),
+        q_scratch,
+        w_scratch,
+        *initial,
+        kernels.NO_WATCH,
     )
 
 
@@ -93,8 +119,9 @@ def test_q_learning_and_expected_sarsa_targets(coder):
     assert q(theta, coder, 0.2, 1) == pytest.approx(2.0 + ALPHA * (3.0 + GAMMA * 4.0 - 2.0))
 
     theta = seeded_theta(coder, values)
-    run_replay(theta, one_transition_buffer(coder, 0.2, 1, 3.0, 1.7), target=kernels.TARGET_EXPECTED_SARSA,
-               epsilon=epsilon)
+    run_replay(
+        theta, one_transition_buffer(coder, 0.2, 1, 3.0, 1.7), target=kernels.TARGET_EXPECTED_SARSA, epsilon=epsilon
+    )
     expectation = (1 - epsilon) * 4.0 + epsilon * (1.0 - 2.0 + 4.0) / 3
     assert q(theta, coder, 0.2, 1) == pytest.approx(2.0 + ALPHA * (3.0 + GAMMA * expectation - 2.0))
 
@@ -179,15 +206,33 @@ def test_residual_er_sigma_update_alg14(coder):
 def sarsa_lambda_step(coder, theta, trace, s, a, r, s_next, terminated, lam):
     next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
     return kernels.sarsa_lambda_step(
-        theta, *trace, coder.slots(np.array([s])), a, r, terminated, np.array([s_next]), next_slots,
-        np.zeros(coder.n_actions), *coder.kernel_arguments, ALPHA / coder.n_tilings, GAMMA, GAMMA * lam, 1e-6, 0.0,
-        kernels.new_rng_state(0), kernels.NO_WATCH,
+        theta,
+        *trace,
+        coder.slots(np.array([s])),
+        a,
+        r,
+        terminated,
+        np.array([s_next]),
+        next_slots,
+        np.zeros(coder.n_actions),
+        *coder.kernel_arguments,
+        ALPHA / coder.n_tilings,
+        GAMMA,
+        GAMMA * lam,
+        1e-6,
+        0.0,
+        kernels.new_rng_state(0),
+        kernels.NO_WATCH,
     )
 
 
 def empty_trace(coder, capacity=64):
-    return (np.zeros(capacity, np.int64), np.zeros(capacity), np.full(coder.n_weights, -1, np.int32),
-            np.zeros(1, np.int64))
+    return (
+        np.zeros(capacity, np.int64),
+        np.zeros(capacity),
+        np.full(coder.n_weights, -1, np.int32),
+        np.zeros(1, np.int64),
+    )
 
 
 def test_sarsa_lambda_two_steps_alg2(coder):
@@ -276,8 +321,17 @@ def test_visited_values_and_counts_match_a_dense_sum(tiled, written, seed):
     obs = rng.uniform(-3.0, 3.0, 2)
     slots = coder.slots(obs)
     out_q, out_w = np.full(coder.n_actions, np.nan), np.full(coder.n_actions, np.nan)
-    kernels.all_q_values_and_visit_counts(theta, visits, slots, coder.stride, coder.action_columns,
-                                          coder.columns_are_actions, out_q, out_w, *kernels.ZERO_INITIAL)
+    kernels.all_q_values_and_visit_counts(
+        theta,
+        visits,
+        slots,
+        coder.stride,
+        coder.action_columns,
+        coder.columns_are_actions,
+        out_q,
+        out_w,
+        *kernels.ZERO_INITIAL,
+    )
     for a in range(coder.n_actions):
         features = coder.feature_indices(obs, a)
         assert out_w[a] == visits[features].sum()

@@ -50,6 +50,7 @@ def assert_no_glued_episodes(buffer):
 
 # --- 2. rl-zoo continue-training with a saved replay buffer ---------------------------------------------------------
 
+
 def test_rl_zoo_continues_training_from_a_saved_model_and_buffer(tmp_path):
     folder = str(tmp_path)
     common = ["--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-f", folder, "--eval-freq", "-1", "--verbose", "0"]
@@ -60,8 +61,9 @@ def test_rl_zoo_continues_training_from_a_saved_model_and_buffer(tmp_path):
     saved.load_replay_buffer(run_dir / "replay_buffer.pkl", truncate_last_traj=False)
     stored = saved.replay_buffer.n_transitions
 
-    zoo.train([*common, "-n", "300", "--seed", "2", "-i", str(run_dir / "sb3_er-WindyCliff-v0.zip"),
-               "--save-replay-buffer"])  # rl-zoo loads replay_buffer.pkl beside the model, truncate_last_traj=True
+    zoo.train(
+        [*common, "-n", "300", "--seed", "2", "-i", str(run_dir / "sb3_er-WindyCliff-v0.zip"), "--save-replay-buffer"]
+    )  # rl-zoo loads replay_buffer.pkl beside the model, truncate_last_traj=True
     continued = ER.load(tmp_path / "er" / "sb3_er-WindyCliff-v0_2" / "sb3_er-WindyCliff-v0.zip")
     continued.load_replay_buffer(tmp_path / "er" / "sb3_er-WindyCliff-v0_2" / "replay_buffer.pkl")
     assert continued.replay_buffer.n_transitions == stored + 300  # the saved experience, then the new
@@ -85,6 +87,7 @@ def test_load_replay_buffer_has_sb3s_signature_and_meaning(tmp_path):
 
 # --- 3. a one-env SubprocVecEnv -------------------------------------------------------------------------------------
 
+
 def test_one_env_subproc_vec_env_trains_like_a_dummy_vec_env():
     def weights(vec_env_class):
         env = vec_env_class([lambda: gym.make("MountainCar-v0")])
@@ -96,6 +99,7 @@ def test_one_env_subproc_vec_env_trains_like_a_dummy_vec_env():
 
 
 # --- 4. an env reset ends the open trajectory ----------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("algo", [ER, ERSigma])
 def test_a_second_learn_does_not_glue_the_unfinished_episode_onto_the_next(algo):
@@ -157,6 +161,7 @@ def test_sarsa_lambda_starts_a_reset_episode_with_an_empty_trace():
 
 # --- 5. observation normalisation ----------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "make_env",
     [
@@ -177,11 +182,28 @@ def test_reward_only_normalisation_is_fine_and_set_env_is_checked_too():
 
 def test_rl_zoo_normalize_true_is_refused(tmp_path):
     with pytest.raises(ValueError, match="normalize: true"):
-        zoo.train(["--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-f", str(tmp_path), "--eval-freq", "-1",
-                   "--verbose", "0", "-n", "100", "--hyperparams", "normalize:True"])
+        zoo.train(
+            [
+                "--algo",
+                "er",
+                "--env",
+                "sb3_er/WindyCliff-v0",
+                "-f",
+                str(tmp_path),
+                "--eval-freq",
+                "-1",
+                "--verbose",
+                "0",
+                "-n",
+                "100",
+                "--hyperparams",
+                "normalize:True",
+            ]
+        )
 
 
 # --- 6. action spaces that start elsewhere than 0 ------------------------------------------------------------------
+
 
 @pytest.mark.parametrize(
     "action_space",
@@ -203,6 +225,7 @@ def test_actions_are_shifted_into_a_space_with_a_start(algo, action_space):
 
 # --- 7. callbacks read self.locals["actions"] ------------------------------------------------------------------------
 
+
 def test_callbacks_read_the_actions_sent_to_the_env():
     class Actions(BaseCallback):
         def __init__(self):
@@ -222,6 +245,7 @@ def test_callbacks_read_the_actions_sent_to_the_env():
 
 
 # --- 8. bounds finite only on paper --------------------------------------------------------------------------------
+
 
 class PaperBoundsEnv(CounterEnv):
     def __init__(self, bound):
@@ -244,6 +268,7 @@ def test_float32_max_bounds_count_as_unbounded(bound):
 
 
 # --- siblings: numbers the tile coder cannot represent, hyperparameters at load time --------------------------------
+
 
 def test_an_observation_beyond_the_tile_coordinates_is_named():
     model = ER("TileQ", CounterEnv(), **SMALL)

@@ -26,8 +26,12 @@ GAMMA, ALPHA = 0.98, 0.25
 def hand_values(variant, reward, q_state, q_next, n, n_tilings, shared, alpha=ALPHA, gamma=GAMMA, zeta=1.0):
     """Q_n(s, a) for n = 0..n by iterating the two-number recursion (Q(s, a), bootstrap value) by hand."""
     f = shared / n_tilings
-    sigma, residual = {"ER": (False, False), "ER-σ": (True, False), "residual ER": (False, True),
-                       "residual ER-σ": (True, True)}[variant]
+    sigma, residual = {
+        "ER": (False, False),
+        "ER-σ": (True, False),
+        "residual ER": (False, True),
+        "residual ER-σ": (True, True),
+    }[variant]
     z = zeta if residual else 0.0
     p = 1 - z * gamma * f
     q = (1 - z * gamma) if sigma else (f - z * gamma)
@@ -69,8 +73,11 @@ def test_figure_5_6_findings():
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.integers(2, 16).flatmap(lambda n: st.tuples(st.just(n), st.integers(1, n - 1))),
-       st.sampled_from(list(vg.VARIANTS)), st.sampled_from(["a", "b"]))
+@given(
+    st.integers(2, 16).flatmap(lambda n: st.tuples(st.just(n), st.integers(1, n - 1))),
+    st.sampled_from(list(vg.VARIANTS)),
+    st.sampled_from(["a", "b"]),
+)
 def test_any_overlap(tiling, variant, case):
     n_tilings, shared = tiling
     values = vg.CASES[case]
@@ -115,8 +122,14 @@ def test_replay_gain_of_a_self_loop_and_the_model_left_unchanged():
     model = sample.model
     features = model.policy.tile_coder.feature_indices(sample.state, 0)
     model.policy.theta_array[features] = 1.0
-    state = (model.policy.theta_array.copy(), model.replay_buffer.rewards.copy(), model.replay_rng.copy(),
-             model.action_rng.copy(), model.replay_updates, model.replay_phases)
+    state = (
+        model.policy.theta_array.copy(),
+        model.replay_buffer.rewards.copy(),
+        model.replay_rng.copy(),
+        model.action_rng.copy(),
+        model.replay_updates,
+        model.replay_phases,
+    )
     assert vg.replay_gain(model, n_phases=20, n_trajectories=1, skip=5) == pytest.approx(1 - ALPHA * (1 - GAMMA))
     np.testing.assert_array_equal(model.policy.theta_array, state[0])
     np.testing.assert_array_equal(model.replay_buffer.rewards, state[1])

@@ -72,8 +72,17 @@ def test_undiscounted_returns_need_a_horizon():
     assert RewardBounds((0.0, 1.0), None).returns(1.0) == (0.0, math.inf)
 
 
-@pytest.mark.parametrize("bad", [(1.0, 0.0), "step", {"terminal": (0, 1)}, {"step": (0, 1), "extra": 1},
-                                 {"step": (0, float("nan"))}, {"step": (0, 1), "horizon": 0}])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        (1.0, 0.0),
+        "step",
+        {"terminal": (0, 1)},
+        {"step": (0, 1), "extra": 1},
+        {"step": (0, float("nan"))},
+        {"step": (0, 1), "horizon": 0},
+    ],
+)
 def test_bad_reward_bounds_are_refused(bad):
     with pytest.raises(ValueError, match="reward_bounds"):
         RewardBounds.from_attribute(bad)
@@ -101,9 +110,14 @@ def _check_rollout(env, bounds, seed, steps):
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_declared_bounds_hold_in_random_rollouts(seed):
-    for env in (WindyCliffEnv(), PendulumSwingupEnv(), PendulumSwingupEnv(velocity_tile_width=3.3),
-                PendulumSwingupEnv(goal_velocity=None, reward_units="degrees", integrator="euler"),
-                SimplestWalkerEnv(), SimplestWalkerEnv(reward="literal", step_reward_cap=20.0)):
+    for env in (
+        WindyCliffEnv(),
+        PendulumSwingupEnv(),
+        PendulumSwingupEnv(velocity_tile_width=3.3),
+        PendulumSwingupEnv(goal_velocity=None, reward_units="degrees", integrator="euler"),
+        SimplestWalkerEnv(),
+        SimplestWalkerEnv(reward="literal", step_reward_cap=20.0),
+    ):
         _check_rollout(env, env.reward_bounds, seed, 300)
 
 
@@ -158,8 +172,10 @@ def _numpy_phase(coder, buffer, theta, sigma_on):
                 q = np.array([theta[coder.feature_indices(s_next, b)].sum() for b in range(coder.n_actions)])
                 plain = q.max()
                 if sigma_on:
-                    w = np.array([buffer.visits[coder.feature_indices(s_next, b)].sum() for b in range(coder.n_actions)],
-                                 dtype=float)
+                    w = np.array(
+                        [buffer.visits[coder.feature_indices(s_next, b)].sum() for b in range(coder.n_actions)],
+                        dtype=float,
+                    )
                     if w.sum() > 0:
                         visited = w > 0
                         sigma = 0.5 * (q.sum() / w.sum() + (q[visited] / w[visited]).min())
@@ -190,10 +206,29 @@ def test_kernel_figures_equal_a_numpy_recomputation(sigma):
     for j in range(n_closed):
         arguments = list(buffer.replay_arguments())
         arguments[8], arguments[9] = (buffer.oldest_trajectory + j) % buffer.capacity, 1  # oldest, closed count
-        kernels.replay_phase(theta, buffer.visits, *arguments, coder.stride, coder.action_columns,
-                             coder.columns_are_actions, 1, kernels.ORDER_REVERSED, kernels.TARGET_SARSA, sigma, 0.0,
-                             False, ALPHA / coder.n_tilings, GAMMA, 0.0, replay_rng, kernels.new_rng_state(0, 0),
-                             np.zeros(3), np.zeros(3), *kernels.ZERO_INITIAL, watch)
+        kernels.replay_phase(
+            theta,
+            buffer.visits,
+            *arguments,
+            coder.stride,
+            coder.action_columns,
+            coder.columns_are_actions,
+            1,
+            kernels.ORDER_REVERSED,
+            kernels.TARGET_SARSA,
+            sigma,
+            0.0,
+            False,
+            ALPHA / coder.n_tilings,
+            GAMMA,
+            0.0,
+            replay_rng,
+            kernels.new_rng_state(0, 0),
+            np.zeros(3),
+            np.zeros(3),
+            *kernels.ZERO_INITIAL,
+            watch,
+        )
     assert watch[kernels.WATCH_TARGET_MIN] == pytest.approx(expected_targets.min())
     assert watch[kernels.WATCH_TARGET_MAX] == pytest.approx(expected_targets.max())
     assert watch[kernels.WATCH_Q_MIN] == pytest.approx(expected_values.min())
@@ -201,8 +236,9 @@ def test_kernel_figures_equal_a_numpy_recomputation(sigma):
     outside = np.concatenate([expected_targets, expected_values])
     assert watch[kernels.WATCH_OUT_OF_RANGE] == np.count_nonzero((outside < low) | (outside > high))
     assert watch[kernels.WATCH_UPDATES] == len(expected_targets)
-    first = np.flatnonzero((expected_targets < low) | (expected_targets > high)
-                           | (expected_values < low) | (expected_values > high))
+    first = np.flatnonzero(
+        (expected_targets < low) | (expected_targets > high) | (expected_values < low) | (expected_values > high)
+    )
     assert watch[kernels.WATCH_FIRST_UPDATE] == (first[0] if first.size else -1)
     if sigma >= 0:
         assert watch[kernels.WATCH_SHIFT_COUNT] == len(expected_shifts)
@@ -220,9 +256,24 @@ def test_the_first_update_outside_is_the_one_flagged():
     statuses = []
     for reward in (5.0, 9.0, 12.0, 20.0):
         _, _, status = kernels.sarsa_lambda_step(
-            theta, *trace, coder.slots(np.array([0.5])), 0, reward, True, np.array([3.5]),
-            np.zeros(1, np.int64), np.zeros(1), *coder.kernel_arguments, 0.1, GAMMA, 0.0, 0.5, 0.0,
-            kernels.new_rng_state(0), watch)
+            theta,
+            *trace,
+            coder.slots(np.array([0.5])),
+            0,
+            reward,
+            True,
+            np.array([3.5]),
+            np.zeros(1, np.int64),
+            np.zeros(1),
+            *coder.kernel_arguments,
+            0.1,
+            GAMMA,
+            0.0,
+            0.5,
+            0.0,
+            kernels.new_rng_state(0),
+            watch,
+        )
         statuses.append(status)
     assert statuses == [kernels.STATUS_OK, kernels.STATUS_OK, kernels.STATUS_OUT_OF_BOUNDS, kernels.STATUS_OK]
     assert watch[kernels.WATCH_FIRST_UPDATE] == 2 and watch[kernels.WATCH_FIRST_VALUE] == 12.0
@@ -236,8 +287,16 @@ def _pendulum_er_sigma(**kwargs):
     """ER-sigma on the pendulum's earlier default reading (velocity tiles 3.3 rad/s, the goal |theta| < 0.1 rad and
     |theta'| < 1 rad/s), where its values turn positive from rewards <= 0."""
     env = gym.make("sb3_er/PendulumSwingup-v0", velocity_tile_width=3.3, goal_angle=0.1, goal_velocity=1.0)
-    return ERSigma("TileQ", env, learning_rate=0.2, gamma=0.98, exploration_rate=0.1,
-                   replays_per_stored_trajectory=10, seed=0, **kwargs)
+    return ERSigma(
+        "TileQ",
+        env,
+        learning_rate=0.2,
+        gamma=0.98,
+        exploration_rate=0.1,
+        replays_per_stored_trajectory=10,
+        seed=0,
+        **kwargs,
+    )
 
 
 @pytest.mark.slow
@@ -265,12 +324,20 @@ def test_raise_stops_at_the_phase_and_ignore_only_counts():
     assert quiet.value_excursion is not None and quiet.values_out_of_range > 0
 
 
-@pytest.mark.parametrize("make", [
-    lambda: SarsaLambda("TileQ", "sb3_er/WindyCliff-v0", learning_rate=0.25, gamma=0.98, seed=1),
-    lambda: SarsaLambda("TileQ", gym.make("sb3_er/PendulumSwingup-v0", velocity_tile_width=0.33), gamma=0.98,
-                        exploration_rate=0.1, seed=1),
-    lambda: ER("TileQ", "sb3_er/WindyCliff-v0", learning_rate=0.25, gamma=0.98, n_replays=2, seed=1),
-])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: SarsaLambda("TileQ", "sb3_er/WindyCliff-v0", learning_rate=0.25, gamma=0.98, seed=1),
+        lambda: SarsaLambda(
+            "TileQ",
+            gym.make("sb3_er/PendulumSwingup-v0", velocity_tile_width=0.33),
+            gamma=0.98,
+            exploration_rate=0.1,
+            seed=1,
+        ),
+        lambda: ER("TileQ", "sb3_er/WindyCliff-v0", learning_rate=0.25, gamma=0.98, n_replays=2, seed=1),
+    ],
+)
 def test_sane_runs_are_never_flagged(make):
     """Sarsa(lambda), the control arm, on the grid world and on the pendulum at its printed tiles; ER with light
     replay. (ER with 10 replays per stored trajectory on the grid world does leave the bounds, barely: -55.5 where no
@@ -284,14 +351,17 @@ def test_sane_runs_are_never_flagged(make):
     assert low < 0.0 <= high
 
 
-@pytest.mark.parametrize("make", [
-    lambda **k: SarsaLambda("TileQ", "sb3_er/WindyCliff-v0", seed=2, **k),
-    lambda **k: ERSigma("TileQ", "sb3_er/WindyCliff-v0", seed=2, replays_per_stored_trajectory=5, **k),
-    lambda **k: ER("TileQ", "sb3_er/WindyCliff-v0", seed=2, replay_order="prioritized", **k),
-    lambda **k: Dyna("TileQ", "sb3_er/WindyCliff-v0", seed=2, planning_steps=5, **k),
-    lambda **k: FQI("TileQ", "sb3_er/WindyCliff-v0", seed=2, fit_every=3, n_iterations=3, **k),
-    lambda **k: LSPI("TileQ", "sb3_er/WindyCliff-v0", seed=2, fit_every=3, n_iterations=3, **k),
-])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda **k: SarsaLambda("TileQ", "sb3_er/WindyCliff-v0", seed=2, **k),
+        lambda **k: ERSigma("TileQ", "sb3_er/WindyCliff-v0", seed=2, replays_per_stored_trajectory=5, **k),
+        lambda **k: ER("TileQ", "sb3_er/WindyCliff-v0", seed=2, replay_order="prioritized", **k),
+        lambda **k: Dyna("TileQ", "sb3_er/WindyCliff-v0", seed=2, planning_steps=5, **k),
+        lambda **k: FQI("TileQ", "sb3_er/WindyCliff-v0", seed=2, fit_every=3, n_iterations=3, **k),
+        lambda **k: LSPI("TileQ", "sb3_er/WindyCliff-v0", seed=2, fit_every=3, n_iterations=3, **k),
+    ],
+)
 def test_results_are_bit_identical_with_the_watch_on_and_off(make):
     on, off = make(), make(value_watch=False)
     on.learn(1500)
@@ -316,11 +386,22 @@ def test_the_watch_is_logged():
 
     model.set_logger(Logger(None, [Capture()]))
     model.learn(800)
-    for key in ("train/q_min", "train/q_max", "train/target_min", "train/target_max", "train/q_out_of_range",
-                "train/sigma_shift", "train/sigma_raised", "train/sigma_lowered", "train/value_bound_low",
-                "train/value_bound_high"):
+    for key in (
+        "train/q_min",
+        "train/q_max",
+        "train/target_min",
+        "train/target_max",
+        "train/q_out_of_range",
+        "train/sigma_shift",
+        "train/sigma_raised",
+        "train/sigma_lowered",
+        "train/value_bound_low",
+        "train/value_bound_high",
+    ):
         assert key in seen, key
-    assert seen["train/value_bound_low"] == pytest.approx(-100.0) and seen["train/value_bound_high"] == 50.0  # gamma 0.99
+    assert (
+        seen["train/value_bound_low"] == pytest.approx(-100.0) and seen["train/value_bound_high"] == 50.0
+    )  # gamma 0.99
     assert seen["train/q_min"] <= seen["train/q_max"]
     assert 0.0 <= seen["train/sigma_raised"] + seen["train/sigma_lowered"] <= 1.0
 
@@ -356,12 +437,15 @@ def test_the_first_excursion_survives_save_and_load(tmp_path):
     assert loaded.value_bounds == pytest.approx((-100.0, 50.0))  # gamma 0.99: -1 / 0.01
 
 
-@pytest.mark.parametrize("bounds, value, margin, share", [
-    ((-100.0, 0.0), 7.0, "5", "5 % of their width"),
-    ((-math.inf, 0.0), 0.44, "0.05", "5 % of the size of their finite end, at least 0.05"),
-    ((-math.inf, -40.0), -1.0, "2", "5 % of the size of their finite end, at least 0.05"),
-    ((-20_000.0, 3000.0), 4165.5, "1150", "5 % of their width"),  # no exponent: the quickstart's walker
-])
+@pytest.mark.parametrize(
+    "bounds, value, margin, share",
+    [
+        ((-100.0, 0.0), 7.0, "5", "5 % of their width"),
+        ((-math.inf, 0.0), 0.44, "0.05", "5 % of the size of their finite end, at least 0.05"),
+        ((-math.inf, -40.0), -1.0, "2", "5 % of the size of their finite end, at least 0.05"),
+        ((-20_000.0, 3000.0), 4165.5, "1150", "5 % of their width"),  # no exponent: the quickstart's walker
+    ],
+)
 def test_the_warning_states_the_margin_it_applied(bounds, value, margin, share):
     """The margin beyond which a value is flagged, as the message states it, is the one the kernels apply
     (value_bounds.widened): 5 % of a finite width; 5 % of the finite end's size, at least 0.05, for a half-infinite

@@ -61,7 +61,10 @@ def test_git_state_of_a_checkout_a_dirty_tree_and_no_checkout(tmp_path):
     (repository / "results").mkdir()
     (repository / "results" / "seed_0.csv").write_text("t,return\n")
     assert records.git_state(repository, ["package"]) == {
-        "git_commit": commit, "git_dirty": False, "git_diff_sha256": None}
+        "git_commit": commit,
+        "git_dirty": False,
+        "git_diff_sha256": None,
+    }
     assert records.git_state(repository)["git_dirty"] is True  # the whole tree: the results are a change
     (repository / "package" / "module.py").write_text("x = 3\n")
     assert records.git_state(repository, ["package"])["git_dirty"] is True
@@ -91,7 +94,9 @@ def test_record_holds_version_commit_and_resolved_configuration(tmp_path):
     entry = yaml.safe_load(zoo.config_path("er").read_text())["sb3_er/PendulumSwingup-v0"]
     config = record["config"]
     assert config["algorithm_kwargs"] == {
-        "policy": "TileQ", "seed": 3, **{key: value for key, value in entry.items() if key not in RUN_LEVEL_KEYS}
+        "policy": "TileQ",
+        "seed": 3,
+        **{key: value for key, value in entry.items() if key not in RUN_LEVEL_KEYS},
     }
     assert (config["algorithm"], config["algorithm_class"]) == ("er", "sb3_er.er.ER")
     assert (config["env_id"], config["env_kwargs"]) == ("sb3_er/PendulumSwingup-v0", {})
@@ -131,8 +136,21 @@ def test_resume_refuses_a_changed_commit_unless_mixed_versions_are_allowed(tmp_p
     with pytest.raises(MixedVersionsError, match="er/seed_0: code_sha256 aaaaaaaaaa -> bbbbbbbbbb"):
         reproduce("pendulum", n_seeds=2, out_dir=tmp_path, **FAST)
 
-    arguments = ["reproduce", "pendulum", "--seeds", "2", "--algos", "er", "--budget", "1", "--jobs", "1",
-                 "--no-progress", "--out", str(tmp_path)]
+    arguments = [
+        "reproduce",
+        "pendulum",
+        "--seeds",
+        "2",
+        "--algos",
+        "er",
+        "--budget",
+        "1",
+        "--jobs",
+        "1",
+        "--no-progress",
+        "--out",
+        str(tmp_path),
+    ]
     with pytest.raises(SystemExit) as exit_info:
         main(arguments)
     assert exit_info.value.code == 2
@@ -180,8 +198,11 @@ def test_a_run_without_a_record_is_moved_aside_and_done_again(tmp_path):
     csv_path = run_csv_path(tmp_path, "er", 0)
     written = csv_path.read_bytes()
     csv_path.with_suffix(".json").unlink()  # a driver stopped between the CSV and its record, or a pre-record run
-    with pytest.warns(DamagedRunWarning, match=r"seed_0.csv has no version record .*moved aside as "
-                                               r"seed_0.csv.damaged-\d{8}T\d{6}Z and done again"):
+    with pytest.warns(
+        DamagedRunWarning,
+        match=r"seed_0.csv has no version record .*moved aside as "
+        r"seed_0.csv.damaged-\d{8}T\d{6}Z and done again",
+    ):
         result = reproduce("pendulum", n_seeds=1, out_dir=tmp_path, **FAST)
     assert (result.runs_done, result.runs_skipped) == (1, 0)
     (kept,) = csv_path.parent.glob("seed_0.csv.damaged-*")
@@ -204,13 +225,25 @@ def test_a_run_made_by_other_code_than_the_drivers_is_not_written(tmp_path, monk
 
 
 def test_compare_records_names_each_differing_field():
-    current = {"sb3_er_version": "0.2.0", "git_commit": "c" * 40, "config": {"budget": 5.0, "protocol": {"x": 1}},
-               "dependencies": {"numpy": "2.1"}, "python": "3.11.7"}
-    recorded = {**current, "sb3_er_version": "0.1.0", "config": {"budget": 4.0, "protocol": {"x": 1, "y": 2}},
-                "dependencies": {"numpy": "2.0"}}
+    current = {
+        "sb3_er_version": "0.2.0",
+        "git_commit": "c" * 40,
+        "config": {"budget": 5.0, "protocol": {"x": 1}},
+        "dependencies": {"numpy": "2.1"},
+        "python": "3.11.7",
+    }
+    recorded = {
+        **current,
+        "sb3_er_version": "0.1.0",
+        "config": {"budget": 4.0, "protocol": {"x": 1, "y": 2}},
+        "dependencies": {"numpy": "2.0"},
+    }
     refusals, cautions = records.compare_records(recorded, current)
-    assert refusals == ['sb3_er_version "0.1.0" -> "0.2.0"', "config.budget 4.0 -> 5.0",
-                        'config.protocol.y 2 -> "(absent)"']
+    assert refusals == [
+        'sb3_er_version "0.1.0" -> "0.2.0"',
+        "config.budget 4.0 -> 5.0",
+        'config.protocol.y 2 -> "(absent)"',
+    ]
     assert cautions == ['dependencies.numpy "2.0" -> "2.1"']
     assert records.compare_records(current, current) == ([], [])
 
@@ -236,11 +269,20 @@ def test_measured_runs_are_not_git_ignored(out_dir):
 
 
 def test_compact_runs_joins_seeds_into_ranges():
-    runs = ["pendulum/er/seed_0", "pendulum/er/seed_1", "pendulum/er/seed_2", "pendulum/er/seed_5", "lspi/seed_3",
-            "pendulum/er/seed_6", "summary"]
+    runs = [
+        "pendulum/er/seed_0",
+        "pendulum/er/seed_1",
+        "pendulum/er/seed_2",
+        "pendulum/er/seed_5",
+        "lspi/seed_3",
+        "pendulum/er/seed_6",
+        "summary",
+    ]
     assert records.compact_runs(runs) == "pendulum/er/seed_0-2, 5-6, lspi/seed_3, summary"
     assert records.grouped({"er/seed_0": ["a"], "er/seed_1": ["a"], "dyna/seed_0": ["b"], "fqi/seed_0": []}) == [
-        "  er/seed_0-1: a", "  dyna/seed_0: b"]
+        "  er/seed_0-1: a",
+        "  dyna/seed_0: b",
+    ]
 
 
 def _expand(compact):
@@ -255,8 +297,13 @@ def _expand(compact):
     return keys
 
 
-@given(st.lists(st.tuples(st.sampled_from(["er/", "pendulum/er_sigma/", "gridworld/lspi/"]),
-                          st.integers(0, 40)), min_size=1, max_size=60))
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["er/", "pendulum/er_sigma/", "gridworld/lspi/"]), st.integers(0, 40)),
+        min_size=1,
+        max_size=60,
+    )
+)
 def test_compact_runs_names_every_run_and_no_other(pairs):
     runs = [f"{prefix}seed_{seed}" for prefix, seed in pairs]
     compact = records.compact_runs(runs)

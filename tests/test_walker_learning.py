@@ -20,6 +20,7 @@ from sb3_er.experiments.gait import gait_trace, plot_gait, save_walker_gif
 from sb3_er_envs.compass_walker import TEST_EPISODE_STEPS, CompassWalkerEnv
 from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT, SimplestWalkerEnv
 
+
 class StopAfterEpisodes(BaseCallback):
     """Stops learn() once ``n_episodes`` episodes have ended, after their last transition was learned."""
 

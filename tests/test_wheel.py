@@ -51,18 +51,30 @@ def venv(tmp_path_factory) -> Path:
         else:
             shutil.copy2(ROOT / name, source / name)
     dist = work / "dist"
-    subprocess.run([sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(dist), str(source)],
-                   check=True, capture_output=True, timeout=600)
+    subprocess.run(
+        [sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(dist), str(source)],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
     (wheel,) = dist.glob("sb3_er-*.whl")
     env = work / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(env)], check=True, capture_output=True, timeout=600)
     python = env / "bin" / "python"
-    purelib = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-                             check=True, capture_output=True, text=True).stdout.strip()
+    purelib = subprocess.run(
+        [str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
     ours = {sysconfig.get_path("purelib"), sysconfig.get_path("platlib"), *site.getsitepackages()}
     Path(purelib, "zz_dependencies_of_the_test_interpreter.pth").write_text("\n".join(sorted(ours)) + "\n")
-    subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--no-deps", "--no-index", str(wheel)],
-                   check=True, capture_output=True, timeout=600)
+    subprocess.run(
+        [str(python), "-m", "pip", "install", "--quiet", "--no-deps", "--no-index", str(wheel)],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
     shutil.rmtree(source)  # nothing of the checkout is left to import from
     return env
 
@@ -106,14 +118,33 @@ def test_the_readme_quickstart_runs_from_the_wheel(venv, tmp_path):
 
 
 def test_rl_zoo_training_runs_from_the_wheel(venv, tmp_path):
-    run(venv, ["sb3-er", "train", "--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-n", "500", "--seed", "0",
-               "--eval-freq", "-1"], tmp_path)
+    run(
+        venv,
+        [
+            "sb3-er",
+            "train",
+            "--algo",
+            "er",
+            "--env",
+            "sb3_er/WindyCliff-v0",
+            "-n",
+            "500",
+            "--seed",
+            "0",
+            "--eval-freq",
+            "-1",
+        ],
+        tmp_path,
+    )
     assert list((tmp_path / "logs" / "er").glob("sb3_er-WindyCliff-v0_*/sb3_er-WindyCliff-v0.zip"))
 
 
 def test_reproduce_runs_from_the_wheel(venv, tmp_path):
-    result = run(venv, ["sb3-er", "reproduce", "gridworld", "--seeds", "1", "--budget", "3", "--no-progress",
-                        "--jobs", "1"], tmp_path)
+    result = run(
+        venv,
+        ["sb3-er", "reproduce", "gridworld", "--seeds", "1", "--budget", "3", "--no-progress", "--jobs", "1"],
+        tmp_path,
+    )
     assert re.search(r"^5 runs done", result.stdout, flags=re.MULTILINE)  # the five algorithms, one seed each
     out = tmp_path / "results" / "gridworld"
     assert (out / "summary.md").is_file()

@@ -75,8 +75,24 @@ def test_unknown_algorithm_or_env_is_named():
 
 def test_train_then_enjoy_round_trip(tmp_path, capsys):
     folder = str(tmp_path)
-    zoo.train(["--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-n", "1500", "-f", folder, "--seed", "1",
-               "--eval-freq", "-1", "--verbose", "0"])
+    zoo.train(
+        [
+            "--algo",
+            "er",
+            "--env",
+            "sb3_er/WindyCliff-v0",
+            "-n",
+            "1500",
+            "-f",
+            folder,
+            "--seed",
+            "1",
+            "--eval-freq",
+            "-1",
+            "--verbose",
+            "0",
+        ]
+    )
     run_dir = tmp_path / "er" / "sb3_er-WindyCliff-v0_1"
     model = ER.load(run_dir / "sb3_er-WindyCliff-v0.zip")
     assert model.num_timesteps == 1500 and model.learning_rate(1.0) == 0.25  # rl-zoo passes a constant schedule
@@ -87,9 +103,33 @@ def test_train_then_enjoy_round_trip(tmp_path, capsys):
 
 
 def test_optuna_study_with_two_trials(tmp_path):
-    zoo.optimize(["--algo", "er_sigma", "--env", "sb3_er/WindyCliff-v0", "-n", "300", "--n-trials", "2",
-                  "--n-evaluations", "1", "--eval-episodes", "2", "-f", str(tmp_path), "--no-optim-plots",
-                  "--sampler", "random", "--pruner", "none", "--seed", "0", "--verbose", "0"])
+    zoo.optimize(
+        [
+            "--algo",
+            "er_sigma",
+            "--env",
+            "sb3_er/WindyCliff-v0",
+            "-n",
+            "300",
+            "--n-trials",
+            "2",
+            "--n-evaluations",
+            "1",
+            "--eval-episodes",
+            "2",
+            "-f",
+            str(tmp_path),
+            "--no-optim-plots",
+            "--sampler",
+            "random",
+            "--pruner",
+            "none",
+            "--seed",
+            "0",
+            "--verbose",
+            "0",
+        ]
+    )
     (report,) = (tmp_path / "er_sigma").glob("report_*.csv")
     trials = pd.read_csv(report)
     assert len(trials) == 2
@@ -138,11 +178,42 @@ def test_two_optimize_workers_share_one_sqlite_study(tmp_path):
     optuna.create_study(storage=storage, study_name="windy-er", direction="maximize")
     workers = [
         subprocess.Popen(
-            [sys.executable, "-m", "sb3_er.cli", "optimize", "--algo", "er", "--env", "sb3_er/WindyCliff-v0",
-             "--n-trials", "2", "--n-timesteps", "500", "--storage", storage, "--study-name", "windy-er",
-             "-f", str(tmp_path / f"worker_{index}"), "--n-evaluations", "1", "--eval-episodes", "2",
-             "--sampler", "random", "--pruner", "none", "--seed", str(index), "--no-optim-plots", "--verbose", "0"],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            [
+                sys.executable,
+                "-m",
+                "sb3_er.cli",
+                "optimize",
+                "--algo",
+                "er",
+                "--env",
+                "sb3_er/WindyCliff-v0",
+                "--n-trials",
+                "2",
+                "--n-timesteps",
+                "500",
+                "--storage",
+                storage,
+                "--study-name",
+                "windy-er",
+                "-f",
+                str(tmp_path / f"worker_{index}"),
+                "--n-evaluations",
+                "1",
+                "--eval-episodes",
+                "2",
+                "--sampler",
+                "random",
+                "--pruner",
+                "none",
+                "--seed",
+                str(index),
+                "--no-optim-plots",
+                "--verbose",
+                "0",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
         )
         for index in range(2)
     ]
@@ -162,9 +233,27 @@ def test_plain_rl_zoo_trains_its_own_dqn_on_our_environments(tmp_path, monkeypat
 
     monkeypatch.setattr(
         "sys.argv",
-        ["rl_zoo3.train", "--algo", "dqn", "--env", "sb3_er/SimplestWalker-v0", "--gym-packages", "sb3_er_envs",
-         "-conf", str(importlib.resources.files(zoo.CONFIG_PACKAGE) / "dqn.yml"), "-n", "300", "-f", str(tmp_path), "--eval-freq", "-1",
-         "--seed", "0", "--verbose", "0"],
+        [
+            "rl_zoo3.train",
+            "--algo",
+            "dqn",
+            "--env",
+            "sb3_er/SimplestWalker-v0",
+            "--gym-packages",
+            "sb3_er_envs",
+            "-conf",
+            str(importlib.resources.files(zoo.CONFIG_PACKAGE) / "dqn.yml"),
+            "-n",
+            "300",
+            "-f",
+            str(tmp_path),
+            "--eval-freq",
+            "-1",
+            "--seed",
+            "0",
+            "--verbose",
+            "0",
+        ],
     )
     zoo_train()
     assert (tmp_path / "dqn" / "sb3_er-SimplestWalker-v0_1" / "sb3_er-SimplestWalker-v0.zip").is_file()

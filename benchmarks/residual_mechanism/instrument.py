@@ -21,8 +21,9 @@ def _overlap(idx_a: np.ndarray, idx_b: np.ndarray) -> int:
     return int((idx_a[:, None] == idx_b[None, :]).sum())
 
 
-def numpy_update(theta, slots_s, a, r, slots_s1, terminal, stride, n_actions, zeta, next_action_mode, step, gamma,
-                 epsilon, rng):
+def numpy_update(
+    theta, slots_s, a, r, slots_s1, terminal, stride, n_actions, zeta, next_action_mode, step, gamma, epsilon, rng
+):
     """One replayed (residual) ER update on theta in place, as kernels.replay_update; returns a dict of measurements."""
     idx_sa = slots_s * stride + a
     q_sa = theta[idx_sa].sum()
@@ -75,8 +76,24 @@ def instrumented_phase(model, n_trajectories: int, seed: int, max_updates: int |
     cap = buffer.capacity
     n_closed = buffer.n_trajectories
     assert n_closed > 0
-    out = {key: [] for key in ("delta", "terminal", "a_k", "a_eps", "a_stored", "a_res", "dq_sa", "dq1", "overlap",
-                               "greedy_before", "greedy_after", "q1_before", "r")}
+    out = {
+        key: []
+        for key in (
+            "delta",
+            "terminal",
+            "a_k",
+            "a_eps",
+            "a_stored",
+            "a_res",
+            "dq_sa",
+            "dq1",
+            "overlap",
+            "greedy_before",
+            "greedy_after",
+            "q1_before",
+            "r",
+        )
+    }
     n = 0
     for _ in range(n_trajectories):
         j = (buffer.oldest_trajectory + int(picks.integers(n_closed))) % cap
@@ -87,14 +104,39 @@ def instrumented_phase(model, n_trajectories: int, seed: int, max_updates: int |
             slots_s1 = buffer.trajectory_next_slots[j] if last else buffer.slots[(p + 1) % cap]
             terminal = bool(buffer.trajectory_terminated[j]) if last else False
             a_stored = -1 if last else int(buffer.actions[(p + 1) % cap])
-            rec = numpy_update(theta, buffer.slots[p], int(buffer.actions[p]), float(buffer.rewards[p]), slots_s1,
-                               terminal, stride, n_actions, zeta, mode, step, gamma, epsilon, rng)
+            rec = numpy_update(
+                theta,
+                buffer.slots[p],
+                int(buffer.actions[p]),
+                float(buffer.rewards[p]),
+                slots_s1,
+                terminal,
+                stride,
+                n_actions,
+                zeta,
+                mode,
+                step,
+                gamma,
+                epsilon,
+                rng,
+            )
             if terminal:
                 continue  # no s_{k+1} term; not counted
             out["a_stored"].append(a_stored)
             out["r"].append(float(buffer.rewards[p]))
-            for key in ("delta", "terminal", "a_k", "a_eps", "a_res", "dq_sa", "dq1", "overlap", "greedy_before",
-                        "greedy_after", "q1_before"):
+            for key in (
+                "delta",
+                "terminal",
+                "a_k",
+                "a_eps",
+                "a_res",
+                "dq_sa",
+                "dq1",
+                "overlap",
+                "greedy_before",
+                "greedy_after",
+                "q1_before",
+            ):
                 out[key].append(rec[key])
             n += 1
             if max_updates is not None and n >= max_updates:
@@ -129,14 +171,49 @@ def verify_against_kernel(model, n_updates: int = 300, seed: int = 7) -> float:
         last = t == length - 1
         slots_s1 = buffer.trajectory_next_slots[j] if last else buffer.slots[p + 1]
         terminal = bool(buffer.trajectory_terminated[j]) if last else False
-        numpy_update(theta_np, buffer.slots[p], int(buffer.actions[p]), float(buffer.rewards[p]), slots_s1, terminal,
-                     coder.stride, coder.n_actions, zeta, model.residual_action, step, model.gamma,
-                     model.exploration_rate, rng_np)
-        kernels.replay_update(theta_k, buffer.visits, buffer.slots, buffer.actions, buffer.rewards, p,
-                              np.ascontiguousarray(slots_s1), terminal, coder.stride, coder.action_columns,
-                              coder.columns_are_actions, kernels.TARGET_SARSA, kernels.SIGMA_NONE, zeta,
-                              model.residual_action == "next", step, model.gamma, model.exploration_rate, rng_k, q, w,
-                              0.0, 0.0, np.uint64(0), kernels.NO_WATCH)
+        numpy_update(
+            theta_np,
+            buffer.slots[p],
+            int(buffer.actions[p]),
+            float(buffer.rewards[p]),
+            slots_s1,
+            terminal,
+            coder.stride,
+            coder.n_actions,
+            zeta,
+            model.residual_action,
+            step,
+            model.gamma,
+            model.exploration_rate,
+            rng_np,
+        )
+        kernels.replay_update(
+            theta_k,
+            buffer.visits,
+            buffer.slots,
+            buffer.actions,
+            buffer.rewards,
+            p,
+            np.ascontiguousarray(slots_s1),
+            terminal,
+            coder.stride,
+            coder.action_columns,
+            coder.columns_are_actions,
+            kernels.TARGET_SARSA,
+            kernels.SIGMA_NONE,
+            zeta,
+            model.residual_action == "next",
+            step,
+            model.gamma,
+            model.exploration_rate,
+            rng_k,
+            q,
+            w,
+            0.0,
+            0.0,
+            np.uint64(0),
+            kernels.NO_WATCH,
+        )
         worst = max(worst, float(np.abs(theta_np - theta_k).max()))
         assert (rng_np == rng_k).all()
     return worst
@@ -192,14 +269,18 @@ def summarize(res: dict) -> dict:
         res_term = -(res["step"] * delta) * zeta * gamma * n  # change of Q(s', a_res) by the residual term alone
         raises = res_term > 0
         not_taken_next = has_st & (a_res != a_st)
-        out.update({
-            "frac_resterm_raises_Q(s',a_res)": float(raises.mean()),
-            "frac_resterm_raises_non_taken_next": float((raises & not_taken_next).sum() / has_st.sum()),
-            "frac_net_raise_Q(s',a_res)": float((dq1[idx, a_res] > 0).mean()),
-            "frac_net_raise_non_taken_next": float(((dq1[idx, a_res] > 0) & not_taken_next).sum() / has_st.sum()),
-            "frac_plain_raise_Q(s',a_res)": float((plain_dq1[idx, a_res] > 0).mean()),
-            "frac_a_res_ne_greedy_before": float((a_res != res["greedy_before"]).mean()),
-            "frac_greedy_flips_to_a_res": float(((res["greedy_before"] != a_res) & (res["greedy_after"] == a_res)).mean()),
-            "mean_resterm_abs": float(np.abs(res_term).mean()),
-        })
+        out.update(
+            {
+                "frac_resterm_raises_Q(s',a_res)": float(raises.mean()),
+                "frac_resterm_raises_non_taken_next": float((raises & not_taken_next).sum() / has_st.sum()),
+                "frac_net_raise_Q(s',a_res)": float((dq1[idx, a_res] > 0).mean()),
+                "frac_net_raise_non_taken_next": float(((dq1[idx, a_res] > 0) & not_taken_next).sum() / has_st.sum()),
+                "frac_plain_raise_Q(s',a_res)": float((plain_dq1[idx, a_res] > 0).mean()),
+                "frac_a_res_ne_greedy_before": float((a_res != res["greedy_before"]).mean()),
+                "frac_greedy_flips_to_a_res": float(
+                    ((res["greedy_before"] != a_res) & (res["greedy_after"] == a_res)).mean()
+                ),
+                "mean_resterm_abs": float(np.abs(res_term).mean()),
+            }
+        )
     return out

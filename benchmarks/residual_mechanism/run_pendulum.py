@@ -92,15 +92,26 @@ def run(variant: str, seed: int, episodes: int, out: Path, instrument: bool = Tr
     frame = pd.DataFrame(callback.records, columns=list(callback.COLUMNS))
     frame["diverged"] = diverged
     wall = time.perf_counter() - t0
-    meta = {"variant": variant, "seed": seed, "kwargs": kwargs, "wall_s": wall, "diverged": diverged,
-            "replay_updates": model.replay_updates, "env": {k: getattr(env.unwrapped, k) for k in (
-                "inertia_about", "velocity_tile_width", "actuation", "max_torque", "terminate_at_goal")}}
+    meta = {
+        "variant": variant,
+        "seed": seed,
+        "kwargs": kwargs,
+        "wall_s": wall,
+        "diverged": diverged,
+        "replay_updates": model.replay_updates,
+        "env": {
+            k: getattr(env.unwrapped, k)
+            for k in ("inertia_about", "velocity_tile_width", "actuation", "max_torque", "terminate_at_goal")
+        },
+    }
     files.write_atomically(csv.with_suffix(".json"), json.dumps(meta, default=str, indent=1))
     if model.measurements:
         files.write_csv(csv.with_name(f"seed_{seed}_mechanism.csv"), pd.DataFrame(model.measurements))
     files.write_csv(csv, frame)  # last: a run whose CSV exists is finished
-    print(f"{variant} seed {seed}: {wall:.0f} s, diverged={diverged}, last10={frame['return'].tail(10).mean():.0f}",
-          flush=True)
+    print(
+        f"{variant} seed {seed}: {wall:.0f} s, diverged={diverged}, last10={frame['return'].tail(10).mean():.0f}",
+        flush=True,
+    )
     env.close()
 
 

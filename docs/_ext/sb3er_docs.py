@@ -56,27 +56,35 @@ class ThesisResult:
 
 # The folders that reproduce a finding of the thesis (each gets a verdict row); every other folder gets a page too.
 THESIS_RESULTS = {
-    "gridworld": ThesisResult("Windy cliff grid world", "Section 5.1, Figures 5.2-5.7, Tables 5.1-5.2",
-                              "sb3-er reproduce gridworld --seeds 20"),
+    "gridworld": ThesisResult(
+        "Windy cliff grid world",
+        "Section 5.1, Figures 5.2-5.7, Tables 5.1-5.2",
+        "sb3-er reproduce gridworld --seeds 20",
+    ),
     "table_6_1": ThesisResult("Inverted pendulum", "Table 6.1, Figure 6.1a", "sb3-er reproduce pendulum --seeds 20"),
     "table_6_1_earlier_default": ThesisResult(
-        "Inverted pendulum, earlier default reading", "Table 6.1",
+        "Inverted pendulum, earlier default reading",
+        "Table 6.1",
         "sb3-er reproduce pendulum --seeds 20 --env-kwargs velocity_tile_width:3.3 goal_angle:0.1 goal_velocity:1.0",
-        default_reading=False),
-    "table_6_2": ThesisResult("Simplest walker", "Table 6.2, Figures 6.1b and 6.2a",
-                              "sb3-er reproduce walker --seeds 20"),
+        default_reading=False,
+    ),
+    "table_6_2": ThesisResult(
+        "Simplest walker", "Table 6.2, Figures 6.1b and 6.2a", "sb3-er reproduce walker --seeds 20"
+    ),
     "table_6_2_earlier_default": ThesisResult(
-        "Simplest walker, earlier default reading", "Table 6.2",
-        "sb3-er reproduce walker --seeds 20 --env-kwargs fall:angles observation:grl start:grl", default_reading=False),
+        "Simplest walker, earlier default reading",
+        "Table 6.2",
+        "sb3-er reproduce walker --seeds 20 --env-kwargs fall:angles observation:grl start:grl",
+        default_reading=False,
+    ),
     "table_6_3": ThesisResult("LEO", "Table 6.3, Figures 6.1c and 6.2b", "sb3-er reproduce leo --seeds 20"),
-    "leo": ThesisResult("LEO, before the value watch", "Table 6.3", "sb3-er reproduce leo --seeds 20",
-                        default_reading=False),
+    "leo": ThesisResult(
+        "LEO, before the value watch", "Table 6.3", "sb3-er reproduce leo --seeds 20", default_reading=False
+    ),
     "replay_order": ThesisResult("Replay orders", "Appendix A", "sb3-er reproduce replay-order --seeds 20"),
     "sigma": ThesisResult("Definitions of sigma", "Appendix B, Figure B.1", "sb3-er reproduce sigma --seeds 20"),
-    "pessimistic": ThesisResult("Pessimistic initialisation", "Figure 5.5",
-                                "sb3-er reproduce pessimistic --seeds 20"),
-    "framework": ThesisResult("Framework of sample re-use", "Table 3.1",
-                              "sb3-er reproduce framework --seeds 20"),
+    "pessimistic": ThesisResult("Pessimistic initialisation", "Figure 5.5", "sb3-er reproduce pessimistic --seeds 20"),
+    "framework": ThesisResult("Framework of sample re-use", "Table 3.1", "sb3-er reproduce framework --seeds 20"),
 }
 
 #: The folder of ``sb3-er reproduce sigma-regime``: its summary.csv names, per reading, the table folder it explains.
@@ -142,10 +150,12 @@ def sigma_regime(name: str, measured: Path = MEASURED) -> str:
     row = rows[0]
     shift, raised, lowered = float(row["mean_shift"]), float(row["raised"]), float(row["lowered"])
     direction = "raised" if shift > 0 else "lowered"
-    return (f"ER-σ's σ {direction} its targets on average under this reading (mean T_σ − T {shift:+.3g} over "
-            f"{row['phases']} replay phases of {row['runs']} runs; raised {raised:.1%}, lowered {lowered:.1%} of "
-            f"the targets); its values left the possible returns in {row['left_bounds']} of {row['runs']} runs "
-            f"(`sb3-er reproduce sigma-regime`, reading `{row['reading']}`).")
+    return (
+        f"ER-σ's σ {direction} its targets on average under this reading (mean T_σ − T {shift:+.3g} over "
+        f"{row['phases']} replay phases of {row['runs']} runs; raised {raised:.1%}, lowered {lowered:.1%} of "
+        f"the targets); its values left the possible returns in {row['left_bounds']} of {row['runs']} runs "
+        f"(`sb3-er reproduce sigma-regime`, reading `{row['reading']}`)."
+    )
 
 
 def verdict_word(holds: bool | None) -> str:
@@ -160,9 +170,14 @@ def verdict_rows(measured: Path = MEASURED, defaults_only: bool = False) -> list
     """(folder, thesis, finding, verdict) per finding; one "not judged yet" row per thesis folder without findings.
     With `defaults_only`, only the folders of the default readings (no other reading of THESIS_RESULTS, no folder
     outside it)."""
-    names = sorted(set(THESIS_RESULTS) | {p.parent.name for p in measured.glob("*/findings.json")},
-                   key=lambda name: (name not in THESIS_RESULTS, list(THESIS_RESULTS).index(name)
-                                     if name in THESIS_RESULTS else 0, name))
+    names = sorted(
+        set(THESIS_RESULTS) | {p.parent.name for p in measured.glob("*/findings.json")},
+        key=lambda name: (
+            name not in THESIS_RESULTS,
+            list(THESIS_RESULTS).index(name) if name in THESIS_RESULTS else 0,
+            name,
+        ),
+    )
     if defaults_only:
         names = [name for name in names if name in THESIS_RESULTS and THESIS_RESULTS[name].default_reading]
     rows = []
@@ -188,8 +203,9 @@ def verdict_table(link, measured: Path = MEASURED, defaults_only: bool = False) 
         title = THESIS_RESULTS[name].title if name in THESIS_RESULTS else name
         regime = sigma_regime(name, measured)
         moved = "—" if not regime else ("raised targets" if " raised its targets" in regime else "lowered targets")
-        lines.append(f"| [{_cell(title)}]({link(name)}) | {_cell(thesis)} | {_cell(claim) or '—'} | {verdict} | "
-                     f"{moved} |")
+        lines.append(
+            f"| [{_cell(title)}]({link(name)}) | {_cell(thesis)} | {_cell(claim) or '—'} | {verdict} | {moved} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -211,8 +227,10 @@ def _relative(path: Path) -> str:
 
 def _shown(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
     """The files of `folder` with one of `suffixes` that its page shows (none under ``runs/``), summary.md first."""
-    return sorted((p for p in folder.rglob("*") if p.suffix in suffixes and "runs" not in p.relative_to(folder).parts),
-                  key=lambda p: (p.relative_to(folder).as_posix() != "summary.md", p.relative_to(folder).parts))
+    return sorted(
+        (p for p in folder.rglob("*") if p.suffix in suffixes and "runs" not in p.relative_to(folder).parts),
+        key=lambda p: (p.relative_to(folder).as_posix() != "summary.md", p.relative_to(folder).parts),
+    )
 
 
 def _csv_summaries(folder: Path) -> list[Path]:
@@ -246,8 +264,7 @@ def results_page(name: str) -> str:
             lines += ["Not judged yet: this folder has no `findings.json`.", ""]
         else:
             lines += ["| finding | verdict | evidence |", "|---|---|---|"]
-            lines += [f"| {_cell(f.claim)} | {verdict_word(f.holds)} | {_cell(f.evidence) or '—'} |"
-                      for f in findings]
+            lines += [f"| {_cell(f.claim)} | {verdict_word(f.holds)} | {_cell(f.evidence) or '—'} |" for f in findings]
             lines.append("")
     regime = sigma_regime(name)
     if regime:
@@ -271,8 +288,9 @@ def results_page(name: str) -> str:
         lines += [f"## {path.relative_to(folder).as_posix()}", "", "```{literalinclude} " + _relative(path), "```", ""]
     for path in _csv_summaries(folder):
         lines += [f"## {path.name}", "", csv_table(path), ""]
-    figures = sorted(p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES
-                     and "runs" not in p.relative_to(folder).parts)
+    figures = sorted(
+        p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES and "runs" not in p.relative_to(folder).parts
+    )
     if figures:
         lines += ["## Figures", ""]
         for path in figures:
@@ -315,10 +333,19 @@ def results_index() -> str:
     if intro.is_file():
         lines += ["```{include} " + "../_notes/measured_intro.md", "```", ""]
     lines += [
-        "## Verdicts", "",
-        "Each thesis finding, judged on the committed runs (from each folder's `findings.json`).", "",
-        verdict_table(lambda name: f"{name}.md"), "",
-        "```{toctree}", ":maxdepth: 1", ":glob:", "", "*", "```", "",
+        "## Verdicts",
+        "",
+        "Each thesis finding, judged on the committed runs (from each folder's `findings.json`).",
+        "",
+        verdict_table(lambda name: f"{name}.md"),
+        "",
+        "```{toctree}",
+        ":maxdepth: 1",
+        ":glob:",
+        "",
+        "*",
+        "```",
+        "",
     ]
     return "\n".join(lines)
 
@@ -345,6 +372,7 @@ def write_results_pages(out: Path = GENERATED) -> list[Path]:
 
 def readme_verdicts() -> str:
     """The README's verdict block, linking each result to its committed summary."""
+
     def link(name):
         return f"results/measured/{name}/" + ("summary.md" if (MEASURED / name / "summary.md").is_file() else "")
 

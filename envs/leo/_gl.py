@@ -63,8 +63,11 @@ def missing_libraries(backend: str) -> str | None:
     """What ``backend`` lacks on this machine (a description), or None when its libraries load."""
     if backend == "glfw":
         return None if _has_display() else "no display (DISPLAY and WAYLAND_DISPLAY are unset)"
-    missing = [" or ".join(f"lib{name}" for name in names) for names in BACKEND_LIBRARIES[backend]
-               if not any(_loadable(name) for name in names)]
+    missing = [
+        " or ".join(f"lib{name}" for name in names)
+        for names in BACKEND_LIBRARIES[backend]
+        if not any(_loadable(name) for name in names)
+    ]
     return ", ".join(missing) + " not found" if missing else None
 
 
@@ -94,8 +97,9 @@ def prepare_backend() -> str | None:
             os.environ["MUJOCO_GL"] = backend
             return None
     os.environ["MUJOCO_GL"] = "disable"
-    return ("no OpenGL backend is available: no display for glfw, "
-            + "; ".join(f"{backend}: {missing_libraries(backend)}" for backend in BACKEND_LIBRARIES))
+    return "no OpenGL backend is available: no display for glfw, " + "; ".join(
+        f"{backend}: {missing_libraries(backend)}" for backend in BACKEND_LIBRARIES
+    )
 
 
 def rendering_error(reason: str, error: BaseException | None = None) -> RenderingUnavailable:

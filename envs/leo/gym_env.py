@@ -81,9 +81,16 @@ class LeoEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": round(1.0 / CONTROL_TIMESTEP)}
 
-    def __init__(self, render_mode: str | None = None, start_noise: float = 0.05, filter_rates: bool = True,
-                 floor_parallel_ankles: bool = False, time_limit: float = TIME_LIMIT,
-                 render_size: tuple[int, int] = (480, 640), camera: str = "side"):
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        start_noise: float = 0.05,
+        filter_rates: bool = True,
+        floor_parallel_ankles: bool = False,
+        time_limit: float = TIME_LIMIT,
+        render_size: tuple[int, int] = (480, 640),
+        camera: str = "side",
+    ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         if not time_limit > 0.0:
@@ -92,8 +99,12 @@ class LeoEnv(gym.Env):
         self.physics = load_physics()
         if camera not in [self.physics.model.id2name(i, "camera") for i in range(self.physics.model.ncam)]:
             raise ValueError(f"unknown camera {camera!r}; LEO's model has 'side' and 'back'")
-        self.task = LeoWalk(random=np.random.RandomState(), start_noise=start_noise, filter_rates=filter_rates,
-                            floor_parallel_ankles=floor_parallel_ankles)
+        self.task = LeoWalk(
+            random=np.random.RandomState(),
+            start_noise=start_noise,
+            filter_rates=filter_rates,
+            floor_parallel_ankles=floor_parallel_ankles,
+        )
         self.max_episode_steps = int(round(time_limit / CONTROL_TIMESTEP))
         self.render_size = tuple(render_size)
         self.camera = camera
@@ -137,8 +148,9 @@ class LeoEnv(gym.Env):
 
     def _observation(self) -> np.ndarray:
         values = self.task.stance_values()
-        return np.array([bound if value > bound else -bound if value < -bound else value
-                         for value, bound in zip(values, _BOUNDS)])
+        return np.array(
+            [bound if value > bound else -bound if value < -bound else value for value, bound in zip(values, _BOUNDS)]
+        )
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -149,8 +161,7 @@ class LeoEnv(gym.Env):
         try:
             return self.physics.render(height=height, width=width, camera_id=self.camera)
         except Exception as error:  # noqa: BLE001  (dm_control raises several kinds when no GL context can be made)
-            raise rendering_error(f"the {leo_domain.RENDER_BACKEND} backend failed",
-                                  error) from error
+            raise rendering_error(f"the {leo_domain.RENDER_BACKEND} backend failed", error) from error
 
     def close(self):
         if not self._closed:

@@ -171,8 +171,11 @@ class Physics(mujoco.Physics):
         first = int(self._motor_actuators[0])
         contiguous = np.array_equal(self._motor_actuators, np.arange(first, first + len(_MOTOR_JOINTS)))
         self._motor_ctrl = slice(first, first + len(_MOTOR_JOINTS)) if contiguous else self._motor_actuators
-        self._foot_side = {model.name2id(f"{part}_{side}", "geom"): index
-                           for index, side in enumerate(_SIDES) for part in ("heel", "toe")}
+        self._foot_side = {
+            model.name2id(f"{part}_{side}", "geom"): index
+            for index, side in enumerate(_SIDES)
+            for part in ("heel", "toe")
+        }
         paired = set(model.pair_geom1.tolist()) | set(model.pair_geom2.tolist())
         filtered = set(np.flatnonzero(model.geom_contype | model.geom_conaffinity).tolist())
         self._contact_geoms = np.array(sorted(g for g in paired | filtered if model.geom_rbound[g] > 0.0))
@@ -282,8 +285,11 @@ class Physics(mujoco.Physics):
             if quiet_clock:
                 mujoco_engine.set_mjcb_time(None)
         if counts.tolist() != before:
-            names = [name for name, old, new in zip(mujoco_engine.mjtWarning.__members__, before, counts.tolist())
-                     if new > old]
+            names = [
+                name
+                for name, old, new in zip(mujoco_engine.mjtWarning.__members__, before, counts.tolist())
+                if new > old
+            ]
             message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
             if self._warnings_cause_exception:
                 raise control.PhysicsError(message)
@@ -343,8 +349,9 @@ class LeoWalk(base.Task):
     the integer tables ``_HIP``, ``_KNEE`` and ``_ANKLE`` by side, so that a control step builds no dicts.
     """
 
-    def __init__(self, random=None, start_noise: float = 0.05, filter_rates: bool = True,
-                 floor_parallel_ankles: bool = False):
+    def __init__(
+        self, random=None, start_noise: float = 0.05, filter_rates: bool = True, floor_parallel_ankles: bool = False
+    ):
         if not 0.0 <= start_noise <= 0.3:
             raise ValueError(f"start_noise must be in [0, 0.3] rad, got {start_noise}")
         super().__init__(random=random)
@@ -373,8 +380,7 @@ class LeoWalk(base.Task):
 
         :param physics: the physics (dm_control's signature; unused).
         """
-        return specs.BoundedArray((3,), np.float64, -MAX_VOLTAGE, MAX_VOLTAGE,
-                                  name="stance_hip,swing_hip,swing_knee")
+        return specs.BoundedArray((3,), np.float64, -MAX_VOLTAGE, MAX_VOLTAGE, name="stance_hip,swing_hip,swing_knee")
 
     def initialize_episode(self, physics) -> None:
         pose = dict(START_POSE)
@@ -464,11 +470,11 @@ class LeoWalk(base.Task):
         progress = self._swing_progress()
         self._update_stance(*physics.foot_contacts())
         torso = self._angles[0]
-        self.fell = (abs(torso) > MAX_TORSO_ANGLE
-                     or abs(torso + self._angles[_HIP[self.stance]]) > MAX_STANCE_LEG_ANGLE)
+        self.fell = abs(torso) > MAX_TORSO_ANGLE or abs(torso + self._angles[_HIP[self.stance]]) > MAX_STANCE_LEG_ANGLE
         gained = _clip(progress, MAX_FOOTSTEP_LENGTH) - _clip(self._progress, MAX_FOOTSTEP_LENGTH)
-        self.reward = (REWARD_TIME + REWARD_ENERGY * self.energy + REWARD_PROGRESS * gained
-                       + (REWARD_FALL if self.fell else 0.0))
+        self.reward = (
+            REWARD_TIME + REWARD_ENERGY * self.energy + REWARD_PROGRESS * gained + (REWARD_FALL if self.fell else 0.0)
+        )
         self._progress = -progress if self.footstep else progress
         self.distance = physics._xanchor.item(physics.hip_joint, 0) - self._start_x
 
@@ -583,5 +589,6 @@ def walk(time_limit: float = TIME_LIMIT, random=None, environment_kwargs: dict |
     :param environment_kwargs: keyword arguments of ``dm_control.rl.control.Environment`` (default None).
     """
     task = LeoWalk(random=random, **task_kwargs)
-    return control.Environment(load_physics(), task, time_limit=time_limit, control_timestep=CONTROL_TIMESTEP,
-                               **(environment_kwargs or {}))
+    return control.Environment(
+        load_physics(), task, time_limit=time_limit, control_timestep=CONTROL_TIMESTEP, **(environment_kwargs or {})
+    )

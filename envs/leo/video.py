@@ -11,8 +11,14 @@ from .gait import ObservingGait
 from .gym_env import LeoEnv
 
 
-def save_episode_video(path: str | Path, policy: Callable | None = None, env: LeoEnv | None = None,
-                       seed: int | None = None, fps: float = 15.0, max_steps: int | None = None) -> dict:
+def save_episode_video(
+    path: str | Path,
+    policy: Callable | None = None,
+    env: LeoEnv | None = None,
+    seed: int | None = None,
+    fps: float = 15.0,
+    max_steps: int | None = None,
+) -> dict:
     """Run one episode and write its frames to ``path`` (``.gif``, or ``.mp4`` with the ``imageio-ffmpeg`` package).
 
     ``policy`` maps ``(observation, info)`` to an action of ``env``; an object with ``predict`` (a Stable-Baselines3
@@ -58,11 +64,18 @@ def save_episode_video(path: str | Path, policy: Callable | None = None, env: Le
         try:
             imageio.mimsave(path, frames, fps=frame_rate)
         except (ImportError, ValueError) as error:
-            raise RuntimeError(f"writing MP4 needs the imageio-ffmpeg package ({error}); save a .gif instead") from error
+            raise RuntimeError(
+                f"writing MP4 needs the imageio-ffmpeg package ({error}); save a .gif instead"
+            ) from error
     if own_env:
         env.close()
-    return {"steps": steps, "distance": info["distance"], "footsteps": info["footsteps"], "fell": info["fell"],
-            "return": total}
+    return {
+        "steps": steps,
+        "distance": info["distance"],
+        "footsteps": info["footsteps"],
+        "fell": info["fell"],
+        "return": total,
+    }
 
 
 def _as_policy(policy) -> Callable:

@@ -49,8 +49,10 @@ def box_action_levels(
     if not isinstance(action_space, spaces.Box):
         raise ValueError(f"box_action_levels needs a Box action space, got {action_space}")
     if not np.issubdtype(action_space.dtype, np.floating):
-        raise ValueError(f"A Box action space of dtype {action_space.dtype} is not supported: levels between its "
-                         "bounds need a floating-point dtype (use a MultiDiscrete space for integer actions)")
+        raise ValueError(
+            f"A Box action space of dtype {action_space.dtype} is not supported: levels between its "
+            "bounds need a floating-point dtype (use a MultiDiscrete space for integer actions)"
+        )
     dtype = action_space.dtype
     low = action_space.low.astype(np.float64).reshape(-1)
     high = action_space.high.astype(np.float64).reshape(-1)
@@ -61,7 +63,9 @@ def box_action_levels(
         raise ValueError("Give either action_bins or action_values for a Box action space, not both")
     if action_values is not None:
         return _explicit_levels(action_values, low, high, dtype)
-    bounded = np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
+    bounded = (
+        np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
+    )
     if not bounded.all():
         bad = np.flatnonzero(~bounded).tolist()
         raise ValueError(
@@ -76,8 +80,11 @@ def box_action_levels(
             values = np.array([0.5 * (low[j] + high[j])])
         else:
             values = np.linspace(low[j], high[j], bins[j])  # endpoints are exactly low and high
-        levels.append(np.clip(values.astype(dtype), action_space.low.reshape(-1)[j],
-                              action_space.high.reshape(-1)[j]).astype(np.float64))
+        levels.append(
+            np.clip(values.astype(dtype), action_space.low.reshape(-1)[j], action_space.high.reshape(-1)[j]).astype(
+                np.float64
+            )
+        )
     return levels
 
 
@@ -101,8 +108,9 @@ def _check_bins(action_bins, n_dims: int, low: np.ndarray, high: np.ndarray) -> 
         bins = [int(count) for count in bins]
     constant = [j for j in range(n_dims) if low[j] == high[j] and bins[j] > 1]
     if constant:
-        raise ValueError(f"Action dimensions {constant} have equal bounds: they hold one level, give action_bins 1 "
-                         "for them")
+        raise ValueError(
+            f"Action dimensions {constant} have equal bounds: they hold one level, give action_bins 1 for them"
+        )
     return bins
 
 
@@ -111,8 +119,9 @@ def _explicit_levels(action_values, low: np.ndarray, high: np.ndarray, dtype) ->
     try:
         values = [np.asarray(v, dtype=np.float64).reshape(-1) for v in action_values]
     except (TypeError, ValueError):
-        raise ValueError(f"action_values must be one list of numbers per action dimension, got {action_values!r}") \
-            from None
+        raise ValueError(
+            f"action_values must be one list of numbers per action dimension, got {action_values!r}"
+        ) from None
     if len(values) != n_dims:
         raise ValueError(f"action_values has {len(values)} lists for a Box action space of {n_dims} dimensions")
     levels = []

@@ -82,8 +82,11 @@ def _to_builtin(value: Any) -> Any:
 
 def _is_constant(schedule: Schedule) -> bool:
     """Whether SB3's learning-rate schedule is a constant (a float ``learning_rate``), so that it is read once."""
-    return FloatSchedule is not None and isinstance(schedule, FloatSchedule) \
+    return (
+        FloatSchedule is not None
+        and isinstance(schedule, FloatSchedule)
         and isinstance(schedule.value_schedule, ConstantSchedule)
+    )
 
 
 def is_fall(info: dict[str, Any], terminated: bool) -> bool:
@@ -286,8 +289,11 @@ class TileQAlgorithm(BaseAlgorithm):
         tiles_per_dimension = kwargs.pop("tiles_per_dimension", None)
         origins = {name: "policy_kwargs" for name, value in kwargs.items() if value is not None}
         for name in ENV_TILING_ATTRIBUTES:
-            if kwargs.get(name) is None and not (name == "tile_widths" and tiles_per_dimension is not None) \
-                    and not (name == "action_values" and kwargs.get("action_bins") is not None):
+            if (
+                kwargs.get(name) is None
+                and not (name == "tile_widths" and tiles_per_dimension is not None)
+                and not (name == "action_values" and kwargs.get("action_bins") is not None)
+            ):
                 kwargs[name] = self._env_attribute(name)
                 if kwargs[name] is not None:
                     origins[name] = f"the env's {name} attribute"
@@ -298,8 +304,10 @@ class TileQAlgorithm(BaseAlgorithm):
             entry = package_tilings().get(env_id) if isinstance(env_id, str) else None
             shape = tuple(self.observation_space.shape)
             if entry is not None and tuple(entry["observation_shape"]) != shape:
-                notes.append(f"sb3-er's tiling for {env_id} is for observations of shape "
-                             f"{tuple(entry['observation_shape'])}, not {shape}: not used")
+                notes.append(
+                    f"sb3-er's tiling for {env_id} is for observations of shape "
+                    f"{tuple(entry['observation_shape'])}, not {shape}: not used"
+                )
             elif entry is not None:
                 notes.extend(self._check_observation_keys(env_id, entry))
                 for name, value in entry.items():
@@ -309,8 +317,10 @@ class TileQAlgorithm(BaseAlgorithm):
         if kwargs.get("tile_widths") is None:
             if tiles_per_dimension is None:
                 tiles_per_dimension = default_tiles_per_dimension(varying_dimensions(self.observation_space))
-                origins["tile_widths"] = (f"the generic rule: {tiles_per_dimension} tiles per bounded dimension, "
-                                          f"min(10, floor({DEFAULT_CELL_BUDGET} cells ^ (1/D))), at least 2")
+                origins["tile_widths"] = (
+                    f"the generic rule: {tiles_per_dimension} tiles per bounded dimension, "
+                    f"min(10, floor({DEFAULT_CELL_BUDGET} cells ^ (1/D))), at least 2"
+                )
             else:
                 origins["tile_widths"] = f"policy_kwargs: {tiles_per_dimension} tiles per bounded dimension"
             kwargs["tile_widths"] = default_tile_widths(self.observation_space, tiles_per_dimension)
@@ -329,8 +339,10 @@ class TileQAlgorithm(BaseAlgorithm):
         envs = getattr(self.env, "envs", None)
         space = flattened_dict_space(envs[0]) if envs else None
         if space is None:
-            return [f"the key order of {env_id}'s Dict observation is not checked against sb3-er's tiling "
-                    f"{expected}: the env's FlattenObservation is out of reach"]
+            return [
+                f"the key order of {env_id}'s Dict observation is not checked against sb3-er's tiling "
+                f"{expected}: the env's FlattenObservation is out of reach"
+            ]
         actual = observation_keys(space)
         if actual != [list(pair) for pair in expected]:
             raise ValueError(
@@ -351,10 +363,15 @@ class TileQAlgorithm(BaseAlgorithm):
         if origins["n_tilings"] == origins["tile_widths"]:
             line = f"Tile coding: {n_tilings} tilings, tile widths {widths} from {origins['tile_widths']}"
         else:
-            line = (f"Tile coding: {n_tilings} tilings from {origins['n_tilings']}; tile widths {widths} from "
-                    f"{origins['tile_widths']}")
-        others = [f"{name}={resolved[name]} from {origins[name]}" for name in resolved
-                  if name not in ("n_tilings", "tile_widths") and name in origins]
+            line = (
+                f"Tile coding: {n_tilings} tilings from {origins['n_tilings']}; tile widths {widths} from "
+                f"{origins['tile_widths']}"
+            )
+        others = [
+            f"{name}={resolved[name]} from {origins[name]}"
+            for name in resolved
+            if name not in ("n_tilings", "tile_widths") and name in origins
+        ]
         print("\n  ".join([line, *others, *[f"({note})" for note in notes]]))
 
     def _setup_model(self) -> None:
@@ -362,7 +379,9 @@ class TileQAlgorithm(BaseAlgorithm):
         self._setup_lr_schedule()
         BaseAlgorithm.set_random_seed(self, self.seed)  # not ours: load() has just restored their states
         self.policy_kwargs = self._resolve_policy_kwargs()
-        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
+        self.policy = self.policy_class(
+            self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs
+        )
         if self.policy.initial_value_seed is not None:  # keep the drawn seed: a reloaded model rebuilds the same start
             self.policy_kwargs["initial_value_seed"] = self.policy.initial_value_seed
         coder = self.policy.tile_coder
@@ -391,13 +410,20 @@ class TileQAlgorithm(BaseAlgorithm):
         if declared is not None and changer is None:
             watch = ValueWatch("env", RewardBounds.from_attribute(declared), self.gamma, initial)
         else:
-            reason = ("the env declares no reward_bounds" if declared is None
-                      else f"{changer} may change the rewards the env declares")
+            reason = (
+                "the env declares no reward_bounds"
+                if declared is None
+                else f"{changer} may change the rewards the env declares"
+            )
             watch = ValueWatch("observed", None, self.gamma, initial, reason)
             self._observing_rewards = True
         if earlier is not None:
-            for entry in (kernels.WATCH_UPDATES, kernels.WATCH_OUT_OF_RANGE, kernels.WATCH_FIRST_UPDATE,
-                          kernels.WATCH_FIRST_VALUE):
+            for entry in (
+                kernels.WATCH_UPDATES,
+                kernels.WATCH_OUT_OF_RANGE,
+                kernels.WATCH_FIRST_UPDATE,
+                kernels.WATCH_FIRST_VALUE,
+            ):
                 watch.array[entry] = earlier.array[entry]
         self._watch = watch
         self._watch_array = watch.array
@@ -445,16 +471,24 @@ class TileQAlgorithm(BaseAlgorithm):
         watch = self._watch
         value = float(watch.array[kernels.WATCH_FIRST_VALUE])
         low, high = watch.bounds
-        self.value_excursion = {"step": int(self.num_timesteps), "value": value, "low": low, "high": high,
-                                "where": where}
+        self.value_excursion = {
+            "step": int(self.num_timesteps),
+            "value": value,
+            "low": low,
+            "high": high,
+            "where": where,
+        }
         if self.value_bound_action == "ignore":
             return
         side = f"above {high:.6g}" if value > high else f"below {low:.6g}"
         flagged_low, flagged_high = widened(watch.bounds)
         margin = flagged_high - high if value > high else low - flagged_low
         percent = f"{TOLERANCE * 100:g} %"
-        share = (f"{percent} of their width" if math.isfinite(high - low) else
-                 f"{percent} of the size of their finite end, at least {TOLERANCE:g}")
+        share = (
+            f"{percent} of their width"
+            if math.isfinite(high - low)
+            else f"{percent} of the size of their finite end, at least {TOLERANCE:g}"
+        )
         message = (
             f"{type(self).__name__}: at step {self.num_timesteps} ({where}) a value of {value:.6g} left the possible "
             f"returns {watch.describe()}: it lies {side} by more than {margin:.6g} ({share}). Values outside "
@@ -617,8 +651,12 @@ class TileQAlgorithm(BaseAlgorithm):
 
     # --- files: SB3's save and load, written atomically, checked when read, and loadable without pickle ------------
 
-    def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase], exclude: Optional[Iterable[str]] = None,
-             include: Optional[Iterable[str]] = None) -> None:
+    def save(
+        self,
+        path: Union[str, pathlib.Path, io.BufferedIOBase],
+        exclude: Optional[Iterable[str]] = None,
+        include: Optional[Iterable[str]] = None,
+    ) -> None:
         """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
         pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling.
 
@@ -637,10 +675,17 @@ class TileQAlgorithm(BaseAlgorithm):
             del self.__dict__[PLAIN_STATE_KEY]
 
     @classmethod
-    def load(cls: type[SelfTileQAlgorithm], path: Union[str, pathlib.Path, io.BufferedIOBase],
-             env: Optional[GymEnv] = None, device: Union[str, Any] = "auto",
-             custom_objects: Optional[dict[str, Any]] = None, print_system_info: bool = False,
-             force_reset: bool = True, allow_pickle: bool = True, **kwargs) -> SelfTileQAlgorithm:
+    def load(
+        cls: type[SelfTileQAlgorithm],
+        path: Union[str, pathlib.Path, io.BufferedIOBase],
+        env: Optional[GymEnv] = None,
+        device: Union[str, Any] = "auto",
+        custom_objects: Optional[dict[str, Any]] = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        allow_pickle: bool = True,
+        **kwargs,
+    ) -> SelfTileQAlgorithm:
         """SB3's ``load``, with every field checked (hyperparameters, generator states, counters, the last
         observation, the weights' shape and finiteness): a corrupt or crafted file is a ValueError naming the file and
         the field. An entry SB3 cannot unpickle is an error too (SB3 only warns and leaves the attribute at its
@@ -693,15 +738,23 @@ class TileQAlgorithm(BaseAlgorithm):
         last_obs = self._last_obs
         if last_obs is not None:
             shape = (self.n_envs, *self.observation_space.shape)
-            if not (isinstance(last_obs, np.ndarray) and last_obs.shape == shape and last_obs.dtype.kind in "biuf"
-                    and np.all(np.isfinite(last_obs))):
+            if not (
+                isinstance(last_obs, np.ndarray)
+                and last_obs.shape == shape
+                and last_obs.dtype.kind in "biuf"
+                and np.all(np.isfinite(last_obs))
+            ):
                 raise ValueError(f"_last_obs: expected finite numbers of shape {shape}, got {last_obs!r}")
         for name in ("ep_info_buffer", "ep_success_buffer"):
             if not isinstance(getattr(self, name), (deque, type(None))):
                 raise ValueError(f"{name}: expected a deque, got {type(getattr(self, name)).__name__}")
 
-    def set_parameters(self, load_path_or_dict: Union[str, pathlib.Path, dict[str, Any]], exact_match: bool = True,
-                       device: Union[str, Any] = "auto") -> None:
+    def set_parameters(
+        self,
+        load_path_or_dict: Union[str, pathlib.Path, dict[str, Any]],
+        exact_match: bool = True,
+        device: Union[str, Any] = "auto",
+    ) -> None:
         """SB3's ``set_parameters``; the weights are checked (shape, finite) before they replace the current ones,
         which stay as they were on failure. A bad file is a ValueError naming it.
 
@@ -719,8 +772,13 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def _select_action(self, obs: np.ndarray) -> int:
         action = kernels.select_action(
-            self.policy.theta_array, obs, *self.policy.tile_coder.kernel_arguments, self.exploration_rate,
-            self.action_rng, self._slots, self._q_scratch,
+            self.policy.theta_array,
+            obs,
+            *self.policy.tile_coder.kernel_arguments,
+            self.exploration_rate,
+            self.action_rng,
+            self._slots,
+            self._q_scratch,
         )
         if action < 0:
             raise ValueError(self.policy.tile_coder.bad_observation_message(obs, f" at step {self.num_timesteps}"))
@@ -748,8 +806,9 @@ class TileQAlgorithm(BaseAlgorithm):
         """
         single, vec_env = self._single_env, self.env
         env_actions, copy_action = self._env_action_table()
-        after_transition = None if type(self)._after_transition is TileQAlgorithm._after_transition \
-            else self._after_transition
+        after_transition = (
+            None if type(self)._after_transition is TileQAlgorithm._after_transition else self._after_transition
+        )
         online = self.trace_lambda is not None
         coder = self.policy.tile_coder
         theta = self.policy.theta_array
@@ -794,9 +853,20 @@ class TileQAlgorithm(BaseAlgorithm):
                 actions = self.policy.to_env_actions(np.array([action]))  # the env's format, as SB3's callbacks read it
                 if single is not None:
                     rewards, dones, infos = np.array([reward], dtype=np.float64), np.array([done]), [info]
-                callback.update_locals({"self": self, "callback": callback, "log_interval": log_interval, "obs": obs,
-                                        "action": action, "actions": actions, "new_obs": new_obs, "rewards": rewards,
-                                        "dones": dones, "infos": infos})
+                callback.update_locals(
+                    {
+                        "self": self,
+                        "callback": callback,
+                        "log_interval": log_interval,
+                        "obs": obs,
+                        "action": action,
+                        "actions": actions,
+                        "new_obs": new_obs,
+                        "rewards": rewards,
+                        "dones": dones,
+                        "infos": infos,
+                    }
+                )
                 continue_training = callback.on_step()
                 theta, action_rng = self.policy.theta_array, self.action_rng  # a callback may have replaced them
             if "episode" in info or "is_success" in info:
@@ -810,8 +880,22 @@ class TileQAlgorithm(BaseAlgorithm):
                 if not constant_rate:
                     step_size = self.current_learning_rate / n_tilings
                 next_action, delta, status = sarsa_lambda_step(
-                    theta, *trace, self._slots, action, reward, terminated, next_obs, self._next_slots, q_scratch,
-                    *kernel_arguments, step_size, gamma, trace_decay, trace_cutoff, epsilon, action_rng,
+                    theta,
+                    *trace,
+                    self._slots,
+                    action,
+                    reward,
+                    terminated,
+                    next_obs,
+                    self._next_slots,
+                    q_scratch,
+                    *kernel_arguments,
+                    step_size,
+                    gamma,
+                    trace_decay,
+                    trace_cutoff,
+                    epsilon,
+                    action_rng,
                     self._watch_array,
                 )
                 if status:
@@ -856,7 +940,13 @@ class TileQAlgorithm(BaseAlgorithm):
         )
 
     def _after_transition(
-        self, obs: np.ndarray, action: int, reward: float, next_obs: np.ndarray, terminated: bool, done: bool,
+        self,
+        obs: np.ndarray,
+        action: int,
+        reward: float,
+        next_obs: np.ndarray,
+        terminated: bool,
+        done: bool,
         info: dict[str, Any],
     ) -> None:
         """Hook for experience storage and replay; the base class learns online only."""
@@ -865,7 +955,9 @@ class TileQAlgorithm(BaseAlgorithm):
         if self._td_error_count:
             self.logger.record("train/td_error", self._td_error_sum / self._td_error_count)
             self._td_error_sum, self._td_error_count = 0.0, 0
-        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.theta_array, *self.policy.initial_arguments)
+        weights_abs_mean, memory_fill = kernels.weight_statistics(
+            self.policy.theta_array, *self.policy.initial_arguments
+        )
         self.logger.record("train/weights_abs_mean", weights_abs_mean)
         self.logger.record("train/memory_fill", memory_fill)
         self.logger.record("train/learning_rate", self.current_learning_rate)

@@ -82,8 +82,15 @@ def stored_transitions(buffer: TrajectoryReplayBuffer, include_open: bool = Fals
     if n_open:
         next_observations[n - 1] = buffer.open_next_obs
         next_slots[n - 1] = buffer.tile_coder.slots(buffer.open_next_obs)
-    return Transitions(buffer.observations[rows], buffer.slots[rows], buffer.actions[rows], buffer.rewards[rows],
-                       next_observations, next_slots, terminal)
+    return Transitions(
+        buffer.observations[rows],
+        buffer.slots[rows],
+        buffer.actions[rows],
+        buffer.rewards[rows],
+        next_observations,
+        next_slots,
+        terminal,
+    )
 
 
 def single_threaded_blas() -> contextlib.AbstractContextManager:
@@ -169,8 +176,9 @@ class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
         the pruned database of thesis 3.5.3.
     """
 
-    def __init__(self, policy, env, buffer_size: int = 1_000_000,
-                 replay_buffer_kwargs: Optional[dict[str, Any]] = None, **kwargs):
+    def __init__(
+        self, policy, env, buffer_size: int = 1_000_000, replay_buffer_kwargs: Optional[dict[str, Any]] = None, **kwargs
+    ):
         self.buffer_size = buffer_size
         self.replay_buffer_kwargs = replay_buffer_kwargs
         self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
@@ -183,8 +191,9 @@ class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self.replay_buffer = TrajectoryReplayBuffer(self.buffer_size, self.policy.tile_coder,
-                                                    **(self.replay_buffer_kwargs or {}))
+        self.replay_buffer = TrajectoryReplayBuffer(
+            self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {})
+        )
 
     def _end_episode_at_reset(self) -> None:
         """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last real

@@ -59,8 +59,13 @@ class TrajectoryReplayBuffer:
     PRUNE_OPTIONS = (None, "coverage")
     DEFAULT_PRUNE_THRESHOLD = 0.9
 
-    def __init__(self, capacity: int, tile_coder: TileCoder, prune: Optional[str] = None,
-                 prune_threshold: float = DEFAULT_PRUNE_THRESHOLD):
+    def __init__(
+        self,
+        capacity: int,
+        tile_coder: TileCoder,
+        prune: Optional[str] = None,
+        prune_threshold: float = DEFAULT_PRUNE_THRESHOLD,
+    ):
         if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1:
             raise ValueError(f"buffer_size must be an integer of at least 1, got {capacity!r}")
         self.check_kwargs({"prune": prune, "prune_threshold": prune_threshold})
@@ -108,11 +113,17 @@ class TrajectoryReplayBuffer:
         kwargs = dict(kwargs or {})
         unknown = sorted(set(kwargs) - {"prune", "prune_threshold"})
         if unknown:
-            raise ValueError(f"replay_buffer_kwargs: unknown {unknown}; the trajectory buffer takes prune and "
-                             "prune_threshold")
+            raise ValueError(
+                f"replay_buffer_kwargs: unknown {unknown}; the trajectory buffer takes prune and prune_threshold"
+            )
         check_choice("prune", kwargs.get("prune"), TrajectoryReplayBuffer.PRUNE_OPTIONS)
-        check_number("prune_threshold (a share)", kwargs.get("prune_threshold", TrajectoryReplayBuffer.DEFAULT_PRUNE_THRESHOLD),
-                     0.0, 1.0, low_open=True)
+        check_number(
+            "prune_threshold (a share)",
+            kwargs.get("prune_threshold", TrajectoryReplayBuffer.DEFAULT_PRUNE_THRESHOLD),
+            0.0,
+            1.0,
+            low_open=True,
+        )
 
     def pruned_share(self) -> float:
         """The share of closed trajectories that pruning dropped (0 before any closed)."""
@@ -171,8 +182,15 @@ class TrajectoryReplayBuffer:
         if self.n_open_new + coder.n_tilings > self.open_new_features.shape[0]:
             self.open_new_features = np.concatenate([self.open_new_features, np.zeros_like(self.open_new_features)])
         self.n_open_new, covered = kernels.mark_visited_tracked(
-            self.visits, self.fresh, slots, coder.stride, coder.action_columns, action, self.open_new_features,
-            self.n_open_new)
+            self.visits,
+            self.fresh,
+            slots,
+            coder.stride,
+            coder.action_columns,
+            action,
+            self.open_new_features,
+            self.n_open_new,
+        )
         self.open_covered += covered
 
     def close_trajectory(self, next_obs: np.ndarray, terminated: bool) -> bool:
@@ -311,8 +329,12 @@ class TrajectoryReplayBuffer:
         """Restore a saved state after checking every field (see ``check_state``): a corrupt or crafted state is a
         ValueError naming the field, never an index out of range inside a kernel."""
         check_state(state)
-        self.__init__(int(state["capacity"]), TileCoder(**state["tile_coder_config"]), state.get("prune"),
-                      state.get("prune_threshold", self.DEFAULT_PRUNE_THRESHOLD))
+        self.__init__(
+            int(state["capacity"]),
+            TileCoder(**state["tile_coder_config"]),
+            state.get("prune"),
+            state.get("prune_threshold", self.DEFAULT_PRUNE_THRESHOLD),
+        )
         if self.prune:
             new = state["open_new_features"]
             self.open_new_features = np.zeros(max(new.shape[0] * 2, 16 * self.tile_coder.n_tilings), dtype=np.int64)
@@ -324,8 +346,13 @@ class TrajectoryReplayBuffer:
         n, m, open_length = len(state["actions"]), len(state["trajectory_length"]), int(state["open_length"])
         for name in ("observations", "slots", "actions", "rewards"):
             getattr(self, name)[:n] = state[name]
-        for name in ("trajectory_start", "trajectory_length", "trajectory_terminated", "trajectory_next_obs",
-                     "trajectory_next_slots"):
+        for name in (
+            "trajectory_start",
+            "trajectory_length",
+            "trajectory_terminated",
+            "trajectory_next_obs",
+            "trajectory_next_slots",
+        ):
             getattr(self, name)[:m] = state[name]
         for j in range(m):
             rows = self.trajectory_start[j] + np.arange(self.trajectory_length[j])
@@ -376,8 +403,10 @@ def _array(state: dict[str, Any], name: str, dtype, shape: tuple) -> np.ndarray:
 def _in_range(name: str, values: np.ndarray, stop: int, what: str) -> None:
     if values.size and (values.min() < 0 or values.max() >= stop):
         bad = np.flatnonzero((values < 0) | (values >= stop))[0]
-        raise _field_error(name, f"entry {np.unravel_index(bad, values.shape)} = {values.reshape(-1)[bad]} is "
-                                 f"outside [0, {stop}), {what}")
+        raise _field_error(
+            name,
+            f"entry {np.unravel_index(bad, values.shape)} = {values.reshape(-1)[bad]} is outside [0, {stop}), {what}",
+        )
 
 
 def _integer(state: dict[str, Any], name: str, minimum: int, maximum: Optional[int] = None) -> int:
@@ -386,8 +415,12 @@ def _integer(state: dict[str, Any], name: str, minimum: int, maximum: Optional[i
     value = state[name]
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum or (
-            maximum is not None and value > maximum):
+    if (
+        isinstance(value, (bool, np.bool_))
+        or not isinstance(value, (int, np.integer))
+        or value < minimum
+        or (maximum is not None and value > maximum)
+    ):
         bound = f"in [{minimum}, {maximum}]" if maximum is not None else f"at least {minimum}"
         raise _field_error(name, f"expected an integer {bound}, got {value!r}")
     return int(value)
@@ -401,13 +434,16 @@ def _finite(name: str, values: np.ndarray) -> None:
 def _tiles_match(name: str, slots_name: str, observations: np.ndarray, slots: np.ndarray, coder: TileCoder) -> None:
     """The stored tiles are the tiles of the stored observations (either one altered shows here)."""
     expected = np.empty_like(slots)
-    if not kernels.batch_state_slots(observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask,
-                                     expected):
+    if not kernels.batch_state_slots(
+        observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask, expected
+    ):
         raise _field_error(name, "observations too large to tile")
     mismatch = np.flatnonzero(np.any(expected != slots, axis=1))
     if mismatch.size:
-        raise _field_error(slots_name, f"row {mismatch[0]} does not hold the tiles of its observation in {name!r} "
-                                       f"({mismatch.size} such rows)")
+        raise _field_error(
+            slots_name,
+            f"row {mismatch[0]} does not hold the tiles of its observation in {name!r} ({mismatch.size} such rows)",
+        )
 
 
 def check_state(state: Any) -> None:
@@ -460,14 +496,18 @@ def check_state(state: Any) -> None:
         raise _field_error("trajectory_length", f"trajectory {int(np.argmin(lengths))} has length {lengths.min()}")
     open_length = _integer(state, "open_length", 0, n)
     if int(lengths.sum()) + open_length != n:
-        raise _field_error("trajectory_length", f"lengths sum to {int(lengths.sum())} plus {open_length} open rows, "
-                                                f"but {n} rows are stored")
+        raise _field_error(
+            "trajectory_length",
+            f"lengths sum to {int(lengths.sum())} plus {open_length} open rows, but {n} rows are stored",
+        )
     starts = _array(state, "trajectory_start", np.int64, (m,))
     expected_starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if m else starts
     if not np.array_equal(starts, expected_starts):
         bad = int(np.flatnonzero(starts != expected_starts)[0])
-        raise _field_error("trajectory_start", f"trajectory {bad} starts at row {starts[bad]}, but the rows before it "
-                                               f"end at {expected_starts[bad]}")
+        raise _field_error(
+            "trajectory_start",
+            f"trajectory {bad} starts at row {starts[bad]}, but the rows before it end at {expected_starts[bad]}",
+        )
     _array(state, "trajectory_terminated", np.bool_, (m,))
     next_obs = _array(state, "trajectory_next_obs", np.float64, (m, n_dims))
     _finite("trajectory_next_obs", next_obs)
@@ -490,8 +530,9 @@ def check_state(state: Any) -> None:
     try:
         TrajectoryReplayBuffer.check_kwargs({"prune": prune, "prune_threshold": threshold})
     except ValueError as error:
-        raise _field_error("prune" if prune not in TrajectoryReplayBuffer.PRUNE_OPTIONS else "prune_threshold",
-                           str(error)) from None
+        raise _field_error(
+            "prune" if prune not in TrajectoryReplayBuffer.PRUNE_OPTIONS else "prune_threshold", str(error)
+        ) from None
     if prune:
         new = _array(state, "open_new_features", np.int64, (None,))
         _in_range("open_new_features", new, coder.n_weights, "the weight indices")
@@ -556,8 +597,9 @@ def _resolve_read_path(path: pathlib.Path) -> pathlib.Path:
     return path
 
 
-def save_buffer(buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, io.BufferedIOBase],
-                verbose: int = 0) -> None:
+def save_buffer(
+    buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, io.BufferedIOBase], verbose: int = 0
+) -> None:
     """Write ``buffer`` to ``path``: an .npz archive of plain arrays if the path ends in .npz, else a pickle (SB3's
     format; ``.pkl`` is added to a path without suffix). A path is written atomically (a partial file, then renamed).
 
@@ -576,8 +618,9 @@ def save_buffer(buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, i
     write_atomically(path, data)
 
 
-def load_buffer(path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: TileCoder,
-                allow_pickle: bool = True) -> TrajectoryReplayBuffer:
+def load_buffer(
+    path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: TileCoder, allow_pickle: bool = True
+) -> TrajectoryReplayBuffer:
     """Read a buffer written by ``save_buffer`` and check it against ``tile_coder``; ValueError naming the file and
     the field for anything corrupt, truncated, crafted or of another tile coding.
 
@@ -602,8 +645,10 @@ def load_buffer(path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: T
         elif is_npz_name:
             raise ValueError("not an .npz archive (a file named .npz is never unpickled)")
         elif not allow_pickle:
-            raise ValueError("a pickle, refused with allow_pickle=False (unpickling can run code from the file); "
-                             "save buffers as .npz to load them without pickle")
+            raise ValueError(
+                "a pickle, refused with allow_pickle=False (unpickling can run code from the file); "
+                "save buffers as .npz to load them without pickle"
+            )
         else:
             try:
                 buffer = pickle.loads(data)
@@ -614,8 +659,10 @@ def load_buffer(path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: T
             if not isinstance(buffer, TrajectoryReplayBuffer):
                 raise ValueError(f"holds a {type(buffer).__name__}, not a TrajectoryReplayBuffer")
         if buffer.tile_coder.config() != tile_coder.config():
-            raise ValueError("the replay buffer was stored with a different tile coding than this model's "
-                             f"({buffer.tile_coder!r}, the model's {tile_coder!r})")
+            raise ValueError(
+                "the replay buffer was stored with a different tile coding than this model's "
+                f"({buffer.tile_coder!r}, the model's {tile_coder!r})"
+            )
     except ValueError as error:
         raise ValueError(f"{path}: {error}") from error.__cause__
     buffer.tile_coder = tile_coder
@@ -636,8 +683,12 @@ class TrajectoryBufferIO:
         """
         save_buffer(self.replay_buffer, path, self.verbose)
 
-    def load_replay_buffer(self, path: Union[str, pathlib.Path, io.BufferedIOBase], truncate_last_traj: bool = True,
-                           allow_pickle: bool = True) -> None:
+    def load_replay_buffer(
+        self,
+        path: Union[str, pathlib.Path, io.BufferedIOBase],
+        truncate_last_traj: bool = True,
+        allow_pickle: bool = True,
+    ) -> None:
         """Load a buffer saved by save_replay_buffer (of any algorithm of this package); its tile coding must match.
         Every field is checked first; a bad file is a ValueError naming it and the field, and the model keeps its
         previous buffer.

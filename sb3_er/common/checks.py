@@ -14,8 +14,17 @@ def is_real(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
-def check_number(name: str, value: Any, low: float, high: float = math.inf, *, low_open: bool = False,
-                 high_open: bool = False, optional: bool = False, unit: str = "") -> None:
+def check_number(
+    name: str,
+    value: Any,
+    low: float,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+    optional: bool = False,
+    unit: str = "",
+) -> None:
     """``value`` must be a finite real number in the interval from ``low`` to ``high`` (open ends as given), or None
     if ``optional``; the ValueError names the parameter, the interval and the value given.
 
@@ -54,8 +63,9 @@ def check_integer(name: str, value: Any, minimum: int, unit: str = "", optional:
     if optional and value is None:
         return
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer of at least {minimum}{unit}{' or None' if optional else ''}, "
-                         f"got {value!r}")
+        raise ValueError(
+            f"{name} must be an integer of at least {minimum}{unit}{' or None' if optional else ''}, got {value!r}"
+        )
 
 
 def check_choice(name: str, value: Any, options) -> None:
@@ -81,4 +91,3 @@ def check_bool(name: str, value: Any) -> None:
     """
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {value!r}")
-

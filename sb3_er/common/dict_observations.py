@@ -66,8 +66,10 @@ def register_dm_control_envs() -> None:
             name=error.name,
         ) from error
     if "dm_control/cartpole-swingup-v0" not in gym.registry:
-        raise RuntimeError("shimmy was imported but registered no dm_control/ ids: its dm_control bindings failed "
-                           "to load (import shimmy.dm_control_compatibility to see why)")
+        raise RuntimeError(
+            "shimmy was imported but registered no dm_control/ ids: its dm_control bindings failed "
+            "to load (import shimmy.dm_control_compatibility to see why)"
+        )
 
 
 def register_if_dm_control_id(env_id: Any) -> None:
@@ -95,8 +97,10 @@ def check_flat_dict(space: spaces.Dict) -> None:
     """
     for key, subspace in space.spaces.items():
         if not isinstance(subspace, spaces.Box):
-            raise ValueError(f"The observation's key {key!r} is a {type(subspace).__name__} space ({subspace}): "
-                             "sb3-er flattens Dict observations of Box arrays only")
+            raise ValueError(
+                f"The observation's key {key!r} is a {type(subspace).__name__} space ({subspace}): "
+                "sb3-er flattens Dict observations of Box arrays only"
+            )
         if len(subspace.shape) >= 2:
             kind = "pixels (an image)" if len(subspace.shape) == 3 else "an array"
             raise ValueError(

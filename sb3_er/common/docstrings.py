@@ -45,7 +45,7 @@ def documented_parameters(docstring: str | None) -> set[str]:
     lines = inspect.cleandoc(docstring or "").splitlines()
     for index, line in enumerate(lines[:-1]):
         if line.strip() == "Parameters" and set(lines[index + 1].strip()) == {"-"}:
-            for entry in lines[index + 2:]:
+            for entry in lines[index + 2 :]:
                 if entry.strip() and not entry[:1].isspace():
                     match = re.fullmatch(r"([\w*]+(?:,\s*[\w*]+)*)\s*(?::.*)?", entry.strip())
                     if not match:
@@ -63,9 +63,13 @@ def undocumented_parameters(function, docstring: str | None = None) -> list[str]
         None: the function's.
     :return: the names, empty when every parameter has its field.
     """
-    names = [parameter.name for parameter in inspect.signature(function).parameters.values()
-             if parameter.kind in (inspect.Parameter.POSITIONAL_ONLY, *_NAMED)
-             and parameter.name not in ("self", "cls") and not parameter.name.startswith("_")]
+    names = [
+        parameter.name
+        for parameter in inspect.signature(function).parameters.values()
+        if parameter.kind in (inspect.Parameter.POSITIONAL_ONLY, *_NAMED)
+        and parameter.name not in ("self", "cls")
+        and not parameter.name.startswith("_")
+    ]
     documented = documented_parameters(function.__doc__ if docstring is None else docstring)
     return [name for name in names if name not in documented]
 
@@ -156,8 +160,9 @@ def inherit_parameters(cls: type | None = None, *, hidden: Iterable[str] = ()):
         klass.__original_doc__ = inspect.cleandoc(klass.__doc__ or "")
         if missing:
             lines = own.splitlines()
-            ends_with_field = bool(documented) and bool(lines) and (lines[-1].startswith(":param")
-                                                                     or lines[-1][:1].isspace())
+            ends_with_field = (
+                bool(documented) and bool(lines) and (lines[-1].startswith(":param") or lines[-1][:1].isspace())
+            )
             own = own + ("\n" if ends_with_field else "\n\n") + "\n".join(missing)
         klass.__doc__ = own + "\n"
         return klass

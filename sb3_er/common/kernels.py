@@ -33,14 +33,33 @@ STATUS_OUT_OF_BOUNDS = 4
 # T and every Q(s_t, a_t) before its update (see :func:`watch_update`); an empty array switches it off. Python sets
 # the bounds [WATCH_LOW, WATCH_HIGH] (the possible returns widened by a tolerance, sb3_er.common.value_bounds) and
 # resets the per-period entries after logging them; counts and the first excursion accumulate for the model's life.
-(WATCH_TARGET_MIN, WATCH_TARGET_MAX, WATCH_Q_MIN, WATCH_Q_MAX,  # per logging period
- WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT, WATCH_RAISED, WATCH_LOWERED,  # per logging period: ER-sigma's T_sigma - T
- WATCH_LOW, WATCH_HIGH,  # the bounds, set by Python
- WATCH_UPDATES, WATCH_OUT_OF_RANGE,  # cumulative: updates watched, values (T or Q) outside the bounds
- WATCH_FIRST_UPDATE, WATCH_FIRST_VALUE) = range(14)  # the first value outside: its update number (-1: none), value
+(
+    WATCH_TARGET_MIN,
+    WATCH_TARGET_MAX,
+    WATCH_Q_MIN,
+    WATCH_Q_MAX,  # per logging period
+    WATCH_SHIFT_SUM,
+    WATCH_SHIFT_COUNT,
+    WATCH_RAISED,
+    WATCH_LOWERED,  # per logging period: ER-sigma's T_sigma - T
+    WATCH_LOW,
+    WATCH_HIGH,  # the bounds, set by Python
+    WATCH_UPDATES,
+    WATCH_OUT_OF_RANGE,  # cumulative: updates watched, values (T or Q) outside the bounds
+    WATCH_FIRST_UPDATE,
+    WATCH_FIRST_VALUE,
+) = range(14)  # the first value outside: its update number (-1: none), value
 WATCH_SIZE = 14
-WATCH_PERIOD = (WATCH_TARGET_MIN, WATCH_TARGET_MAX, WATCH_Q_MIN, WATCH_Q_MAX, WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT,
-                WATCH_RAISED, WATCH_LOWERED)
+WATCH_PERIOD = (
+    WATCH_TARGET_MIN,
+    WATCH_TARGET_MAX,
+    WATCH_Q_MIN,
+    WATCH_Q_MAX,
+    WATCH_SHIFT_SUM,
+    WATCH_SHIFT_COUNT,
+    WATCH_RAISED,
+    WATCH_LOWERED,
+)
 
 #: (initial_low, initial_span, initial_seed) of all-zero initial weights, the thesis's theta <- 0.
 ZERO_INITIAL = (0.0, 0.0, np.uint64(0))
@@ -241,8 +260,19 @@ def fill_initial_weights(theta, initial_low, initial_span, initial_seed):
 
 
 @nb.njit(inline="always", cache=True)
-def all_q_values_and_visit_counts(theta, visits, slots, stride, action_columns, columns_are_actions, out_q, out_w,
-                                  initial_low, initial_span, initial_seed):
+def all_q_values_and_visit_counts(
+    theta,
+    visits,
+    slots,
+    stride,
+    action_columns,
+    columns_are_actions,
+    out_q,
+    out_w,
+    initial_low,
+    initial_span,
+    initial_seed,
+):
     """Q_v(s, .) and W(s, .) = w . phi(s, .) (Eq. 5.1-5.2: how many active features of (s, a) were ever visited) in
     one pass over the same rows.
 
@@ -366,8 +396,19 @@ def epsilon_greedy_explored(values, epsilon, rng):
 
 @nb.njit(cache=True)
 def select_action(
-    theta, obs, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions, epsilon, rng,
-    out_slots, q_scratch,
+    theta,
+    obs,
+    inv_widths,
+    offsets,
+    wrap_tiles,
+    slot_mask,
+    stride,
+    action_columns,
+    columns_are_actions,
+    epsilon,
+    rng,
+    out_slots,
+    q_scratch,
 ):
     """Epsilon-greedy a_k at s_k (Alg. 7 line 8); fills out_slots with the tiles of s_k. Returns -1 for a bad obs.
 
@@ -392,8 +433,20 @@ def select_action(
 
 
 @nb.njit(cache=True)
-def greedy_actions(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
-                   columns_are_actions, slots_scratch, q_scratch, out_actions):
+def greedy_actions(
+    theta,
+    observations,
+    inv_widths,
+    offsets,
+    wrap_tiles,
+    slot_mask,
+    stride,
+    action_columns,
+    columns_are_actions,
+    slots_scratch,
+    q_scratch,
+    out_actions,
+):
     """Greedy action (lowest index on ties) for each row of observations; False if a row is not finite.
 
     :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
@@ -418,8 +471,19 @@ def greedy_actions(theta, observations, inv_widths, offsets, wrap_tiles, slot_ma
 
 
 @nb.njit(cache=True)
-def batch_q_values(theta, observations, inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
-                   columns_are_actions, slots_scratch, out_q):
+def batch_q_values(
+    theta,
+    observations,
+    inv_widths,
+    offsets,
+    wrap_tiles,
+    slot_mask,
+    stride,
+    action_columns,
+    columns_are_actions,
+    slots_scratch,
+    out_q,
+):
     """Q(s, .) for each row of observations into out_q (B, A); False if a row is not finite.
 
     :param theta: the weights, float64 (stride * number of state-tile slots,), changed in place by the learning kernels.
@@ -576,10 +640,32 @@ def watch_batch(watch, targets, values):
 
 @nb.njit(cache=True)
 def sarsa_lambda_step(
-    theta, trace_index, trace_value, trace_position, trace_length,
-    slots, action, reward, terminated, next_obs, next_slots, q_scratch,
-    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions,
-    step_size, gamma, trace_decay, trace_cutoff, epsilon, rng, watch,
+    theta,
+    trace_index,
+    trace_value,
+    trace_position,
+    trace_length,
+    slots,
+    action,
+    reward,
+    terminated,
+    next_obs,
+    next_slots,
+    q_scratch,
+    inv_widths,
+    offsets,
+    wrap_tiles,
+    slot_mask,
+    stride,
+    action_columns,
+    columns_are_actions,
+    step_size,
+    gamma,
+    trace_decay,
+    trace_cutoff,
+    epsilon,
+    rng,
+    watch,
 ):
     """One step of Sarsa(lambda) with replacing traces (Alg. 2 lines 8-12, Eq. 2.6).
 
@@ -719,9 +805,26 @@ def sigma_of_state(q, w, sigma_kind):
 
 
 @nb.njit(inline="always", cache=True)
-def next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
-                     sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, want_plain=False,
-                     unvisited_written=False):
+def next_state_value(
+    theta,
+    visits,
+    next_slots,
+    stride,
+    action_columns,
+    columns_are_actions,
+    n_tilings,
+    target_kind,
+    sigma_kind,
+    epsilon,
+    rng,
+    q,
+    w,
+    initial_low,
+    initial_span,
+    initial_seed,
+    want_plain=False,
+    unvisited_written=False,
+):
     """The bootstrap value at s' and the action a' it belongs to, on sigma-adjusted values for ER-sigma; with
     ``want_plain``, also the value without sigma (the vanilla-ER value of the same a', see below), else that value
     is the returned value itself.
@@ -763,8 +866,19 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
     if sigma_kind == SIGMA_NONE:
         all_q_values(theta, next_slots, stride, action_columns, columns_are_actions, q)
     else:
-        all_q_values_and_visit_counts(theta, visits, next_slots, stride, action_columns, columns_are_actions, q, w,
-                                      initial_low, initial_span, initial_seed)
+        all_q_values_and_visit_counts(
+            theta,
+            visits,
+            next_slots,
+            stride,
+            action_columns,
+            columns_are_actions,
+            q,
+            w,
+            initial_low,
+            initial_span,
+            initial_seed,
+        )
         sum_w = 0.0
         for a in range(q.shape[0]):
             sum_w += w[a]
@@ -806,9 +920,33 @@ def next_state_value(theta, visits, next_slots, stride, action_columns, columns_
 
 
 @nb.njit(inline="always", cache=True)
-def replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
-                  columns_are_actions, target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma,
-                  epsilon, rng, q, w, initial_low, initial_span, initial_seed, watch):
+def replay_update(
+    theta,
+    visits,
+    slots,
+    actions,
+    rewards,
+    p,
+    next_slots,
+    terminal,
+    stride,
+    action_columns,
+    columns_are_actions,
+    target_kind,
+    sigma_kind,
+    residual_zeta,
+    residual_next_action,
+    step_size,
+    gamma,
+    epsilon,
+    rng,
+    q,
+    w,
+    initial_low,
+    initial_span,
+    initial_seed,
+    watch,
+):
     """One replayed update of transition p; returns (delta, whether the watch saw its first value out of bounds).
 
     theta <- theta + alpha delta phi(s_t, a_t)                                  (Alg. 8 line 7, Alg. 10 line 9)
@@ -853,8 +991,25 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
     watching = watch.shape[0] > 0
     if not terminal:
         value, next_action, plain_value = next_state_value(
-            theta, visits, next_slots, stride, action_columns, columns_are_actions, n_tilings, target_kind,
-            sigma_kind, epsilon, rng, q, w, initial_low, initial_span, initial_seed, watching, residual_zeta > 0.0)
+            theta,
+            visits,
+            next_slots,
+            stride,
+            action_columns,
+            columns_are_actions,
+            n_tilings,
+            target_kind,
+            sigma_kind,
+            epsilon,
+            rng,
+            q,
+            w,
+            initial_low,
+            initial_span,
+            initial_seed,
+            watching,
+            residual_zeta > 0.0,
+        )
         target += gamma * value
         if residual_next_action:
             residual_action = next_action
@@ -870,7 +1025,9 @@ def replay_update(theta, visits, slots, actions, rewards, p, next_slots, termina
         theta[slots[p, k] * stride + action_columns[k, a]] += step_size * delta
     if residual_zeta > 0.0 and not terminal:
         for k in range(n_tilings):
-            theta[next_slots[k] * stride + action_columns[k, residual_action]] -= step_size * delta * residual_zeta * gamma
+            theta[next_slots[k] * stride + action_columns[k, residual_action]] -= (
+                step_size * delta * residual_zeta * gamma
+            )
     return delta, flagged
 
 
@@ -886,12 +1043,43 @@ def ring_index(i, capacity):
 
 @nb.njit(cache=True)
 def replay_phase(
-    theta, visits, slots, actions, rewards, transition_trajectory,
-    trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
-    oldest_trajectory, n_closed_trajectories, first_row, n_transitions, open_trajectory, open_length, open_next_slots,
-    stride, action_columns, columns_are_actions, n_replays, order, target_kind, sigma_kind, residual_zeta,
-    residual_next_action, step_size, gamma, epsilon, replay_rng, action_rng, q_scratch, w_scratch,
-    initial_low, initial_span, initial_seed, watch,
+    theta,
+    visits,
+    slots,
+    actions,
+    rewards,
+    transition_trajectory,
+    trajectory_start,
+    trajectory_length,
+    trajectory_terminated,
+    trajectory_next_slots,
+    oldest_trajectory,
+    n_closed_trajectories,
+    first_row,
+    n_transitions,
+    open_trajectory,
+    open_length,
+    open_next_slots,
+    stride,
+    action_columns,
+    columns_are_actions,
+    n_replays,
+    order,
+    target_kind,
+    sigma_kind,
+    residual_zeta,
+    residual_next_action,
+    step_size,
+    gamma,
+    epsilon,
+    replay_rng,
+    action_rng,
+    q_scratch,
+    w_scratch,
+    initial_low,
+    initial_span,
+    initial_seed,
+    watch,
 ):
     """Replay n_replays trajectories drawn uniformly from the stored ones (Alg. 8, 10, 12, 14 lines 1-3).
 
@@ -980,10 +1168,33 @@ def replay_phase(
             else:
                 next_slots = slots[ring_index(p + 1, capacity)]
                 terminal = False
-            delta, flagged = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
-                                           action_columns, columns_are_actions, target_kind, sigma_kind,
-                                           residual_zeta, residual_next_action, step_size, gamma, epsilon, action_rng,
-                                           q_scratch, w_scratch, initial_low, initial_span, initial_seed, watch)
+            delta, flagged = replay_update(
+                theta,
+                visits,
+                slots,
+                actions,
+                rewards,
+                p,
+                next_slots,
+                terminal,
+                stride,
+                action_columns,
+                columns_are_actions,
+                target_kind,
+                sigma_kind,
+                residual_zeta,
+                residual_next_action,
+                step_size,
+                gamma,
+                epsilon,
+                action_rng,
+                q_scratch,
+                w_scratch,
+                initial_low,
+                initial_span,
+                initial_seed,
+                watch,
+            )
             updates += 1
             if not np.isfinite(delta):
                 return updates, sum_abs_delta, delta, STATUS_DIVERGED
@@ -1148,8 +1359,19 @@ def heap_clear(heap_rows, heap_position, heap_size):
 
 
 @nb.njit(inline="always", cache=True)
-def transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
-                   trajectory_next_slots, open_trajectory, open_start, open_length, open_next_slots):
+def transition_end(
+    p,
+    slots,
+    transition_trajectory,
+    trajectory_start,
+    trajectory_length,
+    trajectory_terminated,
+    trajectory_next_slots,
+    open_trajectory,
+    open_start,
+    open_length,
+    open_next_slots,
+):
     """(tiles of s_{t+1}, terminal, t) of stored row p: the next row's tiles inside a trajectory, the trajectory's
     stored last s' at its end (the open trajectory's latest s', never terminal).
 
@@ -1179,9 +1401,29 @@ def transition_end(p, slots, transition_trajectory, trajectory_start, trajectory
 
 
 @nb.njit(inline="always", cache=True)
-def transition_priority(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride, action_columns,
-                        columns_are_actions, priority_target, sigma_kind, gamma, epsilon, rng, q, w, initial_low,
-                        initial_span, initial_seed):
+def transition_priority(
+    theta,
+    visits,
+    slots,
+    actions,
+    rewards,
+    p,
+    next_slots,
+    terminal,
+    stride,
+    action_columns,
+    columns_are_actions,
+    priority_target,
+    sigma_kind,
+    gamma,
+    epsilon,
+    rng,
+    q,
+    w,
+    initial_low,
+    initial_span,
+    initial_seed,
+):
     """|delta| of stored transition p under the current theta, without an update: the priority of prioritized
     sweeping. ``priority_target`` is never the sampled Sarsa target (the caller passes expected Sarsa instead), so
     no random number is drawn and a priority does not depend on an exploratory draw.
@@ -1213,17 +1455,45 @@ def transition_priority(theta, visits, slots, actions, rewards, p, next_slots, t
         q_sa += theta[slots[p, k] * stride + action_columns[k, actions[p]]]
     target = rewards[p]
     if not terminal:
-        value, _, _ = next_state_value(theta, visits, next_slots, stride, action_columns, columns_are_actions,
-                                    slots.shape[1], priority_target, sigma_kind, epsilon, rng, q, w, initial_low,
-                                    initial_span, initial_seed)
+        value, _, _ = next_state_value(
+            theta,
+            visits,
+            next_slots,
+            stride,
+            action_columns,
+            columns_are_actions,
+            slots.shape[1],
+            priority_target,
+            sigma_kind,
+            epsilon,
+            rng,
+            q,
+            w,
+            initial_low,
+            initial_span,
+            initial_seed,
+        )
         target += gamma * value
     return abs(target - q_sa)
 
 
 @nb.njit(cache=True)
-def build_predecessor_index(slots, transition_trajectory, trajectory_start, trajectory_length, trajectory_terminated,
-                            trajectory_next_slots, first_row, n_transitions, open_trajectory, open_start, open_length,
-                            open_next_slots, index_start, index_rows):
+def build_predecessor_index(
+    slots,
+    transition_trajectory,
+    trajectory_start,
+    trajectory_length,
+    trajectory_terminated,
+    trajectory_next_slots,
+    first_row,
+    n_transitions,
+    open_trajectory,
+    open_start,
+    open_length,
+    open_next_slots,
+    index_start,
+    index_rows,
+):
     """The index from tile slots to the stored transitions whose s' has that tile (a counting sort).
 
     Afterwards ``index_rows[index_start[c]:index_start[c + 1]]`` are the rows p, oldest first, with slot c among the
@@ -1252,9 +1522,19 @@ def build_predecessor_index(slots, transition_trajectory, trajectory_start, traj
         index_start[c] = 0
     for i in range(n_transitions):
         p = ring_index(first_row + i, capacity)
-        next_slots, terminal, _ = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
-                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
-                                                 open_start, open_length, open_next_slots)
+        next_slots, terminal, _ = transition_end(
+            p,
+            slots,
+            transition_trajectory,
+            trajectory_start,
+            trajectory_length,
+            trajectory_terminated,
+            trajectory_next_slots,
+            open_trajectory,
+            open_start,
+            open_length,
+            open_next_slots,
+        )
         if not terminal:
             for k in range(next_slots.shape[0]):
                 index_start[next_slots[k] + 1] += 1
@@ -1262,9 +1542,19 @@ def build_predecessor_index(slots, transition_trajectory, trajectory_start, traj
         index_start[c + 1] += index_start[c]
     for i in range(n_transitions):  # index_start[c] runs through slot c's rows, ending at the start of c + 1
         p = ring_index(first_row + i, capacity)
-        next_slots, terminal, _ = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
-                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
-                                                 open_start, open_length, open_next_slots)
+        next_slots, terminal, _ = transition_end(
+            p,
+            slots,
+            transition_trajectory,
+            trajectory_start,
+            trajectory_length,
+            trajectory_terminated,
+            trajectory_next_slots,
+            open_trajectory,
+            open_start,
+            open_length,
+            open_next_slots,
+        )
         if not terminal:
             for k in range(next_slots.shape[0]):
                 index_rows[index_start[next_slots[k]]] = p
@@ -1275,19 +1565,79 @@ def build_predecessor_index(slots, transition_trajectory, trajectory_start, traj
 
 
 @nb.njit(cache=True)
-def _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
-             trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory, open_start,
-             open_length, open_next_slots, stride, action_columns, columns_are_actions, priority_target, sigma_kind,
-             gamma, epsilon, rng, q, w, initial_low, initial_span, initial_seed, threshold, heap_rows, heap_keys,
-             heap_position, heap_size):
+def _requeue(
+    q_row,
+    theta,
+    visits,
+    slots,
+    actions,
+    rewards,
+    transition_trajectory,
+    trajectory_start,
+    trajectory_length,
+    trajectory_terminated,
+    trajectory_next_slots,
+    open_trajectory,
+    open_start,
+    open_length,
+    open_next_slots,
+    stride,
+    action_columns,
+    columns_are_actions,
+    priority_target,
+    sigma_kind,
+    gamma,
+    epsilon,
+    rng,
+    q,
+    w,
+    initial_low,
+    initial_span,
+    initial_seed,
+    threshold,
+    heap_rows,
+    heap_keys,
+    heap_position,
+    heap_size,
+):
     """Recompute the |delta| of predecessor q_row and queue it, re-prioritise it, or take it out of the queue when
     it no longer exceeds the threshold."""
-    next_slots, terminal, _ = transition_end(q_row, slots, transition_trajectory, trajectory_start, trajectory_length,
-                                             trajectory_terminated, trajectory_next_slots, open_trajectory,
-                                             open_start, open_length, open_next_slots)
-    priority = transition_priority(theta, visits, slots, actions, rewards, q_row, next_slots, terminal, stride,
-                                   action_columns, columns_are_actions, priority_target, sigma_kind, gamma, epsilon,
-                                   rng, q, w, initial_low, initial_span, initial_seed)
+    next_slots, terminal, _ = transition_end(
+        q_row,
+        slots,
+        transition_trajectory,
+        trajectory_start,
+        trajectory_length,
+        trajectory_terminated,
+        trajectory_next_slots,
+        open_trajectory,
+        open_start,
+        open_length,
+        open_next_slots,
+    )
+    priority = transition_priority(
+        theta,
+        visits,
+        slots,
+        actions,
+        rewards,
+        q_row,
+        next_slots,
+        terminal,
+        stride,
+        action_columns,
+        columns_are_actions,
+        priority_target,
+        sigma_kind,
+        gamma,
+        epsilon,
+        rng,
+        q,
+        w,
+        initial_low,
+        initial_span,
+        initial_seed,
+    )
     if priority > threshold:
         heap_set(heap_rows, heap_keys, heap_position, heap_size, q_row, priority)
     else:
@@ -1296,13 +1646,52 @@ def _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajector
 
 @nb.njit(cache=True)
 def prioritized_phase(
-    theta, visits, slots, actions, rewards, transition_trajectory,
-    trajectory_start, trajectory_length, trajectory_terminated, trajectory_next_slots,
-    oldest_trajectory, n_closed_trajectories, first_row, n_transitions, open_trajectory, open_length, open_next_slots,
-    stride, action_columns, columns_are_actions, n_updates, threshold, predecessors, max_predecessors,
-    target_kind, sigma_kind, residual_zeta, residual_next_action, step_size, gamma, epsilon, action_rng,
-    q_scratch, w_scratch, initial_low, initial_span, initial_seed,
-    heap_rows, heap_keys, heap_position, heap_size, index_start, index_rows, stamp, stamp_counter, watch,
+    theta,
+    visits,
+    slots,
+    actions,
+    rewards,
+    transition_trajectory,
+    trajectory_start,
+    trajectory_length,
+    trajectory_terminated,
+    trajectory_next_slots,
+    oldest_trajectory,
+    n_closed_trajectories,
+    first_row,
+    n_transitions,
+    open_trajectory,
+    open_length,
+    open_next_slots,
+    stride,
+    action_columns,
+    columns_are_actions,
+    n_updates,
+    threshold,
+    predecessors,
+    max_predecessors,
+    target_kind,
+    sigma_kind,
+    residual_zeta,
+    residual_next_action,
+    step_size,
+    gamma,
+    epsilon,
+    action_rng,
+    q_scratch,
+    w_scratch,
+    initial_low,
+    initial_span,
+    initial_seed,
+    heap_rows,
+    heap_keys,
+    heap_position,
+    heap_size,
+    index_start,
+    index_rows,
+    stamp,
+    stamp_counter,
+    watch,
 ):
     """One replay phase of prioritized sweeping over the stored transitions (Moore and Atkeson 1993, their Fig. 4
     "prioritized sweeping" loop with the transitions of the database as its model; thesis 3.2: "Another possibility
@@ -1384,19 +1773,61 @@ def prioritized_phase(
     if n_transitions == 0 or n_updates <= 0:
         return updates, sum_abs_delta, delta, status, evaluations
     if predecessors == PREDECESSORS_TILES:
-        build_predecessor_index(slots, transition_trajectory, trajectory_start, trajectory_length,
-                                trajectory_terminated, trajectory_next_slots, first_row, n_transitions,
-                                open_trajectory, open_start, open_length, open_next_slots, index_start, index_rows)
+        build_predecessor_index(
+            slots,
+            transition_trajectory,
+            trajectory_start,
+            trajectory_length,
+            trajectory_terminated,
+            trajectory_next_slots,
+            first_row,
+            n_transitions,
+            open_trajectory,
+            open_start,
+            open_length,
+            open_next_slots,
+            index_start,
+            index_rows,
+        )
     size = 0
     for i in range(n_transitions):
         p = ring_index(first_row + i, capacity)
-        next_slots, terminal, _ = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
-                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
-                                                 open_start, open_length, open_next_slots)
-        priority = transition_priority(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
-                                       action_columns, columns_are_actions, priority_target, sigma_kind, gamma,
-                                       epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
-                                       initial_seed)
+        next_slots, terminal, _ = transition_end(
+            p,
+            slots,
+            transition_trajectory,
+            trajectory_start,
+            trajectory_length,
+            trajectory_terminated,
+            trajectory_next_slots,
+            open_trajectory,
+            open_start,
+            open_length,
+            open_next_slots,
+        )
+        priority = transition_priority(
+            theta,
+            visits,
+            slots,
+            actions,
+            rewards,
+            p,
+            next_slots,
+            terminal,
+            stride,
+            action_columns,
+            columns_are_actions,
+            priority_target,
+            sigma_kind,
+            gamma,
+            epsilon,
+            action_rng,
+            q_scratch,
+            w_scratch,
+            initial_low,
+            initial_span,
+            initial_seed,
+        )
         evaluations += 1
         if priority > threshold:
             heap_rows[size] = p
@@ -1407,13 +1838,46 @@ def prioritized_phase(
 
     while updates < n_updates and heap_size[0] > 0:
         p, _ = heap_pop(heap_rows, heap_keys, heap_position, heap_size)
-        next_slots, terminal, t = transition_end(p, slots, transition_trajectory, trajectory_start, trajectory_length,
-                                                 trajectory_terminated, trajectory_next_slots, open_trajectory,
-                                                 open_start, open_length, open_next_slots)
-        delta, flagged = replay_update(theta, visits, slots, actions, rewards, p, next_slots, terminal, stride,
-                                       action_columns, columns_are_actions, target_kind, sigma_kind, residual_zeta,
-                                       residual_next_action, step_size, gamma, epsilon, action_rng, q_scratch,
-                                       w_scratch, initial_low, initial_span, initial_seed, watch)
+        next_slots, terminal, t = transition_end(
+            p,
+            slots,
+            transition_trajectory,
+            trajectory_start,
+            trajectory_length,
+            trajectory_terminated,
+            trajectory_next_slots,
+            open_trajectory,
+            open_start,
+            open_length,
+            open_next_slots,
+        )
+        delta, flagged = replay_update(
+            theta,
+            visits,
+            slots,
+            actions,
+            rewards,
+            p,
+            next_slots,
+            terminal,
+            stride,
+            action_columns,
+            columns_are_actions,
+            target_kind,
+            sigma_kind,
+            residual_zeta,
+            residual_next_action,
+            step_size,
+            gamma,
+            epsilon,
+            action_rng,
+            q_scratch,
+            w_scratch,
+            initial_low,
+            initial_span,
+            initial_seed,
+            watch,
+        )
         updates += 1
         if not np.isfinite(delta):
             heap_clear(heap_rows, heap_position, heap_size)
@@ -1429,11 +1893,41 @@ def prioritized_phase(
         if t > 0 and max_predecessors > 0:  # the previous transition of p's trajectory: its s' is s_p
             q_row = ring_index(p + capacity - 1, capacity)
             stamp[q_row] = mark
-            _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
-                     trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory, open_start,
-                     open_length, open_next_slots, stride, action_columns, columns_are_actions, priority_target,
-                     sigma_kind, gamma, epsilon, action_rng, q_scratch, w_scratch, initial_low, initial_span,
-                     initial_seed, threshold, heap_rows, heap_keys, heap_position, heap_size)
+            _requeue(
+                q_row,
+                theta,
+                visits,
+                slots,
+                actions,
+                rewards,
+                transition_trajectory,
+                trajectory_start,
+                trajectory_length,
+                trajectory_terminated,
+                trajectory_next_slots,
+                open_trajectory,
+                open_start,
+                open_length,
+                open_next_slots,
+                stride,
+                action_columns,
+                columns_are_actions,
+                priority_target,
+                sigma_kind,
+                gamma,
+                epsilon,
+                action_rng,
+                q_scratch,
+                w_scratch,
+                initial_low,
+                initial_span,
+                initial_seed,
+                threshold,
+                heap_rows,
+                heap_keys,
+                heap_position,
+                heap_size,
+            )
             evaluations += 1
             examined += 1
         if predecessors == PREDECESSORS_TRAJECTORY:
@@ -1451,12 +1945,41 @@ def prioritized_phase(
                 if stamp[q_row] == mark:
                     continue
                 stamp[q_row] = mark
-                _requeue(q_row, theta, visits, slots, actions, rewards, transition_trajectory, trajectory_start,
-                         trajectory_length, trajectory_terminated, trajectory_next_slots, open_trajectory,
-                         open_start, open_length, open_next_slots, stride, action_columns, columns_are_actions,
-                         priority_target, sigma_kind, gamma, epsilon, action_rng, q_scratch, w_scratch,
-                         initial_low, initial_span, initial_seed, threshold, heap_rows, heap_keys, heap_position,
-                         heap_size)
+                _requeue(
+                    q_row,
+                    theta,
+                    visits,
+                    slots,
+                    actions,
+                    rewards,
+                    transition_trajectory,
+                    trajectory_start,
+                    trajectory_length,
+                    trajectory_terminated,
+                    trajectory_next_slots,
+                    open_trajectory,
+                    open_start,
+                    open_length,
+                    open_next_slots,
+                    stride,
+                    action_columns,
+                    columns_are_actions,
+                    priority_target,
+                    sigma_kind,
+                    gamma,
+                    epsilon,
+                    action_rng,
+                    q_scratch,
+                    w_scratch,
+                    initial_low,
+                    initial_span,
+                    initial_seed,
+                    threshold,
+                    heap_rows,
+                    heap_keys,
+                    heap_position,
+                    heap_size,
+                )
                 evaluations += 1
                 examined += 1
                 if examined >= max_predecessors:
@@ -1510,8 +2033,9 @@ def batch_state_slots(observations, inv_widths, offsets, wrap_tiles, slot_mask, 
 
 
 @nb.njit(cache=True)
-def greedy_next_values(theta, next_slots, terminal, stride, action_columns, columns_are_actions, q_scratch, out_values,
-                       out_actions):
+def greedy_next_values(
+    theta, next_slots, terminal, stride, action_columns, columns_are_actions, q_scratch, out_values, out_actions
+):
     """max_a Q(s'_d, a) and its argmax (lowest index on ties) for each transition d (FQI's Eq. 3.1, LSPI's greedy
     policy at s'); 0 and -1 where s'_d is terminal.
 
@@ -1586,8 +2110,24 @@ def ridge_normal_matvec(x, columns, ridge, out):
 
 
 @nb.njit(inline="always", cache=True)
-def one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns, columns_are_actions,
-                    target_kind, step_size, gamma, epsilon, rng, q, watch):
+def one_step_update(
+    theta,
+    slots,
+    action,
+    reward,
+    continuation,
+    next_slots,
+    stride,
+    action_columns,
+    columns_are_actions,
+    target_kind,
+    step_size,
+    gamma,
+    epsilon,
+    rng,
+    q,
+    watch,
+):
     """One single-sample update (thesis Eq. 3.10, Alg. 5 line 4) on (s, a, r, s'); returns (delta, whether the value
     watch saw its first value outside the bounds).
 
@@ -1632,10 +2172,34 @@ def one_step_update(theta, slots, action, reward, continuation, next_slots, stri
 
 @nb.njit(cache=True)
 def dyna_step(
-    theta, slots, action, reward, terminated, next_obs, next_slots,
-    plan_slots, plan_actions, plan_rewards, plan_continuation, plan_next_slots, plan_start, plan_count,
-    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions,
-    target_kind, step_size, gamma, epsilon, rng, q_scratch, watch,
+    theta,
+    slots,
+    action,
+    reward,
+    terminated,
+    next_obs,
+    next_slots,
+    plan_slots,
+    plan_actions,
+    plan_rewards,
+    plan_continuation,
+    plan_next_slots,
+    plan_start,
+    plan_count,
+    inv_widths,
+    offsets,
+    wrap_tiles,
+    slot_mask,
+    stride,
+    action_columns,
+    columns_are_actions,
+    target_kind,
+    step_size,
+    gamma,
+    epsilon,
+    rng,
+    q_scratch,
+    watch,
 ):
     """One real step of Dyna (Sutton 1991; thesis 3.4 and Alg. 3-5): the direct update on (s_k, a_k, r_{k+1}, s_{k+1}),
     then ``plan_count`` planning updates on the model's predicted transitions ``plan_start ...`` (rows with a negative
@@ -1678,9 +2242,24 @@ def dyna_step(
         if not state_slots(next_obs, inv_widths, offsets, wrap_tiles, slot_mask, next_slots):
             return np.nan, 0, 0.0, STATUS_BAD_OBSERVATION
         continuation = 1.0
-    delta, flagged = one_step_update(theta, slots, action, reward, continuation, next_slots, stride, action_columns,
-                                     columns_are_actions, target_kind, step_size, gamma, epsilon, rng, q_scratch,
-                                     watch)
+    delta, flagged = one_step_update(
+        theta,
+        slots,
+        action,
+        reward,
+        continuation,
+        next_slots,
+        stride,
+        action_columns,
+        columns_are_actions,
+        target_kind,
+        step_size,
+        gamma,
+        epsilon,
+        rng,
+        q_scratch,
+        watch,
+    )
     if not np.isfinite(delta):
         return delta, 0, 0.0, STATUS_DIVERGED
     status = STATUS_OUT_OF_BOUNDS if flagged else STATUS_OK
@@ -1689,10 +2268,24 @@ def dyna_step(
     for p in range(plan_start, plan_start + plan_count):
         if plan_continuation[p] < 0.0:
             continue
-        planned, flagged = one_step_update(theta, plan_slots[p], plan_actions[p], plan_rewards[p],
-                                           plan_continuation[p], plan_next_slots[p], stride, action_columns,
-                                           columns_are_actions, target_kind, step_size, gamma, epsilon, rng,
-                                           q_scratch, watch)
+        planned, flagged = one_step_update(
+            theta,
+            plan_slots[p],
+            plan_actions[p],
+            plan_rewards[p],
+            plan_continuation[p],
+            plan_next_slots[p],
+            stride,
+            action_columns,
+            columns_are_actions,
+            target_kind,
+            step_size,
+            gamma,
+            epsilon,
+            rng,
+            q_scratch,
+            watch,
+        )
         updates += 1
         if not np.isfinite(planned):
             return planned, updates, sum_abs_delta, STATUS_DIVERGED

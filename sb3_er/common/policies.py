@@ -36,11 +36,11 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
         return [int(action_space.n)]
     if isinstance(action_space, spaces.MultiDiscrete):
         if action_space.nvec.ndim != 1:
-            raise ValueError(f"Only flat MultiDiscrete action spaces are supported, got nvec of shape {action_space.nvec.shape}")
+            raise ValueError(
+                f"Only flat MultiDiscrete action spaces are supported, got nvec of shape {action_space.nvec.shape}"
+            )
         return [int(n) for n in action_space.nvec]
-    raise ValueError(
-        f"Tile-coded Q-learning needs a Discrete, MultiDiscrete or Box action space, got {action_space}"
-    )
+    raise ValueError(f"Tile-coded Q-learning needs a Discrete, MultiDiscrete or Box action space, got {action_space}")
 
 
 def _initial_range(initial_value) -> tuple[float, float]:
@@ -153,7 +153,8 @@ class TileQPolicy(BasePolicy):
         choices = np.stack(np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1)
         if continuous:  # the level of each dimension of each joint action, in the Box's dtype
             self.action_table = np.stack([levels[j][choices[:, j]] for j in range(len(levels))], axis=1).astype(
-                action_space.dtype)
+                action_space.dtype
+            )
         else:
             self.action_table = choices + action_start(action_space)
         self._actions_are_indices = isinstance(action_space, spaces.Discrete) and int(action_space.start) == 0
@@ -172,11 +173,18 @@ class TileQPolicy(BasePolicy):
             self._share_theta()
 
     def _check_theta(self, theta) -> None:
-        if not (isinstance(theta, th.Tensor) and theta.device.type == "cpu" and theta.dtype == th.float64
-                and tuple(theta.shape) == (self.tile_coder.n_weights,) and theta.is_contiguous()):
-            raise ValueError(f"TileQPolicy keeps its weights as one contiguous float64 CPU tensor of "
-                             f"{self.tile_coder.n_weights} entries, got {getattr(theta, 'dtype', type(theta).__name__)} "
-                             f"{tuple(getattr(theta, 'shape', ()))} on {getattr(theta, 'device', '?')}")
+        if not (
+            isinstance(theta, th.Tensor)
+            and theta.device.type == "cpu"
+            and theta.dtype == th.float64
+            and tuple(theta.shape) == (self.tile_coder.n_weights,)
+            and theta.is_contiguous()
+        ):
+            raise ValueError(
+                f"TileQPolicy keeps its weights as one contiguous float64 CPU tensor of "
+                f"{self.tile_coder.n_weights} entries, got {getattr(theta, 'dtype', type(theta).__name__)} "
+                f"{tuple(getattr(theta, 'shape', ()))} on {getattr(theta, 'device', '?')}"
+            )
 
     def _share_theta(self) -> None:
         self._check_theta(self.theta)
@@ -197,8 +205,9 @@ class TileQPolicy(BasePolicy):
         super().__setstate__(state)
         self._share_theta()
 
-    def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
-                              error_msgs) -> None:
+    def _load_from_state_dict(
+        self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys, error_msgs
+    ) -> None:
         """Check incoming weights before they are copied into theta (set_parameters, load, ``TileQPolicy.load``): the
         tile coding's number of weights, all finite. A problem is reported as PyTorch reports a size mismatch (a
         RuntimeError of ``load_state_dict``), and the weights in place stay as they were."""
@@ -206,19 +215,24 @@ class TileQPolicy(BasePolicy):
         problem = None
         if theta is not None:
             if not isinstance(theta, th.Tensor) or not theta.dtype.is_floating_point:
-                problem = (f"the weights theta must be a floating-point tensor, got {type(theta).__name__} "
-                           f"{getattr(theta, 'dtype', '')}")
+                problem = (
+                    f"the weights theta must be a floating-point tensor, got {type(theta).__name__} "
+                    f"{getattr(theta, 'dtype', '')}"
+                )
             elif tuple(theta.shape) != (self.tile_coder.n_weights,):
-                problem = (f"the weights theta have shape {tuple(theta.shape)}, but this tile coding has "
-                           f"{self.tile_coder.n_weights} weights: they were saved with another tile coding")
+                problem = (
+                    f"the weights theta have shape {tuple(theta.shape)}, but this tile coding has "
+                    f"{self.tile_coder.n_weights} weights: they were saved with another tile coding"
+                )
             elif not bool(th.isfinite(theta).all()):
                 bad = th.nonzero(~th.isfinite(theta)).reshape(-1)[:5].tolist()
                 problem = f"the weights theta hold non-finite values (at indices {bad})"
         if problem is not None:
             error_msgs.append(problem)
             return
-        super()._load_from_state_dict(state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
-                                      error_msgs)
+        super()._load_from_state_dict(
+            state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys, error_msgs
+        )
 
     def parameters_to_vector(self) -> np.ndarray:
         """The weights theta as a 1D array (a copy; SB3's BasePolicy reads ``parameters()``, which theta, a buffer the
@@ -246,8 +260,12 @@ class TileQPolicy(BasePolicy):
             th.save(saved, partial)
 
     @classmethod
-    def load(cls, path: Union[str, pathlib.Path, io.BufferedIOBase], device: Union[th.device, str] = "auto",
-             allow_pickle: bool = True) -> "TileQPolicy":
+    def load(
+        cls,
+        path: Union[str, pathlib.Path, io.BufferedIOBase],
+        device: Union[th.device, str] = "auto",
+        allow_pickle: bool = True,
+    ) -> "TileQPolicy":
         """Load a policy saved by ``save``. Its file is read with ``torch.load(weights_only=True)``: no pickle runs.
         A policy file in SB3's own format (spaces pickled) needs ``allow_pickle`` (the default, as in SB3), as
         unpickling it can run code from the file. ValueError naming the file for anything unreadable or inconsistent.
@@ -356,9 +374,11 @@ class TileQPolicy(BasePolicy):
             adds exploration).
         """
         if isinstance(observation, dict):
-            raise ValueError("TileQPolicy needs a flat Box observation, got a dict: flatten it as the model's env "
-                             "does (gymnasium.wrappers.FlattenObservation around the env, or "
-                             "gymnasium.spaces.flatten(env.observation_space, observation))")
+            raise ValueError(
+                "TileQPolicy needs a flat Box observation, got a dict: flatten it as the model's env "
+                "does (gymnasium.wrappers.FlattenObservation around the env, or "
+                "gymnasium.spaces.flatten(env.observation_space, observation))"
+            )
         if isinstance(observation, tuple):
             # SB3's own predict, whose checks catch a Gymnasium (obs, info) pair passed for a VecEnv observation;
             # any other tuple is an observation and comes back through _predict.
@@ -371,5 +391,7 @@ class TileQPolicy(BasePolicy):
         return actions, state
 
     def _predict(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
-        batch = np.ascontiguousarray(observation.detach().cpu().numpy().astype(np.float64).reshape(-1, self.tile_coder.n_dims))
+        batch = np.ascontiguousarray(
+            observation.detach().cpu().numpy().astype(np.float64).reshape(-1, self.tile_coder.n_dims)
+        )
         return th.as_tensor(self.to_env_actions(self.flat_greedy_actions(batch)))

@@ -65,13 +65,25 @@ def encode_plain(value: Any) -> Any:
     if isinstance(value, deque):
         return {"__deque__": [value.maxlen, [encode_plain(v) for v in value]]}
     if isinstance(value, spaces.Box):
-        return {"__space__": {"type": "Box", "low": encode_plain(value.low), "high": encode_plain(value.high),
-                              "dtype": value.dtype.str}}
+        return {
+            "__space__": {
+                "type": "Box",
+                "low": encode_plain(value.low),
+                "high": encode_plain(value.high),
+                "dtype": value.dtype.str,
+            }
+        }
     if type(value) is spaces.Discrete:
         return {"__space__": {"type": "Discrete", "n": int(value.n), "start": int(value.start)}}
     if type(value) is spaces.MultiDiscrete:
-        return {"__space__": {"type": "MultiDiscrete", "nvec": encode_plain(value.nvec),
-                              "start": encode_plain(value.start), "dtype": value.dtype.str}}
+        return {
+            "__space__": {
+                "type": "MultiDiscrete",
+                "nvec": encode_plain(value.nvec),
+                "start": encode_plain(value.start),
+                "dtype": value.dtype.str,
+            }
+        }
     if isinstance(value, th.device):
         return {"__device__": str(value)}
     if isinstance(value, type):
@@ -92,16 +104,19 @@ def decode_plain(value: Any, classes: dict[str, type]) -> Any:
         return [decode_plain(v, classes) for v in value]
     if not (isinstance(value, dict) and len(value) == 1):
         raise ValueError(f"malformed plain value {str(value)[:80]}")
-    (kind, body), = value.items()
+    ((kind, body),) = value.items()
     if kind == "__tuple__" and isinstance(body, list):
         return tuple(decode_plain(v, classes) for v in body)
     if kind == "__dict__" and isinstance(body, dict):
         return {k: decode_plain(v, classes) for k, v in body.items()}
     if kind == "__ndarray__" and isinstance(body, list) and len(body) == 3:
         dtype, shape, data = _numeric_dtype(body[0]), body[1], body[2]
-        if not (isinstance(shape, list) and all(isinstance(d, int) and not isinstance(d, bool) and d >= 0
-                                                for d in shape) and isinstance(data, list)
-                and len(data) == int(np.prod(shape, dtype=np.int64))):
+        if not (
+            isinstance(shape, list)
+            and all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in shape)
+            and isinstance(data, list)
+            and len(data) == int(np.prod(shape, dtype=np.int64))
+        ):
             raise ValueError(f"malformed array: shape {shape!r} for {len(data) if isinstance(data, list) else data!r}")
         if not all(isinstance(x, (bool, int, float)) for x in data):
             raise ValueError("malformed array: entries must be numbers")
@@ -224,8 +239,9 @@ def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[di
     return data, source
 
 
-def custom_objects_without_pickle(data: dict[str, Any], classes: dict[str, type],
-                                  custom_objects: Optional[dict[str, Any]]) -> dict[str, Any]:
+def custom_objects_without_pickle(
+    data: dict[str, Any], classes: dict[str, type], custom_objects: Optional[dict[str, Any]]
+) -> dict[str, Any]:
     """SB3 ``custom_objects`` that replace every pickled entry of ``data`` by its plain copy, so that SB3 unpickles
     none; ValueError naming an entry that only its pickle holds.
 
@@ -279,9 +295,12 @@ def check_rng_state(name: str, value: Any) -> None:
     """
     if isinstance(value, np.random.Generator):
         return
-    if not (isinstance(value, np.ndarray) and value.dtype == np.uint64 and value.shape == (4,)
-            and value.flags.c_contiguous):
-        raise ValueError(f"{name}: expected a generator state of 4 uint64 words, got "
-                         f"{getattr(value, 'dtype', type(value).__name__)} {getattr(value, 'shape', '')}")
+    if not (
+        isinstance(value, np.ndarray) and value.dtype == np.uint64 and value.shape == (4,) and value.flags.c_contiguous
+    ):
+        raise ValueError(
+            f"{name}: expected a generator state of 4 uint64 words, got "
+            f"{getattr(value, 'dtype', type(value).__name__)} {getattr(value, 'shape', '')}"
+        )
     if not value.any():
         raise ValueError(f"{name}: an all-zero xoshiro256** state never changes")

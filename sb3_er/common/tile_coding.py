@@ -79,23 +79,35 @@ class TileCoder:
         self.n_dims = self.tile_widths.shape[0]
         self.action_nvec = np.asarray(action_nvec, dtype=np.int64).reshape(-1)
         for name, value in (("n_tilings", n_tilings), ("memory_size", memory_size)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer, float)) or value != int(value) \
-                    or value < 1:
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, np.integer, float))
+                or value != int(value)
+                or value < 1
+            ):
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
         self.n_tilings = int(n_tilings)
         self.n_actions = int(np.prod(self.action_nvec))
         with np.errstate(divide="ignore", over="ignore"):
             inverse = 1.0 / self.tile_widths
-        if not np.all(np.isfinite(self.tile_widths)) or np.any(self.tile_widths <= 0) or not np.all(np.isfinite(inverse)):
-            raise ValueError(f"tile_widths must be finite and positive (and not subnormal), got {self.tile_widths.tolist()}")
+        if (
+            not np.all(np.isfinite(self.tile_widths))
+            or np.any(self.tile_widths <= 0)
+            or not np.all(np.isfinite(inverse))
+        ):
+            raise ValueError(
+                f"tile_widths must be finite and positive (and not subnormal), got {self.tile_widths.tolist()}"
+            )
         self.wrap_periods = self._check_wrap_periods(wrap_periods)
         self.wrap_tiles = np.zeros(self.n_dims, dtype=np.int64)
         self.inv_widths = 1.0 / self.tile_widths
         for d, period in enumerate(self.wrap_periods):
             if period is not None:
                 if not period / self.tile_widths[d] < kernels.MAX_TILE_COORDINATE:
-                    raise ValueError(f"wrap period {period} of dimension {d} holds too many tiles of width "
-                                     f"{self.tile_widths[d]} (at most 2^62)")
+                    raise ValueError(
+                        f"wrap period {period} of dimension {d} holds too many tiles of width "
+                        f"{self.tile_widths[d]} (at most 2^62)"
+                    )
                 self.wrap_tiles[d] = max(1, int(round(period / self.tile_widths[d])))
                 self.inv_widths[d] = self.wrap_tiles[d] / period
         self.offsets = tiling_offsets(self.n_tilings, self.n_dims)
@@ -112,8 +124,15 @@ class TileCoder:
         self.slot_mask = n_slots - 1
         self.memory_size = int(memory_size)
         self.n_weights = n_slots * self.stride
-        self.kernel_arguments = (self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, self.stride,
-                                 self.action_columns, self.columns_are_actions)
+        self.kernel_arguments = (
+            self.inv_widths,
+            self.offsets,
+            self.wrap_tiles,
+            self.slot_mask,
+            self.stride,
+            self.action_columns,
+            self.columns_are_actions,
+        )
         """The coder in kernel order: inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
         columns_are_actions."""
 
@@ -166,7 +185,6 @@ class TileCoder:
         """True when actions are not tiled: column a of a row is action a."""
         return self.action_tile_widths is None
 
-
     def config(self) -> dict[str, Any]:
         """Constructor arguments that rebuild this exact coder."""
         return {
@@ -191,8 +209,10 @@ class TileCoder:
             problem = f"NaN or infinite values in dimensions {np.flatnonzero(~np.isfinite(obs)).tolist()}"
         else:
             huge = np.flatnonzero(~(np.abs(obs * self.inv_widths) < kernels.MAX_TILE_COORDINATE))
-            problem = (f"values too large for their tile widths in dimensions {huge.tolist()} "
-                       f"(|x / width| must stay below 2^62)")
+            problem = (
+                f"values too large for their tile widths in dimensions {huge.tolist()} "
+                f"(|x / width| must stay below 2^62)"
+            )
         return f"Observation {obs.tolist()}{where} cannot be tiled: {problem}"
 
     def coordinates(self, obs: np.ndarray) -> np.ndarray:
@@ -303,12 +323,15 @@ def default_tile_widths(
     :param cell_budget: the generic rule's cells per tiling (default 16,384).
     """
     if tiles_per_dimension is not None and (
-        isinstance(tiles_per_dimension, bool) or int(tiles_per_dimension) != tiles_per_dimension
+        isinstance(tiles_per_dimension, bool)
+        or int(tiles_per_dimension) != tiles_per_dimension
         or tiles_per_dimension < 1
     ):
         raise ValueError(f"tiles_per_dimension must be a positive integer, got {tiles_per_dimension!r}")
     low, high = observation_space.low.astype(np.float64), observation_space.high.astype(np.float64)
-    bounded = np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
+    bounded = (
+        np.isfinite(low) & np.isfinite(high) & (np.abs(low) < PLACEHOLDER_BOUND) & (np.abs(high) < PLACEHOLDER_BOUND)
+    )
     unbounded = np.flatnonzero(~bounded)
     if unbounded.size:
         raise ValueError(
@@ -334,10 +357,14 @@ def package_tilings() -> dict[str, dict[str, Any]]:
     for env_id, entry in entries.items():
         missing = {"observation_shape", "source", "tile_widths"} - set(entry)
         if missing or len(entry["tile_widths"]) != int(np.prod(entry["observation_shape"])):
-            raise ValueError(f"{path}: the entry of {env_id} needs observation_shape, source and one tile width per "
-                             f"observation dimension, got {entry}")
+            raise ValueError(
+                f"{path}: the entry of {env_id} needs observation_shape, source and one tile width per "
+                f"observation dimension, got {entry}"
+            )
         keys = entry.get("observation_keys")
         if keys is not None and sum(size for _, size in keys) != int(np.prod(entry["observation_shape"])):
-            raise ValueError(f"{path}: the observation_keys of {env_id} ({keys}: [key, size] in flattening order) do "
-                             f"not add up to its observation_shape {entry['observation_shape']}")
+            raise ValueError(
+                f"{path}: the observation_keys of {env_id} ({keys}: [key, size] in flattening order) do "
+                f"not add up to its observation_shape {entry['observation_shape']}"
+            )
     return entries

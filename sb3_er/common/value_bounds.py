@@ -36,9 +36,22 @@ VALUE_BOUND_ACTIONS = ("warn", "raise", "ignore")
 
 #: Wrappers that never change the reward (besides observation and action wrappers): declared bounds still hold.
 REWARD_PRESERVING_WRAPPERS = (
-    "TimeLimit", "OrderEnforcing", "PassiveEnvChecker", "Monitor", "RecordEpisodeStatistics", "RecordVideo",
-    "HumanRendering", "RenderCollection", "EnvCompatibility", "StickyAction", "Autoreset", "AutoResetWrapper",
-    "FlattenObservation", "TimeAwareObservation", "FrameStackObservation", "StepAPICompatibility",
+    "TimeLimit",
+    "OrderEnforcing",
+    "PassiveEnvChecker",
+    "Monitor",
+    "RecordEpisodeStatistics",
+    "RecordVideo",
+    "HumanRendering",
+    "RenderCollection",
+    "EnvCompatibility",
+    "StickyAction",
+    "Autoreset",
+    "AutoResetWrapper",
+    "FlattenObservation",
+    "TimeAwareObservation",
+    "FrameStackObservation",
+    "StepAPICompatibility",
 )
 
 
@@ -87,8 +100,11 @@ class RewardBounds:
         horizon = value.get("horizon")
         if horizon is not None and (isinstance(horizon, bool) or int(horizon) != horizon or horizon < 1):
             raise ValueError(f"reward_bounds['horizon'] must be a positive integer or None, got {horizon!r}")
-        return cls(_pair("step", value["step"]), None if terminal is None else _pair("terminal", terminal),
-                   None if horizon is None else int(horizon))
+        return cls(
+            _pair("step", value["step"]),
+            None if terminal is None else _pair("terminal", terminal),
+            None if horizon is None else int(horizon),
+        )
 
     def returns(self, gamma: float) -> tuple[float, float]:
         """The interval of every possible return under discount ``gamma`` (module docstring); +-inf where unbounded.
@@ -144,8 +160,10 @@ def reward_changing_wrapper(env: gym.Env) -> Optional[str]:
     :param env: the (possibly wrapped) Gymnasium env.
     """
     while isinstance(env, gym.Wrapper):
-        if not (isinstance(env, (gym.ObservationWrapper, gym.ActionWrapper))
-                or type(env).__name__ in REWARD_PRESERVING_WRAPPERS):
+        if not (
+            isinstance(env, (gym.ObservationWrapper, gym.ActionWrapper))
+            or type(env).__name__ in REWARD_PRESERVING_WRAPPERS
+        ):
             return type(env).__name__
         env = env.env
     return None
@@ -162,8 +180,9 @@ class ValueWatch:
     :param reason: why the bounds are observed (shown in messages), e.g. "the env declares no reward_bounds".
     """
 
-    def __init__(self, source: str, bounds: Optional[RewardBounds], gamma: float, initial: tuple[float, float],
-                 reason: str = ""):
+    def __init__(
+        self, source: str, bounds: Optional[RewardBounds], gamma: float, initial: tuple[float, float], reason: str = ""
+    ):
         self.source = source
         self.gamma = float(gamma)
         self.initial = (float(initial[0]), float(initial[1]))
@@ -225,24 +244,43 @@ class ValueWatch:
     def describe(self) -> str:
         """The bounds and where they come from, for messages."""
         rewards = self.reward_bounds
-        where = ("the env's reward_bounds" if self.source == "env"
-                 else f"the rewards observed so far ({self.reason})" if self.reason else "the rewards observed so far")
-        detail = "" if rewards is None else (
-            f"step rewards in [{rewards.step[0]:.6g}, {rewards.step[1]:.6g}]"
-            + ("" if rewards.terminal is None else
-               f", terminal rewards in [{rewards.terminal[0]:.6g}, {rewards.terminal[1]:.6g}]")
+        where = (
+            "the env's reward_bounds"
+            if self.source == "env"
+            else f"the rewards observed so far ({self.reason})"
+            if self.reason
+            else "the rewards observed so far"
         )
-        source = (f"{detail} from {where}" if detail else
-                  "no reward observed yet" + (f" ({self.reason})" if self.reason else ""))
-        return (f"[{self.bounds[0]:.6g}, {self.bounds[1]:.6g}] (gamma {self.gamma:g}; {source}; initial "
-                f"values in [{self.initial[0]:.6g}, {self.initial[1]:.6g}])")
+        detail = (
+            ""
+            if rewards is None
+            else (
+                f"step rewards in [{rewards.step[0]:.6g}, {rewards.step[1]:.6g}]"
+                + (
+                    ""
+                    if rewards.terminal is None
+                    else f", terminal rewards in [{rewards.terminal[0]:.6g}, {rewards.terminal[1]:.6g}]"
+                )
+            )
+        )
+        source = (
+            f"{detail} from {where}"
+            if detail
+            else "no reward observed yet" + (f" ({self.reason})" if self.reason else "")
+        )
+        return (
+            f"[{self.bounds[0]:.6g}, {self.bounds[1]:.6g}] (gamma {self.gamma:g}; {source}; initial "
+            f"values in [{self.initial[0]:.6g}, {self.initial[1]:.6g}])"
+        )
 
     def period_figures(self) -> dict[str, float]:
         """The logging period's figures (NaN where nothing was seen), then a new period."""
         watch = self.array
         figures = {
-            "q_min": watch[kernels.WATCH_Q_MIN], "q_max": watch[kernels.WATCH_Q_MAX],
-            "target_min": watch[kernels.WATCH_TARGET_MIN], "target_max": watch[kernels.WATCH_TARGET_MAX],
+            "q_min": watch[kernels.WATCH_Q_MIN],
+            "q_max": watch[kernels.WATCH_Q_MAX],
+            "target_min": watch[kernels.WATCH_TARGET_MIN],
+            "target_max": watch[kernels.WATCH_TARGET_MAX],
         }
         figures = {k: float(v) if np.isfinite(v) else math.nan for k, v in figures.items()}
         count = watch[kernels.WATCH_SHIFT_COUNT]

@@ -115,8 +115,15 @@ def run_analysis_jobs(
             pin(job)
     if backend == "local":
         n_workers = n_workers or os.cpu_count() or 1
-    run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
-             allow_mixed_versions=allow_mixed_versions, on_written=pin)
+    run_jobs(
+        to_run,
+        n_workers,
+        show_progress,
+        backend=backend,
+        address=address,
+        allow_mixed_versions=allow_mixed_versions,
+        on_written=pin,
+    )
     return len(to_run), len(finished)
 
 

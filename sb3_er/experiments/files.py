@@ -210,7 +210,6 @@ def move_aside(path: str | Path, reason: str = "damaged") -> Path | None:
     return target
 
 
-
 _held = threading.local()
 
 
@@ -251,6 +250,7 @@ def lock_folder(*folders: str | Path) -> None:
         stack.callback(held.discard, folder)
         remove_partial_files(folder)  # what a killed writer of this folder left
     _held.folders = held
+
 
 def save_figure(figure, path: str | Path, **savefig_kwargs) -> Path:
     """``figure.savefig(path, **savefig_kwargs)`` (a matplotlib figure), atomically.

@@ -54,9 +54,11 @@ def _too_few(algo: str, curves: Curves) -> str:
     if n >= MIN_AVERAGED_RUNS:
         return ""
     left, diverged = len(curves.out_of_bounds_seeds), len(curves.diverged_seeds)
-    return (f"{ALGORITHM_LABELS.get(algo, algo)} has {counted(n, 'averaged run')} "
-            f"({left} left the possible returns, {diverged} diverged), fewer than the {MIN_AVERAGED_RUNS} a bootstrap "
-            "verdict needs")
+    return (
+        f"{ALGORITHM_LABELS.get(algo, algo)} has {counted(n, 'averaged run')} "
+        f"({left} left the possible returns, {diverged} diverged), fewer than the {MIN_AVERAGED_RUNS} a bootstrap "
+        "verdict needs"
+    )
 
 
 def thesis_sign(text: str) -> int | None:
@@ -90,12 +92,29 @@ def metric_value(experiment: Experiment, curves: Curves, metric: str, run_end: f
 
 
 def _resampled(curves: Curves, rows: np.ndarray) -> Curves:
-    return Curves(curves.x, curves.performance[rows], curves.cumulative_falls[rows],
-                  tuple(curves.seeds[i] for i in rows), (), 0.0, (), (), None, None)
+    return Curves(
+        curves.x,
+        curves.performance[rows],
+        curves.cumulative_falls[rows],
+        tuple(curves.seeds[i] for i in rows),
+        (),
+        0.0,
+        (),
+        (),
+        None,
+        None,
+    )
 
 
-def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves, metric: str, run_end: float,
-                         rng: np.random.Generator, n_resamples: int = N_RESAMPLES) -> tuple[float, float, float, int]:
+def bootstrap_difference(
+    experiment: Experiment,
+    ours: Curves,
+    reference: Curves,
+    metric: str,
+    run_end: float,
+    rng: np.random.Generator,
+    n_resamples: int = N_RESAMPLES,
+) -> tuple[float, float, float, int]:
     """(difference ours - reference on all seeds, its 2.5 and 97.5 bootstrap percentiles, the number of resamples in
     which the metric is undefined).
 
@@ -110,14 +129,14 @@ def bootstrap_difference(experiment: Experiment, ours: Curves, reference: Curves
     :param rng: the generator of the resamples.
     :param n_resamples: the number of bootstrap resamples (default :data:`N_RESAMPLES`).
     """
-    difference = (metric_value(experiment, ours, metric, run_end)
-                  - metric_value(experiment, reference, metric, run_end))
+    difference = metric_value(experiment, ours, metric, run_end) - metric_value(experiment, reference, metric, run_end)
     samples = np.empty(n_resamples)
     for i in range(n_resamples):
         a = rng.integers(0, len(ours.seeds), len(ours.seeds))
         b = rng.integers(0, len(reference.seeds), len(reference.seeds))
-        samples[i] = (metric_value(experiment, _resampled(ours, a), metric, run_end)
-                      - metric_value(experiment, _resampled(reference, b), metric, run_end))
+        samples[i] = metric_value(experiment, _resampled(ours, a), metric, run_end) - metric_value(
+            experiment, _resampled(reference, b), metric, run_end
+        )
     undefined = int(np.count_nonzero(~np.isfinite(samples)))
     samples = samples[np.isfinite(samples)]
     if samples.size < 0.95 * n_resamples:  # the metric is undefined in too many resamples (no gait learned)
@@ -142,16 +161,16 @@ def judge(sign: int, low: float, high: float) -> bool | None:
 def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> str:
     label, reference = ALGORITHM_LABELS.get(algo, algo), ALGORITHM_LABELS[REFERENCE]
     words = {-1: "lower", 0: "the same", 1: "higher"}[sign]
-    better = "" if sign == 0 else (
-        " (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
+    better = "" if sign == 0 else (" (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
     printed = f"thesis: {thesis_text(thesis_entry[0])} against {thesis_text(reference_entry[0])}, {thesis_entry[1]}"
     verb = "are" if metric == "falls" else "is"
     than = "as" if sign == 0 else "than"
     return f"{label}'s {METRICS[metric]} {verb} {words}{better} {than} {reference}'s ({printed})"
 
 
-def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng: np.random.Generator,
-                    n_resamples: int = N_RESAMPLES) -> dict[str, Any]:
+def no_gait_finding(
+    experiment: Experiment, algo: str, ours: Curves | None, rng: np.random.Generator, n_resamples: int = N_RESAMPLES
+) -> dict[str, Any]:
     """The finding "`algo` learns no gait" (the thesis prints NA as its end performance), judged on the share of
     bootstrap resamples of our seeds whose mean curve never reaches the success level (module docstring).
 
@@ -172,12 +191,17 @@ def no_gait_finding(experiment: Experiment, algo: str, ours: Curves | None, rng:
     def no_gait(curves: Curves) -> bool:
         return math.isnan(metric_value(experiment, curves, "end_performance", math.nan))
 
-    share = float(np.mean([no_gait(_resampled(ours, rng.integers(0, len(ours.seeds), len(ours.seeds))))
-                           for _ in range(n_resamples)]))
+    share = float(
+        np.mean(
+            [no_gait(_resampled(ours, rng.integers(0, len(ours.seeds), len(ours.seeds)))) for _ in range(n_resamples)]
+        )
+    )
     holds = True if share >= 0.975 else (False if share <= 0.025 else None)
     best = float(np.max(np.mean(ours.performance, axis=0)))
-    evidence = (f"our mean curve's best {best:.3g} against the success level {experiment.success_threshold:g}; no "
-                f"gait in {share:.1%} of {n_resamples} bootstrap resamples over {counted(len(ours.seeds), 'seed')}")
+    evidence = (
+        f"our mean curve's best {best:.3g} against the success level {experiment.success_threshold:g}; no "
+        f"gait in {share:.1%} of {n_resamples} bootstrap resamples over {counted(len(ours.seeds), 'seed')}"
+    )
     return {**entry, "holds": holds, "evidence": evidence, "no_gait_share": share}
 
 
@@ -190,8 +214,10 @@ def _nothing_averaged(algo: str, curves: Curves | None) -> str:
     diverged = len(curves.diverged_seeds) if curves is not None else 0
     if not left and not diverged:
         return f"{label} has no complete run. "
-    return (f"{label} has no run to average: {left} left the possible returns and {diverged} diverged (left out, "
-            "as in the table). ")
+    return (
+        f"{label} has no run to average: {left} left the possible returns and {diverged} diverged (left out, "
+        "as in the table). "
+    )
 
 
 def _finite(value: float) -> float | None:
@@ -199,8 +225,9 @@ def _finite(value: float) -> float | None:
     return None if math.isnan(value) else float(value)
 
 
-def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0,
-                   n_resamples: int = N_RESAMPLES) -> list[dict[str, Any]]:
+def table_findings(
+    experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0, n_resamples: int = N_RESAMPLES
+) -> list[dict[str, Any]]:
     """Every printed difference of the experiment's thesis table, judged on our curves (module docstring).
 
     :param experiment: the experiment (its metrics and thesis table).
@@ -226,36 +253,56 @@ def table_findings(experiment: Experiment, curves: dict[str, Curves], budget: fl
                 continue
             ours = curves[algo]
             if reference is None or not reference.seeds or ours is None or not ours.seeds:
-                findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]), "holds": None,
-                                 "evidence": (_nothing_averaged(algo, ours)
-                                              + _nothing_averaged(REFERENCE, reference)).strip()})
+                findings.append(
+                    {
+                        "claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
+                        "holds": None,
+                        "evidence": (_nothing_averaged(algo, ours) + _nothing_averaged(REFERENCE, reference)).strip(),
+                    }
+                )
                 continue
-            difference, low, high, undefined = bootstrap_difference(experiment, ours, reference, metric, run_end,
-                                                                    rng, n_resamples)
+            difference, low, high, undefined = bootstrap_difference(
+                experiment, ours, reference, metric, run_end, rng, n_resamples
+            )
             unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
             if unit == " episodes" and abs(difference) == 1:
                 unit = " episode"
             shown = [value for value in (difference, low, high) if not math.isnan(value)]
             scale, whole = max(map(abs, shown), default=0.0), all(float(value).is_integer() for value in shown)
-            seeds = (f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"
-                     if len(ours.seeds) != 1 or len(reference.seeds) != 1 else "over 1 seed each")
+            seeds = (
+                f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"
+                if len(ours.seeds) != 1 or len(reference.seeds) != 1
+                else "over 1 seed each"
+            )
             if math.isnan(low):
-                interval = (f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
-                            f"{n_resamples} bootstrap resamples {seeds}")
+                interval = (
+                    f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
+                    f"{n_resamples} bootstrap resamples {seeds}"
+                )
             else:
                 ends = ", ".join(format_figure(end, scale, signed=True, whole=whole) for end in (low, high))
                 interval = f"95 % bootstrap CI [{ends}] {seeds}"
-            ours_text = "undefined (no gait on the mean curve of all seeds)" if math.isnan(difference) else (
-                f"{format_figure(difference, scale, signed=True, whole=whole)}{unit}")
+            ours_text = (
+                "undefined (no gait on the mean curve of all seeds)"
+                if math.isnan(difference)
+                else (f"{format_figure(difference, scale, signed=True, whole=whole)}{unit}")
+            )
             evidence = f"ours {ours_text}, {interval}"
             too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
             if too_few:
                 evidence = f"{too_few} ({evidence})"
-            findings.append({"claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
-                             "holds": None if too_few else judge(sign, low, high), "evidence": evidence,
-                             "algorithm": algo,
-                             "metric": metric, "thesis_sign": sign, "difference": _finite(difference),
-                             "ci95": [_finite(low), _finite(high)]})
+            findings.append(
+                {
+                    "claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
+                    "holds": None if too_few else judge(sign, low, high),
+                    "evidence": evidence,
+                    "algorithm": algo,
+                    "metric": metric,
+                    "thesis_sign": sign,
+                    "difference": _finite(difference),
+                    "ci95": [_finite(low), _finite(high)],
+                }
+            )
     return findings
 
 
@@ -267,13 +314,16 @@ def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], r
     :param findings: the findings (``claim``, ``holds``, ``evidence``).
     :param regime: the reading's name, added to the file when given (default "").
     """
-    data = {"thesis": thesis, "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
-            "bootstrap CI over seeds excludes zero; does not hold (false) when the CI excludes zero with the other "
-            "sign; inconclusive (null) when the CI includes zero or a side has fewer than "
-            f"{MIN_AVERAGED_RUNS} averaged runs (runs whose values left the possible returns are not averaged); where "
-            "the thesis prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no "
-            "gait",
-            "findings": findings}
+    data = {
+        "thesis": thesis,
+        "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
+        "bootstrap CI over seeds excludes zero; does not hold (false) when the CI excludes zero with the other "
+        "sign; inconclusive (null) when the CI includes zero or a side has fewer than "
+        f"{MIN_AVERAGED_RUNS} averaged runs (runs whose values left the possible returns are not averaged); where "
+        "the thesis prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no "
+        "gait",
+        "findings": findings,
+    }
     if regime:
         data["sigma_regime"] = regime
     return files.write_json(Path(out_dir) / "findings.json", data)

@@ -113,8 +113,15 @@ METHODS: dict[str, Method] = {
     "lspi": Method("lspi", "LSPI", "LSPI"),
 }
 
-TABLE_3_1_COLUMNS = ("Update", "Bellman operator", "Cost function minimizer", "Sample set used for updates",
-                     "pi or vi", "Computational complexity", "Representation")
+TABLE_3_1_COLUMNS = (
+    "Update",
+    "Bellman operator",
+    "Cost function minimizer",
+    "Sample set used for updates",
+    "pi or vi",
+    "Computational complexity",
+    "Representation",
+)
 _ALL = "{(s_d, a_d, s_d+1, r_d+1)}, d = 1..k"
 _CURRENT = "{(s_k, a_k, s_k+1, r_k+1)}"
 TABLE_3_1: dict[str, tuple[str, ...]] = {
@@ -132,9 +139,9 @@ TABLE_3_1: dict[str, tuple[str, ...]] = {
 
 IMPLEMENTED = {
     "Sarsa": "`SarsaLambda` (with eligibility traces, Alg. 2); `ER(n_replays=0, online_lambda=0)` is plain Sarsa",
-    "Q-learning": "`ER(target=\"q_learning\", n_replays=0, online_lambda=0)`",
+    "Q-learning": '`ER(target="q_learning", n_replays=0, online_lambda=0)`',
     "ER-sarsa": "`ER` (reversed, forward, uniform, prioritized sweeping), `ERSigma`, `ResidualER`, `ResidualERSigma`",
-    "ER-Q learning": "the ER classes with `target=\"q_learning\"`",
+    "ER-Q learning": 'the ER classes with `target="q_learning"`',
     "KADP": "out of scope: kernel (non-parametric) representation, not the tile coder",
     "FQI": "`FQI`, with a ridge least-squares projection on the tile features",
     "NFQ": "out of scope: a neural-network representation, not the tile coder",
@@ -265,8 +272,9 @@ def framework_run(job: RunJob, env, report) -> TaskOutput:
     return TaskOutput(frame[list(COLUMNS)], model)
 
 
-def framework_jobs(out_dir: Path, problems: Sequence[str], methods: Sequence[str], seeds: Sequence[int],
-                   budget: float | None) -> list[RunJob]:
+def framework_jobs(
+    out_dir: Path, problems: Sequence[str], methods: Sequence[str], seeds: Sequence[int], budget: float | None
+) -> list[RunJob]:
     """One job per (problem, method, seed): ``<out>/<problem>/runs/<method>/seed_<n>.csv``, key
     ``<problem>/<method>/seed_<n>``.
 
@@ -283,9 +291,19 @@ def framework_jobs(out_dir: Path, problems: Sequence[str], methods: Sequence[str
         episodes = float(problem.episodes if budget is None else budget)
         for method in methods:
             settings = tuple(sorted(method_kwargs(problem, method).items()))
-            jobs += [RunJob(experiment, METHODS[method].algo, seed, episodes,
-                            run_csv_path(Path(out_dir) / name, method, seed), (), settings,
-                            label=f"{name}/{method}") for seed in seeds]
+            jobs += [
+                RunJob(
+                    experiment,
+                    METHODS[method].algo,
+                    seed,
+                    episodes,
+                    run_csv_path(Path(out_dir) / name, method, seed),
+                    (),
+                    settings,
+                    label=f"{name}/{method}",
+                )
+                for seed in seeds
+            ]
     return jobs
 
 
@@ -343,8 +361,7 @@ def summarize_runs(frames: dict[int, pd.DataFrame], level: float) -> dict:
 
 def thesis_table_markdown() -> str:
     """Thesis Table 3.1 with a column saying which sb3-er class stands for each row."""
-    lines = ["| Method | " + " | ".join(TABLE_3_1_COLUMNS) + " | sb3-er |",
-             "|---" * (len(TABLE_3_1_COLUMNS) + 2) + "|"]
+    lines = ["| Method | " + " | ".join(TABLE_3_1_COLUMNS) + " | sb3-er |", "|---" * (len(TABLE_3_1_COLUMNS) + 2) + "|"]
     for row, cells in TABLE_3_1.items():
         lines.append(f"| {row} | " + " | ".join(cells) + f" | {IMPLEMENTED[row]} |")
     return "\n".join(lines)
@@ -357,9 +374,11 @@ def measured_table_markdown(problem: Problem, table: pd.DataFrame) -> str:
     :param table: its measured table (:func:`summarize_runs` per method).
     """
     lines = [
-        (f"| Method | Update | Operator | pi/vi | Complexity (thesis) | Samples to mean return ≥ {problem.level:g} "
-        "(seeds that reach it) | End performance (last 10 episodes) | Updates / episode | CPU s / episode | "
-        "Wall s / episode |"),
+        (
+            f"| Method | Update | Operator | pi/vi | Complexity (thesis) | Samples to mean return ≥ {problem.level:g} "
+            "(seeds that reach it) | End performance (last 10 episodes) | Updates / episode | CPU s / episode | "
+            "Wall s / episode |"
+        ),
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in table.to_dict("records"):
@@ -371,14 +390,18 @@ def measured_table_markdown(problem: Problem, table: pd.DataFrame) -> str:
             measured = ["no finished run"] * 5
         else:
             reached = f" ({row['reached']}/{row['seeds']})"
-            measured = [_format_with_ci(row["samples_to_level"], row["samples_to_level_ci95"]) + reached,
-                        _format_with_ci(row["end_performance"], row["end_performance_ci95"]),
-                        format_figure(row["updates_per_episode"]), format_figure(row["cpu_s_per_episode"]),
-                        format_figure(row["wall_s_per_episode"])]
+            measured = [
+                _format_with_ci(row["samples_to_level"], row["samples_to_level_ci95"]) + reached,
+                _format_with_ci(row["end_performance"], row["end_performance_ci95"]),
+                format_figure(row["updates_per_episode"]),
+                format_figure(row["cpu_s_per_episode"]),
+                format_figure(row["wall_s_per_episode"]),
+            ]
         if row.get("diverged"):
             measured[1] += f" ({row['diverged']} diverged)"
-        lines.append(f"| {method.label} | {update} | {operator} | {iteration} | {complexity} | "
-                     + " | ".join(measured) + " |")
+        lines.append(
+            f"| {method.label} | {update} | {operator} | {iteration} | {complexity} | " + " | ".join(measured) + " |"
+        )
     return "\n".join(lines)
 
 
@@ -428,25 +451,35 @@ def reproduce_framework(
     methods = list(dict.fromkeys(methods or METHODS))
     unknown = [name for name in problems if name not in PROBLEMS] + [name for name in methods if name not in METHODS]
     if unknown:
-        raise ValueError(f"unknown problems or methods {unknown}; problems: {', '.join(PROBLEMS)}; methods: "
-                         f"{', '.join(METHODS)}")
+        raise ValueError(
+            f"unknown problems or methods {unknown}; problems: {', '.join(PROBLEMS)}; methods: {', '.join(METHODS)}"
+        )
     if env_kwargs:
-        raise ValueError("the framework experiment runs three envs with their default readings; --env-kwargs does "
-                         "not apply")
+        raise ValueError(
+            "the framework experiment runs three envs with their default readings; --env-kwargs does not apply"
+        )
     check_request(n_seeds, 1.0 if budget is None else budget, "episodes", backend, address)
     if budget is not None and int(budget) != budget:
         raise ValueError(f"the run length is a whole number of episodes, got {budget}")
     out_dir = Path(out_dir if out_dir is not None else Path("results") / "framework")
-    settings = {out_dir / name: {"experiment": f"framework-{name}", "env_id": PROBLEMS[name].env_id,
-                                 "budget": float(PROBLEMS[name].episodes if budget is None else budget),
-                                 "level": PROBLEMS[name].level, "window": WINDOW} for name in problems}
+    settings = {
+        out_dir / name: {
+            "experiment": f"framework-{name}",
+            "env_id": PROBLEMS[name].env_id,
+            "budget": float(PROBLEMS[name].episodes if budget is None else budget),
+            "level": PROBLEMS[name].level,
+            "window": WINDOW,
+        }
+        for name in problems
+    }
     files.lock_folder(out_dir, *settings)  # one writer per folder, until this function returns
     for folder, pinned in settings.items():
         check_settings(folder, pinned)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = framework_jobs(out_dir, problems, methods, seeds, budget)
-    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions, settings=settings)
+    done, skipped = run_analysis_jobs(
+        jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions, settings=settings
+    )
 
     rows, sections, figures = [], [], []
     for name in problems:
@@ -454,25 +487,43 @@ def reproduce_framework(
         episodes = int(problem.episodes if budget is None else budget)
         table_rows, curves = [], {}
         for method in methods:
-            frames = {seed: read_run_csv(run_csv_path(out_dir / name, method, seed)) for seed in seeds
-                      if run_csv_path(out_dir / name, method, seed).is_file()}
+            frames = {
+                seed: read_run_csv(run_csv_path(out_dir / name, method, seed))
+                for seed in seeds
+                if run_csv_path(out_dir / name, method, seed).is_file()
+            }
             summary = {"problem": name, "method": method, **summarize_runs(frames, problem.level)}
             table_rows.append(summary)
-            complete = [frame for frame in frames.values()
-                        if len(frame) == episodes and not frame["diverged"].astype(bool).any()]
+            complete = [
+                frame
+                for frame in frames.values()
+                if len(frame) == episodes and not frame["diverged"].astype(bool).any()
+            ]
             if complete:
-                curves[METHODS[method].label] = (np.arange(1, episodes + 1, dtype=float),
-                                                 np.stack([frame["return"].to_numpy(dtype=float)
-                                                           for frame in complete]))
+                curves[METHODS[method].label] = (
+                    np.arange(1, episodes + 1, dtype=float),
+                    np.stack([frame["return"].to_numpy(dtype=float) for frame in complete]),
+                )
         rows += table_rows
         if curves:
-            figures.append(plot_mean_with_ci(curves, "learning episode", "return of the learning episode",
-                                             f"{problem.title}: sample re-use methods, mean of "
-                                             f"{counted(n_seeds, 'seed')}, 95% CI",
-                                             out_dir / name / "learning_curves.png"))
-        sections += [(f"## {problem.title} ({problem.env_id}): {counted(n_seeds, 'seed')}, "
-                      f"{counted(episodes, 'episode')} per run"), "",
-                     measured_table_markdown(problem, pd.DataFrame(table_rows)), ""]
+            figures.append(
+                plot_mean_with_ci(
+                    curves,
+                    "learning episode",
+                    "return of the learning episode",
+                    f"{problem.title}: sample re-use methods, mean of {counted(n_seeds, 'seed')}, 95% CI",
+                    out_dir / name / "learning_curves.png",
+                )
+            )
+        sections += [
+            (
+                f"## {problem.title} ({problem.env_id}): {counted(n_seeds, 'seed')}, "
+                f"{counted(episodes, 'episode')} per run"
+            ),
+            "",
+            measured_table_markdown(problem, pd.DataFrame(table_rows)),
+            "",
+        ]
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     text = [
@@ -482,17 +533,26 @@ def reproduce_framework(
         "",
         thesis_table_markdown(),
         "",
-        ("Measured, per problem. Samples to the level: env steps until the mean return of the last 10 learning "
-        "episodes first reaches it (mean ± 95 % CI over the seeds that reach it; in brackets how many do). End "
-        "performance: mean return of the last 10 learning episodes (± 95 % CI over seeds). Updates: value-function "
-        "updates per learning episode (online steps, replayed samples, planning updates; for FQI and LSPI samples × "
-        "sweeps of each fit). CPU and wall seconds per learning episode of one run, on a machine shared by "
-        "`--jobs` runs. The qualitative columns are the thesis's row of the method (ER-σ and prioritized sweeping "
-        "are ER-sarsa with another target or sample order)."),
+        (
+            "Measured, per problem. Samples to the level: env steps until the mean return of the last 10 learning "
+            "episodes first reaches it (mean ± 95 % CI over the seeds that reach it; in brackets how many do). End "
+            "performance: mean return of the last 10 learning episodes (± 95 % CI over seeds). Updates: value-function "
+            "updates per learning episode (online steps, replayed samples, planning updates; for FQI and LSPI samples × "
+            "sweeps of each fit). CPU and wall seconds per learning episode of one run, on a machine shared by "
+            "`--jobs` runs. The qualitative columns are the thesis's row of the method (ER-σ and prioritized sweeping "
+            "are ER-sarsa with another target or sample order)."
+        ),
         "",
         *sections,
         code_line(jobs),
     ]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(text) + "\n")
-    return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=figures,
-                        runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
+    return Reproduction(
+        out_dir=out_dir,
+        table_markdown=table_markdown,
+        table_csv=table_csv,
+        figures=figures,
+        runs_done=done,
+        runs_skipped=skipped,
+        wall_time_s=time.perf_counter() - start,
+    )

@@ -191,9 +191,15 @@ def same_data_value_maps(
             for situation, phases in (("after goal", 1), ("long replay", long_phases)):
                 maps[situation][case] = {"sarsa_lambda": value_map(sarsa, env)}
                 rows.append(
-                    {"situation": situation, "case": case, "algorithm": "sarsa_lambda", "episodes": sarsa_episodes,
-                     "replayed_trajectories": 0, **map_statistics(maps[situation][case]["sarsa_lambda"], first_windy_row),
-                     "values_out_of_range": sarsa.values_out_of_range}
+                    {
+                        "situation": situation,
+                        "case": case,
+                        "algorithm": "sarsa_lambda",
+                        "episodes": sarsa_episodes,
+                        "replayed_trajectories": 0,
+                        **map_statistics(maps[situation][case]["sarsa_lambda"], first_windy_row),
+                        "values_out_of_range": sarsa.values_out_of_range,
+                    }
                 )
                 for name, (algo, extra_policy_kwargs) in variants.items():
                     model = replay_model(algo, env, {**policy_kwargs, **extra_policy_kwargs}, seed, buffer_path)
@@ -201,10 +207,15 @@ def same_data_value_maps(
                         model.replay(REPLAYS_PER_TRAJECTORY * n_trajectories)
                     maps[situation][case][name] = value_map(model, env)
                     rows.append(
-                        {"situation": situation, "case": case, "algorithm": name, "episodes": episodes,
-                         "replayed_trajectories": phases * REPLAYS_PER_TRAJECTORY * n_trajectories,
-                         **map_statistics(maps[situation][case][name], first_windy_row),
-                         "values_out_of_range": model.values_out_of_range}
+                        {
+                            "situation": situation,
+                            "case": case,
+                            "algorithm": name,
+                            "episodes": episodes,
+                            "replayed_trajectories": phases * REPLAYS_PER_TRAJECTORY * n_trajectories,
+                            **map_statistics(maps[situation][case][name], first_windy_row),
+                            "values_out_of_range": model.values_out_of_range,
+                        }
                     )
     env.close()
     return maps, pd.DataFrame(rows)

@@ -75,8 +75,9 @@ def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, 
     """
     reserved = [name for name in algo_kwargs if name in RUNNER_ARGUMENTS]
     if reserved:
-        raise ValueError("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}"
-                                                                 for name in reserved))
+        raise ValueError(
+            "--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}" for name in reserved)
+        )
     accepted = set().union(*map(accepted_parameters, algorithm_classes)) - set(RUNNER_ARGUMENTS)
     unknown = sorted(set(algo_kwargs) - accepted)
     if unknown:

@@ -69,7 +69,7 @@ def _proc_stat(pid: int) -> tuple[int, int] | None:
         text = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
         return None
-    fields = text[text.rindex(")") + 2:].split()  # after "pid (command name) "
+    fields = text[text.rindex(")") + 2 :].split()  # after "pid (command name) "
     return int(fields[1]), int(fields[19])
 
 
@@ -138,7 +138,9 @@ class Reaper:
         if not Path("/proc/self/stat").exists():
             return
         self._helper = subprocess.Popen(
-            [sys.executable, "-c", _REAPER_SOURCE], stdin=subprocess.PIPE, text=True,
+            [sys.executable, "-c", _REAPER_SOURCE],
+            stdin=subprocess.PIPE,
+            text=True,
             start_new_session=True,  # neither Ctrl-C to the group nor the driver's death stops it before its work
         )
         self._own_pid = self._helper.pid

@@ -105,7 +105,7 @@ def settling_time(abscissa, mean_curve, tolerance: float = 0.1, plateau_points: 
         raise ValueError(f"tolerance must lie in [0, 1), got {tolerance}")
     if int(plateau_points) != plateau_points or plateau_points < 1:
         raise ValueError(f"plateau_points must be a positive integer, got {plateau_points}")
-    plateau = float(np.mean(curve[-int(plateau_points):]))
+    plateau = float(np.mean(curve[-int(plateau_points) :]))
     if plateau == 0.0 or np.isnan(plateau):
         return float("nan")
     threshold = plateau * (1.0 - tolerance) if plateau > 0 else plateau * (1.0 + tolerance)

@@ -93,8 +93,15 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
     :param report: called with the run's finished fraction, for the progress bar.
     """
     from sb3_er import DivergenceError
-    from sb3_er.experiments.gridworld import (CASES, REPLAYS_PER_TRAJECTORY, learn_until_goal, map_statistics,
-                                              positive_cells, replay_model, value_map)
+    from sb3_er.experiments.gridworld import (
+        CASES,
+        REPLAYS_PER_TRAJECTORY,
+        learn_until_goal,
+        map_statistics,
+        positive_cells,
+        replay_model,
+        value_map,
+    )
     from sb3_er.experiments.replay_order import database_digest
 
     start = time.perf_counter()
@@ -110,8 +117,11 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
             buffer_path = Path(scratch) / f"buffer_{case_index}.pkl"
             collector.save_replay_buffer(buffer_path)
             n_trajectories = collector.replay_buffer.n_trajectories
-            database = {"collector_episodes": episodes, "database_trajectories": n_trajectories,
-                        "database_sha256": database_digest(collector.replay_buffer)}
+            database = {
+                "collector_episodes": episodes,
+                "database_trajectories": n_trajectories,
+                "database_sha256": database_digest(collector.replay_buffer),
+            }
             for variant_index, (variant, (algo, extra)) in enumerate(figure_variants(initial_value).items()):
                 model = replay_model(algo, env, {**policy_kwargs, **extra}, job.seed, buffer_path)
                 diverged = False
@@ -123,15 +133,28 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
                             diverged = True
                     values = value_map(model, env)
                     q_min, q_max = _q_range(model, env)
-                    rows.append({"case": case, "variant": variant, "phase": phase,
-                                 "replayed_trajectories": phase * REPLAYS_PER_TRAJECTORY * n_trajectories,
-                                 **positive_cells(values, first_windy_row), **map_statistics(values, first_windy_row),
-                                 "calm_mean": float(values[:first_windy_row].mean()), "q_min": q_min, "q_max": q_max,
-                                 **database, "diverged": diverged, "values_out_of_range": model.values_out_of_range,
-                                 "wall_time_s": time.perf_counter() - start})
+                    rows.append(
+                        {
+                            "case": case,
+                            "variant": variant,
+                            "phase": phase,
+                            "replayed_trajectories": phase * REPLAYS_PER_TRAJECTORY * n_trajectories,
+                            **positive_cells(values, first_windy_row),
+                            **map_statistics(values, first_windy_row),
+                            "calm_mean": float(values[:first_windy_row].mean()),
+                            "q_min": q_min,
+                            "q_max": q_max,
+                            **database,
+                            "diverged": diverged,
+                            "values_out_of_range": model.values_out_of_range,
+                            "wall_time_s": time.perf_counter() - start,
+                        }
+                    )
                     if job.figure_run and phase in (1, phases):
-                        map_rows += [{"case": case, "variant": variant, "phase": phase, "y": y, "x": x,
-                                      "value": value} for (y, x), value in np.ndenumerate(values)]
+                        map_rows += [
+                            {"case": case, "variant": variant, "phase": phase, "y": y, "x": x, "value": value}
+                            for (y, x), value in np.ndenumerate(values)
+                        ]
                     if diverged:
                         break
                 report((case_index * len(VARIANTS) + variant_index + 1) / steps)
@@ -159,18 +182,35 @@ def pessimistic_table(frames: dict[int, pd.DataFrame], phases: int, initial_valu
             sigma = in_case[in_case["variant"] == "er_sigma"].set_index("seed")["positive_cells"]
             for variant in VARIANTS:
                 values = in_case[(in_case["variant"] == variant) & ~in_case["diverged"].astype(bool)]
-                row = {"situation": situation, "phase": phase, "case": case, "variant": variant,
-                       "label": variant_label(variant, initial_value), "seeds": len(values)}
+                row = {
+                    "situation": situation,
+                    "phase": phase,
+                    "case": case,
+                    "variant": variant,
+                    "label": variant_label(variant, initial_value),
+                    "seeds": len(values),
+                }
                 values = values.assign(max_v=np.maximum(values["calm_max"], values["windy_max"]))
-                for column in ("positive_cells", "calm_positive_cells", "windy_positive_cells", "calm_mean",
-                               "windy_max", "max_v"):
+                for column in (
+                    "positive_cells",
+                    "calm_positive_cells",
+                    "windy_positive_cells",
+                    "calm_mean",
+                    "windy_max",
+                    "max_v",
+                ):
                     mean, half = mean_confidence_interval(values[column].to_numpy()) if len(values) else (math.nan,) * 2
                     row.update({column: float(mean), f"{column}_ci95": float(half)})
                 differences = (values.set_index("seed")["positive_cells"] - sigma).dropna().to_numpy(dtype=float)
                 mean, half = mean_confidence_interval(differences) if differences.size else (math.nan, math.nan)
-                row.update({"minus_er_sigma": float(mean), "minus_er_sigma_ci95": float(half),
-                            "fewer_than_er_sigma": int((differences < 0).sum()),
-                            "thesis": THESIS_CLAIM if variant == "er_pessimistic" else ""})
+                row.update(
+                    {
+                        "minus_er_sigma": float(mean),
+                        "minus_er_sigma_ci95": float(half),
+                        "fewer_than_er_sigma": int((differences < 0).sum()),
+                        "thesis": THESIS_CLAIM if variant == "er_pessimistic" else "",
+                    }
+                )
                 rows.append(row)
     return pd.DataFrame(rows)
 
@@ -182,21 +222,29 @@ def _format(value: float, half_width: float) -> str:
 
 
 def _markdown(table: pd.DataFrame, phases: int) -> str:
-    lines = ["| Situation | Case | Algorithm | Cells with V > 0 (of 63) | below the wind | in the wind | Calm mean V | "
-             "Windy max V | Max V | − ER-σ (paired) | Thesis (Fig. 5.5) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| Situation | Case | Algorithm | Cells with V > 0 (of 63) | below the wind | in the wind | Calm mean V | "
+        "Windy max V | Max V | − ER-σ (paired) | Thesis (Fig. 5.5) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for row in table.to_dict("records"):
         situation = "after 1 phase" if row["situation"] == "after_goal" else f"after {phases} phases"
-        paired = "—" if row["variant"] == "er_sigma" else (
-            f"{_format(row['minus_er_sigma'], row['minus_er_sigma_ci95'])} (fewer in {row['fewer_than_er_sigma']} of "
-            f"{row['seeds']})")
+        paired = (
+            "—"
+            if row["variant"] == "er_sigma"
+            else (
+                f"{_format(row['minus_er_sigma'], row['minus_er_sigma_ci95'])} (fewer in {row['fewer_than_er_sigma']} of "
+                f"{row['seeds']})"
+            )
+        )
         lines.append(
             f"| {situation} | {row['case']} | {row['label']} | "
             f"{_format(row['positive_cells'], row['positive_cells_ci95'])} | "
             f"{_format(row['calm_positive_cells'], row['calm_positive_cells_ci95'])} | "
             f"{_format(row['windy_positive_cells'], row['windy_positive_cells_ci95'])} | "
             f"{_format(row['calm_mean'], row['calm_mean_ci95'])} | {_format(row['windy_max'], row['windy_max_ci95'])} "
-            f"| {_format(row['max_v'], row['max_v_ci95'])} | {paired} | {row['thesis'] or '—'} |")
+            f"| {_format(row['max_v'], row['max_v_ci95'])} | {paired} | {row['thesis'] or '—'} |"
+        )
     return "\n".join(lines)
 
 
@@ -219,9 +267,11 @@ def _verdict(table: pd.DataFrame, largest_value: float) -> str:
         at = table[(table["situation"] == row.situation) & (table["case"] == row.case)]
         grown = [label for label, value in zip(at["label"], at["max_v"]) if value > largest_value]
         if grown:
-            word += (f" (mean max V above {largest_value:g} for {', '.join(grown)}: approximation errors that grow "
-                     "in replay without new data, Table 5.2's local maxima, so here positive cells count those "
-                     "errors as much as the goal's reward)")
+            word += (
+                f" (mean max V above {largest_value:g} for {', '.join(grown)}: approximation errors that grow "
+                "in replay without new data, Table 5.2's local maxima, so here positive cells count those "
+                "errors as much as the goal's reward)"
+            )
         parts.append(f"{row.case}, {situation}: {word}")
     return "Ours, pessimistic ER against ER-σ: " + "; ".join(parts) + "." if parts else ""
 
@@ -282,16 +332,32 @@ def reproduce_pessimistic(
     experiment = base.with_settings(initial_value=initial_value)
     env_kwargs = dict(env_kwargs or {})
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
-                "initial_value": initial_value, "env_kwargs": env_kwargs}
+    settings = {
+        "experiment": experiment.name,
+        "env_id": experiment.env_id,
+        "budget": budget,
+        "initial_value": initial_value,
+        "env_kwargs": env_kwargs,
+    }
     files.lock_folder(out_dir)  # one writer per folder, until this function returns
     check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
-    jobs = [RunJob(experiment, "er", seed, budget, run_csv_path(out_dir, RUN_FOLDER, seed),
-                   tuple(sorted(env_kwargs.items())), figure_run=seed == first_seed, label=RUN_FOLDER)
-            for seed in seeds]
-    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions, settings={out_dir: settings})
+    jobs = [
+        RunJob(
+            experiment,
+            "er",
+            seed,
+            budget,
+            run_csv_path(out_dir, RUN_FOLDER, seed),
+            tuple(sorted(env_kwargs.items())),
+            figure_run=seed == first_seed,
+            label=RUN_FOLDER,
+        )
+        for seed in seeds
+    ]
+    done, skipped = run_analysis_jobs(
+        jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions, settings={out_dir: settings}
+    )
 
     phases = int(budget)
     frames = {job.seed: read_run_csv(job.csv_path) for job in jobs if job.csv_path.is_file()}
@@ -313,10 +379,13 @@ def reproduce_pessimistic(
                         grid = np.full((cells["y"].max() + 1, cells["x"].max() + 1), np.nan)
                         grid[cells["y"], cells["x"]] = cells["value"]
                         cases[case][variant_label(variant, initial_value)] = grid
-            title = (f"Windy cliff (seed {first_seed}), same data and replays, {SITUATIONS[situation]}: "
-                     f"pessimistic Q₀ = {initial_value:g}")
-            figures.append(plot_value_maps(cases, first_windy_row, title,
-                                           out_dir / f"value_maps_pessimistic_{situation}.png"))
+            title = (
+                f"Windy cliff (seed {first_seed}), same data and replays, {SITUATIONS[situation]}: "
+                f"pessimistic Q₀ = {initial_value:g}"
+            )
+            figures.append(
+                plot_value_maps(cases, first_windy_row, title, out_dir / f"value_maps_pessimistic_{situation}.png")
+            )
     figures.append(_plot_positive_cells(frames, initial_value, out_dir / "positive_cells.png", plt))
     sections = [
         f"# {experiment.title}: {counted(len(frames), 'seed')}, "
@@ -345,8 +414,15 @@ def reproduce_pessimistic(
         code_line(jobs),
     ]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
-    return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=figures,
-                        runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
+    return Reproduction(
+        out_dir=out_dir,
+        table_markdown=table_markdown,
+        table_csv=table_csv,
+        figures=figures,
+        runs_done=done,
+        runs_skipped=skipped,
+        wall_time_s=time.perf_counter() - start,
+    )
 
 
 def _plot_positive_cells(frames: dict[int, pd.DataFrame], initial_value: float, path: Path, plt) -> Path:
@@ -356,8 +432,11 @@ def _plot_positive_cells(frames: dict[int, pd.DataFrame], initial_value: float, 
     figure, axes = plt.subplots(1, len(cases), figsize=(5.0 * len(cases), 3.8), squeeze=False)
     for panel, case in zip(axes[0], cases):
         for variant in VARIANTS:
-            wide = data[(data["case"] == case) & (data["variant"] == variant)].pivot_table(
-                index="seed", columns="phase", values="positive_cells").dropna()
+            wide = (
+                data[(data["case"] == case) & (data["variant"] == variant)]
+                .pivot_table(index="seed", columns="phase", values="positive_cells")
+                .dropna()
+            )
             if wide.empty:
                 continue
             mean, half = mean_confidence_interval(wide.to_numpy())
@@ -370,9 +449,11 @@ def _plot_positive_cells(frames: dict[int, pd.DataFrame], initial_value: float, 
         panel.set_ylabel("cells with V > 0 (of 63)")
         panel.grid(alpha=0.3)
         panel.legend(fontsize="small")
-    figure.suptitle(f"Windy cliff: spread of the goal's reward on the same data and replays "
-                    f"(pessimistic Q₀ = {initial_value:g}), mean of {counted(len(frames), 'seed')}, 95% CI",
-                    fontsize="medium")
+    figure.suptitle(
+        f"Windy cliff: spread of the goal's reward on the same data and replays "
+        f"(pessimistic Q₀ = {initial_value:g}), mean of {counted(len(frames), 'seed')}, 95% CI",
+        fontsize="medium",
+    )
     figure.tight_layout()
     files.save_figure(figure, path, dpi=120)
     plt.close(figure)

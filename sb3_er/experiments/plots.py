@@ -75,9 +75,7 @@ def _cell_label(value: float) -> str:
     return f"{value:.0f}" if abs(value) < 1000 else f"{value:.0e}"
 
 
-def plot_value_maps(
-    maps: Mapping[str, Mapping[str, np.ndarray]], first_windy_row: int, title: str, path: Path
-) -> Path:
+def plot_value_maps(maps: Mapping[str, Mapping[str, np.ndarray]], first_windy_row: int, title: str, path: Path) -> Path:
     """Grid of value maps, one row per case (e.g. tabular, tile coding) and one column per algorithm.
 
     Each map is indexed [y, x] with y growing northwards; the wind starts at `first_windy_row` (dashed line, the
@@ -138,9 +136,16 @@ def plot_mean_with_error_bars(
             continue
         mean, half_width = mean_confidence_interval(samples)
         offset = (index - (len(series) - 1) / 2.0) * shift
-        axes.errorbar(np.asarray(x, dtype=float) + offset, mean,
-                      yerr=None if not np.isfinite(half_width).any() else half_width,
-                      marker="o", markersize=4, capsize=3, linewidth=1.2, label=f"{label} (n={samples.shape[0]})")
+        axes.errorbar(
+            np.asarray(x, dtype=float) + offset,
+            mean,
+            yerr=None if not np.isfinite(half_width).any() else half_width,
+            marker="o",
+            markersize=4,
+            capsize=3,
+            linewidth=1.2,
+            label=f"{label} (n={samples.shape[0]})",
+        )
     for label, value in (references or {}).items():
         axes.axhline(value, color="grey", linestyle="--", linewidth=1, label=label)
     axes.set_xlabel(x_label)
@@ -170,8 +175,15 @@ def plot_scores(scores: Mapping[str, np.ndarray], y_label: str, title: str, path
             continue
         mean, half_width = mean_confidence_interval(values)
         axes.scatter(np.full(values.size, index, dtype=float), values, color="grey", alpha=0.35, s=10)
-        axes.errorbar([index], [mean], yerr=None if not np.isfinite(half_width) else [half_width], marker="o",
-                      color="C0", capsize=5, linewidth=1.5)
+        axes.errorbar(
+            [index],
+            [mean],
+            yerr=None if not np.isfinite(half_width) else [half_width],
+            marker="o",
+            color="C0",
+            capsize=5,
+            linewidth=1.5,
+        )
     axes.set_xticks(range(len(scores)))
     axes.set_xticklabels(list(scores), fontsize="small")
     axes.set_ylabel(y_label)

@@ -40,8 +40,16 @@ class EpisodeReturnProtocol(BaseCallback):
     :param verbose: SB3's callback verbosity (default 0).
     """
 
-    COLUMNS = ("episode", "timesteps", "return", "length", "cumulative_falls", "goal_reached", "wall_time_s",
-               "values_out_of_range")
+    COLUMNS = (
+        "episode",
+        "timesteps",
+        "return",
+        "length",
+        "cumulative_falls",
+        "goal_reached",
+        "wall_time_s",
+        "values_out_of_range",
+    )
 
     def __init__(self, n_episodes: int, progress: ProgressHook | None = None, verbose: int = 0) -> None:
         super().__init__(verbose)
@@ -108,7 +116,13 @@ class GreedyDistanceProtocol(BaseCallback):
     """
 
     COLUMNS = (
-        "learning_time_s", "timesteps", "distance", "distance_std", "cumulative_falls", "episodes", "wall_time_s",
+        "learning_time_s",
+        "timesteps",
+        "distance",
+        "distance_std",
+        "cumulative_falls",
+        "episodes",
+        "wall_time_s",
         "values_out_of_range",
     )
 

@@ -84,9 +84,7 @@ def git_state(root: str | Path = PACKAGE_ROOT, paths: Iterable[str] = ()) -> dic
     root = Path(root).resolve()
 
     def git(*arguments: str) -> bytes:
-        return subprocess.run(
-            ["git", "-C", str(root), *arguments], capture_output=True, check=True, timeout=60
-        ).stdout
+        return subprocess.run(["git", "-C", str(root), *arguments], capture_output=True, check=True, timeout=60).stdout
 
     try:
         top_level = Path(git("rev-parse", "--show-toplevel").decode().strip()).resolve()
@@ -95,8 +93,9 @@ def git_state(root: str | Path = PACKAGE_ROOT, paths: Iterable[str] = ()) -> dic
         commit = git("rev-parse", "HEAD").decode().strip()
         pathspec = ["--", *paths] if paths else []
         digest = hashlib.sha256(git("diff", "HEAD", "--binary", *pathspec))
-        untracked = sorted(name for name in git("ls-files", "--others", "--exclude-standard", "-z", *pathspec)
-                           .split(b"\0") if name)
+        untracked = sorted(
+            name for name in git("ls-files", "--others", "--exclude-standard", "-z", *pathspec).split(b"\0") if name
+        )
         changed = digest.digest() != hashlib.sha256(b"").digest() or bool(untracked)
         for name in untracked:
             path = root / os.fsdecode(name)
@@ -175,8 +174,11 @@ def code_version() -> dict[str, Any]:
     checkout (:func:`checkout_code_paths`)."""
     import sb3_er
 
-    return {"sb3_er_version": sb3_er.__version__, "code_sha256": code_hash(),
-            **git_state(PACKAGE_ROOT, checkout_code_paths())}
+    return {
+        "sb3_er_version": sb3_er.__version__,
+        "code_sha256": code_hash(),
+        **git_state(PACKAGE_ROOT, checkout_code_paths()),
+    }
 
 
 def _jsonable(value: Any) -> Any:
@@ -346,8 +348,10 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
     files.write_json(path, data)
 
 
-RECORD_REMEDY = ("rerun the command: it moves the run's files aside (renamed, kept) and runs it again; or delete the "
-                 "run's .csv and .json files")
+RECORD_REMEDY = (
+    "rerun the command: it moves the run's files aside (renamed, kept) and runs it again; or delete the "
+    "run's .csv and .json files"
+)
 
 
 def read_record(csv_path: str | Path) -> dict[str, Any] | None:
@@ -389,8 +393,9 @@ def csv_rows(data: bytes) -> int:
     return max(0, sum(1 for _ in csv.reader(io.StringIO(data.decode(errors="replace")))) - 1)
 
 
-def sealed(record: dict[str, Any], csv_name: str, csv_data: bytes, artifacts: dict[str, bytes] | None = None,
-           **fields: Any) -> dict[str, Any]:
+def sealed(
+    record: dict[str, Any], csv_name: str, csv_data: bytes, artifacts: dict[str, bytes] | None = None, **fields: Any
+) -> dict[str, Any]:
     """`record` ready to be written after its files: ``format`` set to RECORD_FORMAT, ``files`` holding each file's
     name (beside the record) with its SHA-256 and, for the run's CSV `csv_name`, its row count; `fields` added; and
     ``checksum`` (see :func:`record_checksum`) over all of it. `artifacts` maps file names to their contents.
@@ -403,8 +408,10 @@ def sealed(record: dict[str, Any], csv_name: str, csv_data: bytes, artifacts: di
     record = {key: value for key, value in normalized(record).items() if key != CHECKSUM_FIELD}
     record.update(normalized(fields))
     record["format"] = RECORD_FORMAT
-    record["files"] = {csv_name: {"rows": csv_rows(csv_data), "sha256": _sha256(csv_data)},
-                       **{name: {"sha256": _sha256(content)} for name, content in (artifacts or {}).items()}}
+    record["files"] = {
+        csv_name: {"rows": csv_rows(csv_data), "sha256": _sha256(csv_data)},
+        **{name: {"sha256": _sha256(content)} for name, content in (artifacts or {}).items()},
+    }
     record[CHECKSUM_FIELD] = record_checksum(record)
     return record
 
@@ -491,8 +498,11 @@ def check_settings(out_dir: str | Path, settings: dict[str, Any]) -> None:
         existing = files.read_json(path, "it is moved aside and written anew")
     except files.DamagedFileError as error:
         moved = files.move_aside(path)
-        warnings.warn(f"{error}: moved aside as {moved}; the runs' own records are checked instead",
-                      files.DamagedFileWarning, stacklevel=3)
+        warnings.warn(
+            f"{error}: moved aside as {moved}; the runs' own records are checked instead",
+            files.DamagedFileWarning,
+            stacklevel=3,
+        )
         return
     wanted = normalized(settings)
     if existing != wanted and holds_runs(out_dir):
@@ -645,7 +655,7 @@ def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
             key = f"code hash {record['code_sha256'][:10]}"
         else:  # an older record without a code hash: its commit and uncommitted changes stand for the code
             diff = record.get("git_diff_sha256")
-            key = (f"code of commit {record['git_commit'][:10]}" if record.get("git_commit") else "code unknown")
+            key = f"code of commit {record['git_commit'][:10]}" if record.get("git_commit") else "code unknown"
             key += f" with changes {diff[:10]}" if diff else ""
         groups.setdefault(key, []).append(record)
     parts = []
@@ -662,8 +672,11 @@ def code_versions_line(run_records: list[dict[str, Any] | None]) -> str:
         outside = any(not record.get("git_commit") for record in members)
         runs = counted(len(members), "run")
         if named:
-            origin = (f" from {'commit' if len(named) == 1 else 'commits'} {', '.join(named[:4])}"
-                      + (", ..." if len(named) > 4 else "") + (" and outside a git checkout" if outside else ""))
+            origin = (
+                f" from {'commit' if len(named) == 1 else 'commits'} {', '.join(named[:4])}"
+                + (", ..." if len(named) > 4 else "")
+                + (" and outside a git checkout" if outside else "")
+            )
         else:
             origin = ", not from a git checkout"
         parts.append(f"sb3-er {members[0].get('sb3_er_version')}, {key} ({runs}{origin})")
@@ -707,7 +720,8 @@ def check_versions(
     refused = grouped(refusals)
     if refused and not allow_mixed_versions:
         raise MixedVersionsError(
-            f"{what} differ from the current code or configuration (recorded -> current):\n" + "\n".join(refused)
+            f"{what} differ from the current code or configuration (recorded -> current):\n"
+            + "\n".join(refused)
             + f"\nUse another --out, delete these runs' .csv and .json files to rerun them, or pass {OVERRIDE_HINT} "
             "to keep them beside runs of the current version."
         )

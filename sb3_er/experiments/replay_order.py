@@ -57,10 +57,24 @@ THESIS_CHECKPOINT = 225_000
 THESIS_RANGE = 300_000
 """The replayed updates that Figure A.1 covers (its text compares the orders at 225,000); beyond them the thesis
 says nothing."""
-COLUMNS = ("order", "checkpoint", "replayed_updates", "return", "length", "goal_reached", "diverged",
-           "database_sha256", "weights_at_start_sha256", "database_episodes", "database_transitions",
-           "database_trajectories", "database_goal_episodes", "database_last10_return", "collector_greedy_return",
-           "wall_time_s")
+COLUMNS = (
+    "order",
+    "checkpoint",
+    "replayed_updates",
+    "return",
+    "length",
+    "goal_reached",
+    "diverged",
+    "database_sha256",
+    "weights_at_start_sha256",
+    "database_episodes",
+    "database_transitions",
+    "database_trajectories",
+    "database_goal_episodes",
+    "database_last10_return",
+    "collector_greedy_return",
+    "wall_time_s",
+)
 
 
 def database_digest(buffer) -> str:
@@ -175,9 +189,20 @@ def replay_order_run(job: RunJob, env, report) -> TaskOutput:
     try:
         collector, episodes = collect_database(job, env, lambda fraction: report(0.4 * fraction))
     except DivergenceError:
-        frame = pd.DataFrame([{"order": order, "checkpoint": point, "return": math.nan, "diverged": True,
-                               "wall_time_s": time.perf_counter() - start} for order in ORDERS for point in points],
-                             columns=list(COLUMNS))
+        frame = pd.DataFrame(
+            [
+                {
+                    "order": order,
+                    "checkpoint": point,
+                    "return": math.nan,
+                    "diverged": True,
+                    "wall_time_s": time.perf_counter() - start,
+                }
+                for order in ORDERS
+                for point in points
+            ],
+            columns=list(COLUMNS),
+        )
         return TaskOutput(frame, ER("TileQ", env, seed=job.seed, **job_model_kwargs(job)))
     collector_return, _, _ = greedy_return(collector, eval_env)
     returns = [record["return"] for record in episodes]
@@ -195,8 +220,10 @@ def replay_order_run(job: RunJob, env, report) -> TaskOutput:
         collector.save_replay_buffer(buffer_path)
         for index, order in enumerate(ORDERS):
             model = fresh_replay_model(job, env, order, buffer_path)
-            identity = {"database_sha256": database_digest(model.replay_buffer),
-                        "weights_at_start_sha256": weights_digest(model)}
+            identity = {
+                "database_sha256": database_digest(model.replay_buffer),
+                "weights_at_start_sha256": weights_digest(model),
+            }
             diverged = False
             for point in points:
                 row = {"order": order, "checkpoint": point, **identity, **database}
@@ -207,12 +234,22 @@ def replay_order_run(job: RunJob, env, report) -> TaskOutput:
                     except DivergenceError:
                         diverged = True
                 if diverged:
-                    row.update(replayed_updates=model.replay_updates, diverged=True, length=0, goal_reached=False,
-                               **{"return": math.nan})
+                    row.update(
+                        replayed_updates=model.replay_updates,
+                        diverged=True,
+                        length=0,
+                        goal_reached=False,
+                        **{"return": math.nan},
+                    )
                 else:
                     total, length, goal = greedy_return(model, eval_env)
-                    row.update(replayed_updates=model.replay_updates, diverged=False, length=length,
-                               goal_reached=goal, **{"return": total})
+                    row.update(
+                        replayed_updates=model.replay_updates,
+                        diverged=False,
+                        length=length,
+                        goal_reached=goal,
+                        **{"return": total},
+                    )
                 row["wall_time_s"] = time.perf_counter() - start
                 rows.append(row)
                 report(0.4 + 0.6 * (index + (points.index(point) + 1) / len(points)) / len(ORDERS))
@@ -266,10 +303,16 @@ def replay_order_table(frames: dict[int, pd.DataFrame]) -> pd.DataFrame:
             n = len(values)
             mean, half = mean_confidence_interval(values["return"].to_numpy()) if n else (math.nan, math.nan)
             means[order] = float(mean)
-            row.update({f"{order}_mean": float(mean), f"{order}_ci95": float(half), f"{order}_n": n,
-                        f"{order}_goals": int(values["goal_reached"].astype(bool).sum()),
-                        f"{order}_diverged": int(at[at["order"] == order]["diverged"].astype(bool).sum()),
-                        f"{order}_updates": float(values["replayed_updates"].mean()) if n else math.nan})
+            row.update(
+                {
+                    f"{order}_mean": float(mean),
+                    f"{order}_ci95": float(half),
+                    f"{order}_n": n,
+                    f"{order}_goals": int(values["goal_reached"].astype(bool).sum()),
+                    f"{order}_diverged": int(at[at["order"] == order]["diverged"].astype(bool).sum()),
+                    f"{order}_updates": float(values["replayed_updates"].mean()) if n else math.nan,
+                }
+            )
         wide = at.pivot_table(index="seed", columns="order", values="return")
         for first, second in PAIRS:
             if first in wide and second in wide:
@@ -279,8 +322,13 @@ def replay_order_table(frames: dict[int, pd.DataFrame]) -> pd.DataFrame:
             mean, half = mean_confidence_interval(differences) if differences.size else (math.nan, math.nan)
             row.update({f"{first}_minus_{second}": float(mean), f"{first}_minus_{second}_ci95": float(half)})
         row["ours_best_first"] = ranking(means)
-        row["thesis"] = ("" if point == 0 or point > THESIS_RANGE else
-                         THESIS_FINDING_225K if point == THESIS_CHECKPOINT else THESIS_FINDING)
+        row["thesis"] = (
+            ""
+            if point == 0 or point > THESIS_RANGE
+            else THESIS_FINDING_225K
+            if point == THESIS_CHECKPOINT
+            else THESIS_FINDING
+        )
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -308,9 +356,12 @@ def _markdown(table: pd.DataFrame) -> str:
 
 def _check_orders_saw_one_database(frames: dict[int, pd.DataFrame]) -> list[int]:
     """Seeds whose orders did not all replay the same database from the same initial weights (should be none)."""
-    return [seed for seed, frame in frames.items()
-            if frame["database_sha256"].nunique(dropna=False) > 1
-            or frame["weights_at_start_sha256"].nunique(dropna=False) > 1]
+    return [
+        seed
+        for seed, frame in frames.items()
+        if frame["database_sha256"].nunique(dropna=False) > 1
+        or frame["weights_at_start_sha256"].nunique(dropna=False) > 1
+    ]
 
 
 @files.holds_folder_locks
@@ -362,21 +413,40 @@ def reproduce_replay_order(
     database_episodes = int(base.setting("database_episodes") if database_episodes is None else database_episodes)
     eval_every = int(base.setting("eval_every") if eval_every is None else eval_every)
     if database_episodes < 1 or eval_every < 1 or int(budget) != budget:
-        raise ValueError(f"database_episodes and eval_every must be positive and the horizon a whole number of "
-                         f"replayed updates, got {database_episodes}, {eval_every}, {budget}")
+        raise ValueError(
+            f"database_episodes and eval_every must be positive and the horizon a whole number of "
+            f"replayed updates, got {database_episodes}, {eval_every}, {budget}"
+        )
     experiment = base.with_settings(database_episodes=database_episodes, eval_every=eval_every)
     env_kwargs = dict(env_kwargs or {})
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
-                "database_episodes": database_episodes, "eval_every": eval_every, "env_kwargs": env_kwargs}
+    settings = {
+        "experiment": experiment.name,
+        "env_id": experiment.env_id,
+        "budget": budget,
+        "database_episodes": database_episodes,
+        "eval_every": eval_every,
+        "env_kwargs": env_kwargs,
+    }
     files.lock_folder(out_dir)  # one writer per folder, until this function returns
     check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
-    jobs = [RunJob(experiment, "er", seed, budget, run_csv_path(out_dir, RUN_FOLDER, seed),
-                   tuple(sorted(env_kwargs.items())), tuple(sorted(COLLECTOR_KWARGS.items())), label=RUN_FOLDER)
-            for seed in seeds]
-    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions, settings={out_dir: settings})
+    jobs = [
+        RunJob(
+            experiment,
+            "er",
+            seed,
+            budget,
+            run_csv_path(out_dir, RUN_FOLDER, seed),
+            tuple(sorted(env_kwargs.items())),
+            tuple(sorted(COLLECTOR_KWARGS.items())),
+            label=RUN_FOLDER,
+        )
+        for seed in seeds
+    ]
+    done, skipped = run_analysis_jobs(
+        jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions, settings={out_dir: settings}
+    )
 
     frames = {job.seed: read_run_csv(job.csv_path) for job in jobs if job.csv_path.is_file()}
     table = replay_order_table(frames)
@@ -389,17 +459,21 @@ def reproduce_replay_order(
         series[order] = (wide.columns.to_numpy(dtype=float), wide.to_numpy())
     collectors = data.drop_duplicates("seed")
     figure = plot_mean_with_error_bars(
-        series, "replayed updates (samples)", "return of a greedy episode from the start",
+        series,
+        "replayed updates (samples)",
+        "return of a greedy episode from the start",
         f"Pendulum, replay orders on the same {database_episodes}-episode Sarsa(λ) databases\n"
         f"(Figure A.1): mean of {counted(len(frames), 'seed')}, 95% CI",
         out_dir / "replay_orders.png",
-        references={f"the Sarsa(λ) collectors, greedy (mean of {len(collectors)})":
-                    float(collectors["collector_greedy_return"].mean())},
+        references={
+            f"the Sarsa(λ) collectors, greedy (mean of {len(collectors)})": float(
+                collectors["collector_greedy_return"].mean()
+            )
+        },
     )
     mismatched = _check_orders_saw_one_database(frames)
     sections = [
-        f"# {experiment.title}: {counted(len(frames), 'seed')}, "
-        f"horizon {budget:,.0f} replayed updates",
+        f"# {experiment.title}: {counted(len(frames), 'seed')}, horizon {budget:,.0f} replayed updates",
         "",
         f"Per seed one database of {database_episodes} Sarsa(λ) episodes (ER with online_lambda 0.92 and no replay; "
         "α 0.2, γ 0.98, ε 0.1, 16 tilings), replayed by fresh ER models in each order from zero weights (ε-greedy "
@@ -416,17 +490,28 @@ def reproduce_replay_order(
         "",
         "Databases: {:,.0f} transitions, {:.1f} of {} episodes reaching the goal, last-10-episode learning return "
         "{:,.0f}, the collector's greedy return {:,.0f} (means over seeds).".format(
-            collectors["database_transitions"].mean(), collectors["database_goal_episodes"].mean(),
-            database_episodes, collectors["database_last10_return"].mean(),
-            collectors["collector_greedy_return"].mean()),
+            collectors["database_transitions"].mean(),
+            collectors["database_goal_episodes"].mean(),
+            database_episodes,
+            collectors["database_last10_return"].mean(),
+            collectors["collector_greedy_return"].mean(),
+        ),
         "Every order of a seed replayed the same database from the same initial weights (equal SHA-256 of the "
-        "transitions and of the weights)." if not mismatched else
-        f"**Seeds {mismatched}: the orders did not see the same database or initial weights.**",
+        "transitions and of the weights)."
+        if not mismatched
+        else f"**Seeds {mismatched}: the orders did not see the same database or initial weights.**",
         "",
         f"Pendulum reading (env arguments at run time): {env_reading(jobs)}.",
         "",
         code_line(jobs),
     ]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
-    return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=[figure],
-                        runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
+    return Reproduction(
+        out_dir=out_dir,
+        table_markdown=table_markdown,
+        table_csv=table_csv,
+        figures=[figure],
+        runs_done=done,
+        runs_skipped=skipped,
+        wall_time_s=time.perf_counter() - start,
+    )

@@ -158,8 +158,15 @@ def reproduce(
         records.pin_settings(out_dir, settings)
     if backend == "local":
         n_workers = n_workers or os.cpu_count() or 1
-    run_jobs(to_run, n_workers, show_progress, backend=backend, address=address,
-             allow_mixed_versions=allow_mixed_versions, on_written=lambda job: records.pin_settings(out_dir, settings))
+    run_jobs(
+        to_run,
+        n_workers,
+        show_progress,
+        backend=backend,
+        address=address,
+        allow_mixed_versions=allow_mixed_versions,
+        on_written=lambda job: records.pin_settings(out_dir, settings),
+    )
 
     curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
     table = summary_table(experiment, curves, budget)
@@ -187,11 +194,13 @@ def reproduce(
         )
     figures += _per_run_figures(experiment, out_dir, curves, first_seed)
     reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
-    length = (records.counted(budget, "episode") if experiment.protocol == "episodes"
-              else f"{budget:g} {experiment.budget_unit}")
+    length = (
+        records.counted(budget, "episode")
+        if experiment.protocol == "episodes"
+        else f"{budget:g} {experiment.budget_unit}"
+    )
     sections = [
-        f"# {experiment.title}: {records.counted(n_seeds, 'seed')}, "
-        f"{length} per run{reading}",
+        f"# {experiment.title}: {records.counted(n_seeds, 'seed')}, {length} per run{reading}",
         "",
         markdown_table(experiment, table),
         "",
@@ -249,21 +258,40 @@ def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: 
         for algo, curve in curves.items():
             if curve is not None and seed in curve.seeds:
                 frame = read_run_csv(run_csv_path(out_dir, algo, seed))
-                runs[ALGORITHM_LABELS[algo]] = (frame[experiment.x_column].to_numpy(),
-                                                frame[experiment.performance_column].to_numpy())
+                runs[ALGORITHM_LABELS[algo]] = (
+                    frame[experiment.x_column].to_numpy(),
+                    frame[experiment.performance_column].to_numpy(),
+                )
         if runs:
-            figures.append(plot_typical_runs(runs, experiment.x_label, experiment.performance_label,
-                                             f"{experiment.title}: typical runs (seed {seed})",
-                                             out_dir / "typical_runs.png"))
+            figures.append(
+                plot_typical_runs(
+                    runs,
+                    experiment.x_label,
+                    experiment.performance_label,
+                    f"{experiment.title}: typical runs (seed {seed})",
+                    out_dir / "typical_runs.png",
+                )
+            )
     for algo in curves:
         csv_path = run_csv_path(out_dir, algo, seed)
         gait_csv, gif = artifact_path(csv_path, "gait.csv"), artifact_path(csv_path, "walker.gif")
         if gait_csv.is_file():
             table = read_run_csv(gait_csv)
-            trace = GaitTrace(table["time"].to_numpy(), table["stance_angle"].to_numpy(), table["hip_angle"].to_numpy(),
-                              table["swing_foot_height"].to_numpy(), bool(table["fell"].iloc[-1]), 0.0)
-            figures.append(plot_gait({ALGORITHM_LABELS[algo]: trace}, out_dir / f"gait_{algo}.png",
-                                     f"{experiment.title}: greedy gait after learning, {ALGORITHM_LABELS[algo]}"))
+            trace = GaitTrace(
+                table["time"].to_numpy(),
+                table["stance_angle"].to_numpy(),
+                table["hip_angle"].to_numpy(),
+                table["swing_foot_height"].to_numpy(),
+                bool(table["fell"].iloc[-1]),
+                0.0,
+            )
+            figures.append(
+                plot_gait(
+                    {ALGORITHM_LABELS[algo]: trace},
+                    out_dir / f"gait_{algo}.png",
+                    f"{experiment.title}: greedy gait after learning, {ALGORITHM_LABELS[algo]}",
+                )
+            )
         if gif.is_file():
             figures.append(files.write_atomically(out_dir / f"walker_{algo}.gif", gif.read_bytes()))
     return figures
@@ -302,6 +330,9 @@ def _gridworld_value_maps(out_dir: Path, seed: int) -> tuple[list[Path], str]:
             f"{row.windy_mean:.1f} | {row.windy_positive_fraction:.0%} | {row.calm_max:.1f} | {row.calm_min:.1f} | "
             f"{row.values_out_of_range:,} |"
         )
-    lines += ["", "Values outside the possible returns: the targets and Q-values the value watch saw outside them, "
-              "counted over the model's learning and replays (the maps are made outside the table's runs)."]
+    lines += [
+        "",
+        "Values outside the possible returns: the targets and Q-values the value watch saw outside them, "
+        "counted over the model's learning and replays (the maps are made outside the table's runs).",
+    ]
     return figures, "\n".join(lines)

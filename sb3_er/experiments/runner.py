@@ -37,6 +37,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from sb3_er.experiments import files, lifetime, records
+
 # The job, its settings and its paths live in jobs.py (records.py uses them too); importable from here.
 from sb3_er.experiments.jobs import (  # noqa: F401
     RUNNER_ARGUMENTS,
@@ -49,8 +50,9 @@ from sb3_er.experiments.jobs import (  # noqa: F401
 from sb3_er.experiments.specs import Experiment
 
 BACKENDS = ("local", "ray")
-THREAD_LIMITS = {name: "1" for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS",
-                                        "OPENBLAS_NUM_THREADS")}
+THREAD_LIMITS = {
+    name: "1" for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+}
 RAY_ENV_VARS = {"RAY_USAGE_STATS_ENABLED": "0", **THREAD_LIMITS}
 RAY_MISSING = "the Ray backend needs the ray package: pip install 'sb3-er[ray]'"
 
@@ -188,8 +190,11 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
             reports_to[0].put((job.key, fraction))
         except Exception as error:  # noqa: BLE001  (any transport error of any backend's queue)
             reports_to[0] = None
-            warnings.warn(f"{job.key}: progress reports stopped, the run goes on ({type(error).__name__}: {error})",
-                          RuntimeWarning, stacklevel=2)
+            warnings.warn(
+                f"{job.key}: progress reports stopped, the run goes on ({type(error).__name__}: {error})",
+                RuntimeWarning,
+                stacklevel=2,
+            )
 
     def report(fraction: float) -> None:
         if fraction - last_reported[0] >= 0.01:
@@ -247,8 +252,15 @@ def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
 
     env = gym.make(job.experiment.env_id, render_mode="rgb_array", **dict(job.env_kwargs))
     trace = gait_trace(model, env, seconds=GAIT_SECONDS)
-    table = pd.DataFrame({"time": trace.time, "stance_angle": trace.stance_angle, "hip_angle": trace.hip_angle,
-                          "swing_foot_height": trace.swing_foot_height, "fell": trace.fell})
+    table = pd.DataFrame(
+        {
+            "time": trace.time,
+            "stance_angle": trace.stance_angle,
+            "hip_angle": trace.hip_angle,
+            "swing_foot_height": trace.swing_foot_height,
+            "fell": trace.fell,
+        }
+    )
     with tempfile.TemporaryDirectory() as folder:
         gif = save_walker_gif(model, Path(folder) / "walker.gif", seconds=GAIT_SECONDS, env=env).read_bytes()
     env.close()
@@ -286,8 +298,9 @@ def write_run(job: RunJob, result: RunResult) -> None:
         files.write_atomically(job.csv_path.with_name(name), content)
     csv_data = files.csv_bytes(result.frame)
     files.write_atomically(job.csv_path, csv_data)
-    files.write_json(records.record_path(job.csv_path), records.sealed(result.record, job.csv_path.name, csv_data,
-                                                                       artifacts))
+    files.write_json(
+        records.record_path(job.csv_path), records.sealed(result.record, job.csv_path.name, csv_data, artifacts)
+    )
 
 
 def run_single(job: RunJob, progress_queue=None) -> float:
@@ -338,8 +351,11 @@ def run_files(csv_path: Path) -> list[Path]:
 
     :param csv_path: the run's CSV file.
     """
-    artifacts = (path for path in csv_path.parent.glob(f"{csv_path.stem}_*")
-                 if path.is_file() and ".damaged-" not in path.name and files.PARTIAL_MARK not in path.name)
+    artifacts = (
+        path
+        for path in csv_path.parent.glob(f"{csv_path.stem}_*")
+        if path.is_file() and ".damaged-" not in path.name and files.PARTIAL_MARK not in path.name
+    )
     return [csv_path, records.record_path(csv_path), *sorted(artifacts)]
 
 
@@ -362,8 +378,10 @@ def check_run(job: RunJob) -> tuple[bool, str | None]:
     except files.DamagedFileError as error:
         return False, str(error).split("; ")[0]
     if record is None:
-        return False, (f"{csv_path} has no version record (its command was stopped between writing the CSV and "
-                       "the record, or the run predates records)")
+        return False, (
+            f"{csv_path} has no version record (its command was stopped between writing the CSV and "
+            "the record, or the run predates records)"
+        )
     if records.CHECKSUM_FIELD in record:
         problem = records.check_sealed(record, csv_path)
         return problem is None, problem
@@ -371,9 +389,12 @@ def check_run(job: RunJob) -> tuple[bool, str | None]:
     if problem is not None:
         return False, problem
     artifacts = {path.name: path.read_bytes() for path in run_files(csv_path)[2:]}
-    files.write_json(records.record_path(csv_path),
-                     records.sealed(record, csv_path.name, csv_path.read_bytes(), artifacts,
-                                    upgraded_from_format=record.get("format", 1)))
+    files.write_json(
+        records.record_path(csv_path),
+        records.sealed(
+            record, csv_path.name, csv_path.read_bytes(), artifacts, upgraded_from_format=record.get("format", 1)
+        ),
+    )
     return True, "upgraded"
 
 
@@ -397,18 +418,24 @@ def split_finished(jobs: list[RunJob]) -> tuple[list[RunJob], list[RunJob]]:
         to_run.append(job)
         if problem is not None:
             moved = [path.name for path in map(files.move_aside, run_files(job.csv_path)) if path is not None]
-            warnings.warn(f"{problem}; moved aside as {', '.join(moved)} and done again", DamagedRunWarning,
-                          stacklevel=2)
+            warnings.warn(
+                f"{problem}; moved aside as {', '.join(moved)} and done again", DamagedRunWarning, stacklevel=2
+            )
     if upgraded:
-        warnings.warn(f"{records.counted(len(upgraded), 'finished run')} had "
-                      f"{'a record' if len(upgraded) == 1 else 'records'} without checksums "
-                      f"({records.compact_runs(upgraded)}): their CSVs were checked (well-formed, the protocol's "
-                      "number of rows) and their records given checksums", RecordUpgradeWarning, stacklevel=2)
+        warnings.warn(
+            f"{records.counted(len(upgraded), 'finished run')} had "
+            f"{'a record' if len(upgraded) == 1 else 'records'} without checksums "
+            f"({records.compact_runs(upgraded)}): their CSVs were checked (well-formed, the protocol's "
+            "number of rows) and their records given checksums",
+            RecordUpgradeWarning,
+            stacklevel=2,
+        )
     return to_run, finished
 
 
-def plan_jobs(experiment: Experiment, algos, seeds, budget: float, out_dir: Path, env_kwargs=None,
-              algo_kwargs=None) -> tuple[list[RunJob], list[RunJob]]:
+def plan_jobs(
+    experiment: Experiment, algos, seeds, budget: float, out_dir: Path, env_kwargs=None, algo_kwargs=None
+) -> tuple[list[RunJob], list[RunJob]]:
     """All jobs of the reproduction, split into (to run, already finished) by :func:`split_finished` (which moves
     damaged runs aside). The first seed's runs make the per-run figures' data.
 
@@ -423,8 +450,20 @@ def plan_jobs(experiment: Experiment, algos, seeds, budget: float, out_dir: Path
     env_items = tuple(sorted((env_kwargs or {}).items()))
     algo_items = tuple(sorted((algo_kwargs or {}).items()))
     seeds = list(seeds)
-    jobs = [RunJob(experiment, algo, seed, budget, run_csv_path(out_dir, algo, seed), env_items, algo_items,
-                   figure_run=seed == seeds[0]) for algo in algos for seed in seeds]
+    jobs = [
+        RunJob(
+            experiment,
+            algo,
+            seed,
+            budget,
+            run_csv_path(out_dir, algo, seed),
+            env_items,
+            algo_items,
+            figure_run=seed == seeds[0],
+        )
+        for algo in algos
+        for seed in seeds
+    ]
     return split_finished(jobs)
 
 
@@ -482,13 +521,19 @@ class _Driver:
         refusals, cautions = records.compare_records(result.record, self.expected[job.key])
         if refusals and not self.allow_mixed_versions:
             host = result.record.get("host", "?")
-            self.failed(job, f"ran on {host} with other code or configuration than the driver's (worker -> driver): "
-                             f"{'; '.join(refusals)}. Install the driver's version there, or pass "
-                             f"{records.OVERRIDE_HINT}.\n")
+            self.failed(
+                job,
+                f"ran on {host} with other code or configuration than the driver's (worker -> driver): "
+                f"{'; '.join(refusals)}. Install the driver's version there, or pass "
+                f"{records.OVERRIDE_HINT}.\n",
+            )
             return
         if refusals or cautions:
-            warnings.warn(f"{job.key} ran with (worker -> driver): {'; '.join(refusals + cautions)}",
-                          records.MixedVersionsWarning, stacklevel=2)
+            warnings.warn(
+                f"{job.key} ran with (worker -> driver): {'; '.join(refusals + cautions)}",
+                records.MixedVersionsWarning,
+                stacklevel=2,
+            )
         write_run(job, result)
         self.wall_times[job.key] = result.wall_time_s
         self.fractions[job.key] = 1.0
@@ -543,7 +588,9 @@ def run_jobs(
     if address is not None and backend != "ray":
         raise ValueError(f"an address ({address!r}) is for the Ray backend only; add backend='ray' (--backend ray)")
     if address is not None and n_workers is not None:
-        raise ValueError("n_workers (--jobs) sets the CPUs of a local Ray instance; a cluster at an address uses its own")
+        raise ValueError(
+            "n_workers (--jobs) sets the CPUs of a local Ray instance; a cluster at an address uses its own"
+        )
     driver = _Driver(jobs, show_progress, allow_mixed_versions, on_written)
     runnable = driver.runnable
     try:
@@ -620,8 +667,9 @@ class _Worker:
 
     def __init__(self, context) -> None:
         self.connection, child_end = context.Pipe(duplex=True)
-        self.process = context.Process(target=_worker_main, args=(child_end, os.getpid()), daemon=True,
-                                       name="sb3-er-worker")
+        self.process = context.Process(
+            target=_worker_main, args=(child_end, os.getpid()), daemon=True, name="sb3-er-worker"
+        )
         self.process.start()
         child_end.close()
         self.job: RunJob | None = None
@@ -682,8 +730,9 @@ def _run_on_workers(jobs: list[RunJob], driver: _Driver, n_workers: int) -> None
                 workers.append(worker)
                 if worker.assign(pending[0]):
                     pending.popleft()
-            wait_for([worker.connection for worker in workers] + [worker.process.sentinel for worker in workers],
-                     timeout=0.5)
+            wait_for(
+                [worker.connection for worker in workers] + [worker.process.sentinel for worker in workers], timeout=0.5
+            )
             for worker in list(workers):
                 job, messages = worker.job, []
                 try:

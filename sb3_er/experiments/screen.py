@@ -101,9 +101,14 @@ def score(figures: Mapping[str, float | None], thesis_row: Mapping[str, tuple]) 
     }
 
 
-def bootstrap_score_interval(experiment: Experiment, curves, thesis_row: Mapping[str, tuple],
-                             resamples: int = BOOTSTRAP_RESAMPLES, confidence: float = 0.95,
-                             seed: int = 0) -> tuple[float, float]:
+def bootstrap_score_interval(
+    experiment: Experiment,
+    curves,
+    thesis_row: Mapping[str, tuple],
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    confidence: float = 0.95,
+    seed: int = 0,
+) -> tuple[float, float]:
     """Percentile interval of the score over seeds drawn with replacement (the figures recomputed from each resample's
     mean curve): how far the ranking can be trusted. Resamples with an unmeasurable figure count as infinite.
 
@@ -121,11 +126,16 @@ def bootstrap_score_interval(experiment: Experiment, curves, thesis_row: Mapping
     scores = np.empty(resamples)
     for k in range(resamples):
         rows = rng.integers(0, n_seeds, size=n_seeds)
-        summary = summarize_curves(curves.x / experiment.rise_time_scale, curves.performance[rows],
-                                   curves.cumulative_falls[rows] if experiment.has_falls else None,
-                                   success_threshold=experiment.success_threshold)
-        scores[k] = score({"rise_time": summary.rise_time, "end_performance": summary.end_performance,
-                           "falls": summary.falls}, thesis_row)["score"]
+        summary = summarize_curves(
+            curves.x / experiment.rise_time_scale,
+            curves.performance[rows],
+            curves.cumulative_falls[rows] if experiment.has_falls else None,
+            success_threshold=experiment.success_threshold,
+        )
+        scores[k] = score(
+            {"rise_time": summary.rise_time, "end_performance": summary.end_performance, "falls": summary.falls},
+            thesis_row,
+        )["score"]
     tail = 100.0 * (1.0 - confidence) / 2.0
     # order statistics, not interpolation: infinite scores (a resample without a gait) must not turn into NaN
     low = np.percentile(scores, tail, method="lower")
@@ -147,8 +157,9 @@ def _checked_candidates(candidates) -> list[Candidate]:
     return candidates
 
 
-def screen_command(experiment_name: str, candidates, out_dir: Path, title: str, notes: str,
-                   argv: list[str] | None = None) -> pd.DataFrame:
+def screen_command(
+    experiment_name: str, candidates, out_dir: Path, title: str, notes: str, argv: list[str] | None = None
+) -> pd.DataFrame:
     """The command line of a screen script: ``[--only NAME ...] [--seeds N] [--summary-only]``. Runs (or resumes) the
     candidates, seals their records and writes ``summary.md``; prints and returns the ranked table.
 
@@ -174,8 +185,15 @@ def screen_command(experiment_name: str, candidates, out_dir: Path, title: str, 
     return table
 
 
-def tiling_screen_command(description: str, candidates: Mapping[str, Mapping[str, dict]], run_one, summarize,
-                          default_seeds=(0,), seeds_outermost: bool = False, argv: list[str] | None = None) -> None:
+def tiling_screen_command(
+    description: str,
+    candidates: Mapping[str, Mapping[str, dict]],
+    run_one,
+    summarize,
+    default_seeds=(0,),
+    seeds_outermost: bool = False,
+    argv: list[str] | None = None,
+) -> None:
     """The command line of a tiling screen over env ids (the continuous-action and dm_control screens):
     ``[--envs ID ...] [--candidates NAME ...] [--seeds N ...] [--summarize]``. Runs every chosen (env, candidate,
     seed) through ``run_one``, which skips a finished run (so the command resumes), or only ``summarize()``.
@@ -192,22 +210,36 @@ def tiling_screen_command(description: str, candidates: Mapping[str, Mapping[str
     import argparse
 
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--envs", nargs="+", default=list(candidates), choices=list(candidates),
-                        help="screen only these env ids (default: all)")
-    parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
-                        help="screen only these candidates (default: every candidate of each env)")
+    parser.add_argument(
+        "--envs",
+        nargs="+",
+        default=list(candidates),
+        choices=list(candidates),
+        help="screen only these env ids (default: all)",
+    )
+    parser.add_argument(
+        "--candidates",
+        nargs="+",
+        default=None,
+        metavar="NAME",
+        help="screen only these candidates (default: every candidate of each env)",
+    )
     parser.add_argument("--seeds", nargs="+", type=int, default=list(default_seeds))
     parser.add_argument("--summarize", action="store_true", help="write the summary from the finished runs")
     arguments = parser.parse_args(argv)
     if arguments.summarize:
         summarize()
         return
-    chosen = {env_id: [name for name in candidates[env_id] if arguments.candidates is None
-                       or name in arguments.candidates] for env_id in arguments.envs}
+    chosen = {
+        env_id: [name for name in candidates[env_id] if arguments.candidates is None or name in arguments.candidates]
+        for env_id in arguments.envs
+    }
     unknown = sorted(set(arguments.candidates or ()) - {name for names in chosen.values() for name in names})
     if unknown:
-        parser.error(f"no candidate named {', '.join(unknown)} for {', '.join(arguments.envs)}; the candidates are "
-                     + "; ".join(f"{env_id}: {', '.join(candidates[env_id])}" for env_id in arguments.envs))
+        parser.error(
+            f"no candidate named {', '.join(unknown)} for {', '.join(arguments.envs)}; the candidates are "
+            + "; ".join(f"{env_id}: {', '.join(candidates[env_id])}" for env_id in arguments.envs)
+        )
     pairs = [(env_id, name) for env_id, names in chosen.items() for name in names]
     if seeds_outermost:
         jobs = [(env_id, name, seed) for seed in arguments.seeds for env_id, name in pairs]
@@ -217,8 +249,15 @@ def tiling_screen_command(description: str, candidates: Mapping[str, Mapping[str
         run_one(env_id, name, seed)
 
 
-def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 10, budget: float | None = None,
-               n_workers: int = 1, only: list[str] | None = None) -> None:
+def run_screen(
+    experiment_name: str,
+    candidates,
+    out_dir: Path,
+    n_seeds: int = 10,
+    budget: float | None = None,
+    n_workers: int = 1,
+    only: list[str] | None = None,
+) -> None:
     """Run (or resume) Sarsa(lambda) on every candidate in ``out_dir/<candidate>`` with `sb3-er reproduce`.
 
     :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
@@ -236,10 +275,21 @@ def run_screen(experiment_name: str, candidates, out_dir: Path, n_seeds: int = 1
     for candidate in _checked_candidates(candidates):
         if (only and candidate.name not in only) or candidate.folder is not None:
             continue
-        result = reproduce(experiment_name, n_seeds=n_seeds, algos=[CONTROL_ARM], out_dir=Path(out_dir) / candidate.name,
-                           budget=budget, n_workers=n_workers, show_progress=False, env_kwargs=dict(candidate.env_kwargs))
-        print(f"{candidate.name}: {records.counted(result.runs_done, 'run')} done, {result.runs_skipped} resumed, "
-              f"{result.wall_time_s:.0f} s", flush=True)
+        result = reproduce(
+            experiment_name,
+            n_seeds=n_seeds,
+            algos=[CONTROL_ARM],
+            out_dir=Path(out_dir) / candidate.name,
+            budget=budget,
+            n_workers=n_workers,
+            show_progress=False,
+            env_kwargs=dict(candidate.env_kwargs),
+        )
+        print(
+            f"{candidate.name}: {records.counted(result.runs_done, 'run')} done, {result.runs_skipped} resumed, "
+            f"{result.wall_time_s:.0f} s",
+            flush=True,
+        )
 
 
 @files.holds_folder_locks
@@ -267,14 +317,28 @@ def seal_finished_runs(experiment_name: str, candidates, out_dir: Path, n_seeds:
             continue
         settings = json.loads(settings_path.read_text())
         files.lock_folder(folder)
-        before = {seed: (records.read_record(path) or {}).get(records.CHECKSUM_FIELD) for seed in range(n_seeds)
-                  if (path := run_csv_path(folder, CONTROL_ARM, seed)).is_file()}
+        before = {
+            seed: (records.read_record(path) or {}).get(records.CHECKSUM_FIELD)
+            for seed in range(n_seeds)
+            if (path := run_csv_path(folder, CONTROL_ARM, seed)).is_file()
+        }
         with warnings.catch_warnings():
             warnings.simplefilter("default")
-            plan_jobs(experiment, [CONTROL_ARM], range(n_seeds), float(settings["budget"]), folder,
-                      settings.get("env_kwargs", {}), settings.get("algo_kwargs", {}))
-        sealed += sum(checksum is None and (records.read_record(run_csv_path(folder, CONTROL_ARM, seed)) or {})
-                      .get(records.CHECKSUM_FIELD) is not None for seed, checksum in before.items())
+            plan_jobs(
+                experiment,
+                [CONTROL_ARM],
+                range(n_seeds),
+                float(settings["budget"]),
+                folder,
+                settings.get("env_kwargs", {}),
+                settings.get("algo_kwargs", {}),
+            )
+        sealed += sum(
+            checksum is None
+            and (records.read_record(run_csv_path(folder, CONTROL_ARM, seed)) or {}).get(records.CHECKSUM_FIELD)
+            is not None
+            for seed, checksum in before.items()
+        )
     return sealed
 
 
@@ -297,13 +361,26 @@ def screen_table(experiment_name: str, candidates, out_dir: Path, n_seeds: int =
         summary = summarize(experiment, curves)
         figures = {"rise_time": math.nan, "end_performance": math.nan, "falls": None}
         if summary is not None:
-            figures = {"rise_time": summary.rise_time, "end_performance": summary.end_performance,
-                       "falls": summary.falls}
-        low, high = (bootstrap_score_interval(experiment, curves, thesis_row) if summary is not None
-                     else (math.inf, math.inf))
-        rows.append({"candidate": candidate.name, "reading": candidate.description, "seeds": len(curves.seeds),
-                     "diverged": len(curves.diverged_seeds), **figures, **score(figures, thesis_row),
-                     "score_low": low, "score_high": high})
+            figures = {
+                "rise_time": summary.rise_time,
+                "end_performance": summary.end_performance,
+                "falls": summary.falls,
+            }
+        low, high = (
+            bootstrap_score_interval(experiment, curves, thesis_row) if summary is not None else (math.inf, math.inf)
+        )
+        rows.append(
+            {
+                "candidate": candidate.name,
+                "reading": candidate.description,
+                "seeds": len(curves.seeds),
+                "diverged": len(curves.diverged_seeds),
+                **figures,
+                **score(figures, thesis_row),
+                "score_low": low,
+                "score_high": high,
+            }
+        )
     table = pd.DataFrame(rows)
     if not table.empty:
         table = table.sort_values("score", kind="stable").reset_index(drop=True)
@@ -348,17 +425,21 @@ def _decision_lines(decision: Decision, table: pd.DataFrame) -> list[str]:
     lines = ["## The rule's decision", "", f"Candidates with at least {MIN_SEEDS} seeds, checks aside.", ""]
     for label, candidate in decision.kept.items():
         if candidate is None:
-            lines.append(f"- Printed value \"{label}\": no screened candidate with it brings Sarsa(λ) within 50 % of "
-                         "every figure, so it does not bind the choice below.")
+            lines.append(
+                f'- Printed value "{label}": no screened candidate with it brings Sarsa(λ) within 50 % of '
+                "every figure, so it does not bind the choice below."
+            )
         else:
-            lines.append(f"- Printed value \"{label}\": stays (`{candidate}` keeps it within 50 % of every figure).")
+            lines.append(f'- Printed value "{label}": stays (`{candidate}` keeps it within 50 % of every figure).')
     if decision.winner is None:
         lines.append("- No candidate has enough seeds: the screen decides nothing yet.")
     else:
         row = table.set_index("candidate").loc[decision.winner]
-        lines.append(f"- Default: `{decision.winner}` ({row['reading']}), score {_percent(row['score'])} "
-                     f"({_percent(row['score_low'])} to {_percent(row['score_high'])}): the nearest candidate that "
-                     "keeps every printed value that stays.")
+        lines.append(
+            f"- Default: `{decision.winner}` ({row['reading']}), score {_percent(row['score'])} "
+            f"({_percent(row['score_low'])} to {_percent(row['score_high'])}): the nearest candidate that "
+            "keeps every printed value that stays."
+        )
     return lines + [""]
 
 
@@ -376,8 +457,9 @@ def _percent(value: float) -> str:
     return "NA" if math.isinf(value) else f"{100 * value:.0f} %"
 
 
-def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title: str, notes: str = "",
-                         n_seeds: int = 10) -> pd.DataFrame:
+def write_screen_summary(
+    experiment_name: str, candidates, out_dir: Path, title: str, notes: str = "", n_seeds: int = 10
+) -> pd.DataFrame:
     """Write ``out_dir/summary.md`` and ``summary.csv`` (the ranking of :func:`screen_table`) and return the table.
 
     :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
@@ -396,40 +478,70 @@ def write_screen_summary(experiment_name: str, candidates, out_dir: Path, title:
     header += ["falls"] if has_falls else []
     header += ["rise error", "end error"] + (["falls error"] if has_falls else [])
     header += ["score", "score, 95 % bootstrap interval", "all within 50 %"]
-    lines = [f"# {title}", "", notes.strip(), "",
-             "Thesis Sarsa(λ) row: " + ", ".join(f"{name.replace('_', ' ')} {value[0]}"
-                                                 for name, value in thesis_row.items()) + ".", ""]
+    lines = [
+        f"# {title}",
+        "",
+        notes.strip(),
+        "",
+        "Thesis Sarsa(λ) row: "
+        + ", ".join(f"{name.replace('_', ' ')} {value[0]}" for name, value in thesis_row.items())
+        + ".",
+        "",
+    ]
     checks = {candidate.name for candidate in _checked_candidates(candidates) if candidate.check}
-    for heading, part in (("Candidates", table[~table["candidate"].isin(checks)]),
-                          ("Checks of a printed value the candidates keep (they choose nothing)",
-                           table[table["candidate"].isin(checks)])):
+    for heading, part in (
+        ("Candidates", table[~table["candidate"].isin(checks)]),
+        ("Checks of a printed value the candidates keep (they choose nothing)", table[table["candidate"].isin(checks)]),
+    ):
         if part.empty:
             continue
         lines += [f"## {heading}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         for rank, row in enumerate(part.itertuples(), start=1):
-            cells = [str(rank), row.candidate, row.reading.replace("|", "\\|"),
-                     f"{row.seeds}" + (f" (+{row.diverged} diverged)" if row.diverged else ""),
-                     _number(row.rise_time), _number(row.end_performance)]
+            cells = [
+                str(rank),
+                row.candidate,
+                row.reading.replace("|", "\\|"),
+                f"{row.seeds}" + (f" (+{row.diverged} diverged)" if row.diverged else ""),
+                _number(row.rise_time),
+                _number(row.end_performance),
+            ]
             cells += [_number(row.falls)] if has_falls else []
             cells += [_percent(row.rise_time_error), _percent(row.end_performance_error)]
             cells += [_percent(row.falls_error)] if has_falls else []
-            cells += [_percent(row.score), f"{_percent(row.score_low)} to {_percent(row.score_high)}",
-                      "yes" if row.within_50 else "no"]
+            cells += [
+                _percent(row.score),
+                f"{_percent(row.score_low)} to {_percent(row.score_high)}",
+                "yes" if row.within_50 else "no",
+            ]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
     lines += _decision_lines(decide(table, candidates), table)
-    lines += ["Score: the sum of the relative errors |ours - thesis| / |thesis| of the figures above against the "
-              "thesis's Sarsa(λ) row (NA: not measurable in the run, ranked last). Rise time and end performance by "
-              "the fixed metrics of thesis 6.1 on the mean curve of the seeds. The interval resamples the seeds "
-              f"({BOOTSTRAP_RESAMPLES} draws with replacement, the figures recomputed from each draw's mean curve): "
-              "candidates whose intervals overlap are not told apart by these seeds.", ""]
-    per_candidate = {candidate.name: [records.read_record(path) for seed in range(n_seeds)
-                                      if (path := run_csv_path(candidate.run_folder(out_dir), CONTROL_ARM, seed)).is_file()]
-                     for candidate in _checked_candidates(candidates)}
-    mixed = sorted(name for name, found in per_candidate.items()
-                   if len({(record or {}).get("code_sha256") for record in found}) > 1)
-    lines.append("Each candidate's runs were made by one code version." if not mixed else
-                 "Candidates whose runs were made by more than one code version: " + ", ".join(mixed) + ".")
+    lines += [
+        "Score: the sum of the relative errors |ours - thesis| / |thesis| of the figures above against the "
+        "thesis's Sarsa(λ) row (NA: not measurable in the run, ranked last). Rise time and end performance by "
+        "the fixed metrics of thesis 6.1 on the mean curve of the seeds. The interval resamples the seeds "
+        f"({BOOTSTRAP_RESAMPLES} draws with replacement, the figures recomputed from each draw's mean curve): "
+        "candidates whose intervals overlap are not told apart by these seeds.",
+        "",
+    ]
+    per_candidate = {
+        candidate.name: [
+            records.read_record(path)
+            for seed in range(n_seeds)
+            if (path := run_csv_path(candidate.run_folder(out_dir), CONTROL_ARM, seed)).is_file()
+        ]
+        for candidate in _checked_candidates(candidates)
+    }
+    mixed = sorted(
+        name
+        for name, found in per_candidate.items()
+        if len({(record or {}).get("code_sha256") for record in found}) > 1
+    )
+    lines.append(
+        "Each candidate's runs were made by one code version."
+        if not mixed
+        else "Candidates whose runs were made by more than one code version: " + ", ".join(mixed) + "."
+    )
     lines.append(records.code_versions_line([record for found in per_candidate.values() for record in found]))
     (out_dir / "summary.md").write_text("\n".join(lines) + "\n")
     table.to_csv(out_dir / "summary.csv", index=False)

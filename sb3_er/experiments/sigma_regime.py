@@ -33,8 +33,17 @@ from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
 
-COLUMNS = ("phase", "timesteps", "episode", "updates", "sigma_shift", "sigma_raised", "sigma_lowered",
-           "values_out_of_range", "diverged")
+COLUMNS = (
+    "phase",
+    "timesteps",
+    "episode",
+    "updates",
+    "sigma_shift",
+    "sigma_raised",
+    "sigma_lowered",
+    "values_out_of_range",
+    "diverged",
+)
 
 
 @dataclass(frozen=True)
@@ -64,18 +73,35 @@ class Reading:
 WALKER_EARLIER_DEFAULT = (("fall", "angles"), ("observation", "grl"), ("start", "grl"))
 READINGS = {
     "gridworld": Reading("sb3_er/WindyCliff-v0", title="windy cliff grid world", results="gridworld"),
-    "pendulum-0.33": Reading("sb3_er/PendulumSwingup-v0", title="pendulum, default (velocity tiles 0.33 rad/s as printed)", results="table_6_1"),
-    "pendulum-3.3": Reading("sb3_er/PendulumSwingup-v0",
-                            (("goal_angle", 0.1), ("goal_velocity", 1.0), ("velocity_tile_width", 3.3)),
-                            title="pendulum, earlier default (velocity tiles 3.3 rad/s, goal 0.1 rad and 1 rad/s)",
-                            results="table_6_1_earlier_default"),
-    "walker": Reading("sb3_er/SimplestWalker-v0", unit="seconds", budget=5000.0, title="simplest walker, default",
-                      results="table_6_2"),
-    "walker-earlier": Reading("sb3_er/SimplestWalker-v0", WALKER_EARLIER_DEFAULT, unit="seconds", budget=5000.0,
-                              title="simplest walker, earlier default (GRL's start, fall test and coordinates)",
-                              results="table_6_2_earlier_default"),
-    "walker-optimistic": Reading("sb3_er/SimplestWalker-v0", initial_value=100.0, unit="seconds", budget=5000.0,
-                                 title="simplest walker, Q starting at 100"),
+    "pendulum-0.33": Reading(
+        "sb3_er/PendulumSwingup-v0",
+        title="pendulum, default (velocity tiles 0.33 rad/s as printed)",
+        results="table_6_1",
+    ),
+    "pendulum-3.3": Reading(
+        "sb3_er/PendulumSwingup-v0",
+        (("goal_angle", 0.1), ("goal_velocity", 1.0), ("velocity_tile_width", 3.3)),
+        title="pendulum, earlier default (velocity tiles 3.3 rad/s, goal 0.1 rad and 1 rad/s)",
+        results="table_6_1_earlier_default",
+    ),
+    "walker": Reading(
+        "sb3_er/SimplestWalker-v0", unit="seconds", budget=5000.0, title="simplest walker, default", results="table_6_2"
+    ),
+    "walker-earlier": Reading(
+        "sb3_er/SimplestWalker-v0",
+        WALKER_EARLIER_DEFAULT,
+        unit="seconds",
+        budget=5000.0,
+        title="simplest walker, earlier default (GRL's start, fall test and coordinates)",
+        results="table_6_2_earlier_default",
+    ),
+    "walker-optimistic": Reading(
+        "sb3_er/SimplestWalker-v0",
+        initial_value=100.0,
+        unit="seconds",
+        budget=5000.0,
+        title="simplest walker, Q starting at 100",
+    ),
     "leo": Reading("sb3_er/Leo-v0", unit="seconds", budget=12000.0, title="LEO, default", results="table_6_3"),
 }
 
@@ -131,12 +157,18 @@ def sigma_regime_run(job: RunJob, env, report) -> TaskOutput:
     def recorded(n_trajectories: int) -> dict:
         result = replay(n_trajectories)
         if result["updates"]:
-            rows.append({"phase": model.replay_phases, "timesteps": model.num_timesteps,
-                         "episode": model._episode_num + 1, "updates": result["updates"],
-                         "sigma_shift": result.get("sigma_shift", math.nan),
-                         "sigma_raised": result.get("sigma_raised", math.nan),
-                         "sigma_lowered": result.get("sigma_lowered", math.nan),
-                         "values_out_of_range": model.values_out_of_range})
+            rows.append(
+                {
+                    "phase": model.replay_phases,
+                    "timesteps": model.num_timesteps,
+                    "episode": model._episode_num + 1,
+                    "updates": result["updates"],
+                    "sigma_shift": result.get("sigma_shift", math.nan),
+                    "sigma_raised": result.get("sigma_raised", math.nan),
+                    "sigma_lowered": result.get("sigma_lowered", math.nan),
+                    "values_out_of_range": model.values_out_of_range,
+                }
+            )
             report(min(1.0, model.num_timesteps / total))
         return result
 
@@ -169,10 +201,20 @@ def regime_jobs(out_dir: Path, readings: Sequence[str], seeds: Sequence[int], bu
     for name in readings:
         reading = READINGS[name]
         length = float(reading.budget if budget is None else budget)
-        initial = (() if reading.initial_value is None else (("initial_value", reading.initial_value),))
-        jobs += [RunJob(regime_experiment(name), "er_sigma", seed, length,
-                        run_csv_path(Path(out_dir) / name, "er_sigma", seed), reading.env_kwargs, initial,
-                        label=f"{name}/er_sigma") for seed in seeds]
+        initial = () if reading.initial_value is None else (("initial_value", reading.initial_value),)
+        jobs += [
+            RunJob(
+                regime_experiment(name),
+                "er_sigma",
+                seed,
+                length,
+                run_csv_path(Path(out_dir) / name, "er_sigma", seed),
+                reading.env_kwargs,
+                initial,
+                label=f"{name}/er_sigma",
+            )
+            for seed in seeds
+        ]
     return jobs
 
 
@@ -246,21 +288,30 @@ def reproduce_sigma_regime(
         raise ValueError("sigma-regime runs each reading with its own env settings; --env-kwargs does not apply")
     units = {READINGS[name].unit for name in readings}
     if budget is not None and len(units) > 1:
-        raise ValueError(f"--budget needs readings of one unit; {', '.join(readings)} mix {' and '.join(units)}: "
-                         "choose the readings with --readings")
+        raise ValueError(
+            f"--budget needs readings of one unit; {', '.join(readings)} mix {' and '.join(units)}: "
+            "choose the readings with --readings"
+        )
     check_request(n_seeds, 1.0 if budget is None else budget, units.pop(), backend, address)
     out_dir = Path(out_dir if out_dir is not None else Path("results") / "sigma_regime")
-    settings = {out_dir / name: {"experiment": f"sigma-regime-{name}", "env_id": READINGS[name].env_id,
-                                 "budget": float(READINGS[name].budget if budget is None else budget),
-                                 "env_kwargs": dict(READINGS[name].env_kwargs),
-                                 "initial_value": READINGS[name].initial_value} for name in readings}
+    settings = {
+        out_dir / name: {
+            "experiment": f"sigma-regime-{name}",
+            "env_id": READINGS[name].env_id,
+            "budget": float(READINGS[name].budget if budget is None else budget),
+            "env_kwargs": dict(READINGS[name].env_kwargs),
+            "initial_value": READINGS[name].initial_value,
+        }
+        for name in readings
+    }
     files.lock_folder(out_dir, *settings)  # one writer per folder, until this function returns
     for folder, pinned in settings.items():
         check_settings(folder, pinned)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = regime_jobs(out_dir, readings, seeds, budget)
-    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions,
-                                      settings=settings)
+    done, skipped = run_analysis_jobs(
+        jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions, settings=settings
+    )
     # The summary covers the folder: the readings run now (their requested seeds) and every other reading whose runs
     # an earlier command left in it (all their finished seeds), so that running one reading keeps the others' rows.
     summarized, lengths = {}, {}  # reading -> its seeds, its run length; in READINGS' order
@@ -268,24 +319,34 @@ def reproduce_sigma_regime(
         if name in readings:
             summarized[name], lengths[name] = seeds, settings[out_dir / name]["budget"]
         elif (out_dir / name / "settings.json").is_file():
-            found = sorted(int(path.stem.removeprefix("seed_"))
-                           for path in (out_dir / name / "runs" / "er_sigma").glob("seed_*.csv"))
+            found = sorted(
+                int(path.stem.removeprefix("seed_"))
+                for path in (out_dir / name / "runs" / "er_sigma").glob("seed_*.csv")
+            )
             if found:
-                pinned = files.read_json(out_dir / name / "settings.json",
-                                         f"rerun the reading with --readings {name} into a new --out")
+                pinned = files.read_json(
+                    out_dir / name / "settings.json", f"rerun the reading with --readings {name} into a new --out"
+                )
                 summarized[name], lengths[name] = found, float(pinned["budget"])
-    summary_jobs = [job for name, its_seeds in summarized.items()
-                    for job in regime_jobs(out_dir, [name], its_seeds, lengths[name])]
+    summary_jobs = [
+        job for name, its_seeds in summarized.items() for job in regime_jobs(out_dir, [name], its_seeds, lengths[name])
+    ]
     rows = []
     for name, its_seeds in summarized.items():
-        frames = {seed: read_run_csv(path) for seed in its_seeds
-                  if (path := run_csv_path(out_dir / name, "er_sigma", seed)).is_file()}
+        frames = {
+            seed: read_run_csv(path)
+            for seed in its_seeds
+            if (path := run_csv_path(out_dir / name, "er_sigma", seed)).is_file()
+        }
         rows.append({"reading": name, "results": READINGS[name].results, **summarize_regime(frames)})
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     counts = {len(its_seeds) for its_seeds in summarized.values()}
-    per_reading = (f"{counted(n_seeds, 'seed')} per reading" if counts == {n_seeds}
-                   else "the runs per reading are counted in the last two columns")
+    per_reading = (
+        f"{counted(n_seeds, 'seed')} per reading"
+        if counts == {n_seeds}
+        else "the runs per reading are counted in the last two columns"
+    )
     lines = [
         f"# Which way ER-σ moves its targets: {per_reading}",
         "",
@@ -304,10 +365,19 @@ def reproduce_sigma_regime(
         if not row.get("phases"):
             lines.append(f"| {reading.title} | {folder} | {length} | 0 | — | — | — | — | — |")
             continue
-        lines.append(f"| {reading.title} | {folder} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
-                     f"{row['raised']:.1%} | {row['lowered']:.1%} | {row['left_bounds']} of {row['runs']} | "
-                     f"{row['diverged']} of {row['runs']} |")
+        lines.append(
+            f"| {reading.title} | {folder} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
+            f"{row['raised']:.1%} | {row['lowered']:.1%} | {row['left_bounds']} of {row['runs']} | "
+            f"{row['diverged']} of {row['runs']} |"
+        )
     lines += ["", code_line(summary_jobs)]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(lines) + "\n")
-    return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=[],
-                        runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
+    return Reproduction(
+        out_dir=out_dir,
+        table_markdown=table_markdown,
+        table_csv=table_csv,
+        figures=[],
+        runs_done=done,
+        runs_skipped=skipped,
+        wall_time_s=time.perf_counter() - start,
+    )

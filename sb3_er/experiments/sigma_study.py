@@ -53,8 +53,14 @@ def run_label(definition: str) -> str:
     return f"{ALGO}-{definition}"
 
 
-def sigma_jobs(out_dir: Path, definitions: Sequence[str], seeds: Sequence[int], budget: float,
-               env_kwargs: dict | None = None, algo_kwargs: dict | None = None) -> list[RunJob]:
+def sigma_jobs(
+    out_dir: Path,
+    definitions: Sequence[str],
+    seeds: Sequence[int],
+    budget: float,
+    env_kwargs: dict | None = None,
+    algo_kwargs: dict | None = None,
+) -> list[RunJob]:
     """One walker run of ER-sigma per (definition, seed), ``sigma`` set to the definition on top of `algo_kwargs`.
 
     :param out_dir: the results folder.
@@ -67,9 +73,20 @@ def sigma_jobs(out_dir: Path, definitions: Sequence[str], seeds: Sequence[int], 
     """
     experiment = ANALYSES["sigma"]
     env_items = tuple(sorted((env_kwargs or {}).items()))
-    return [RunJob(experiment, ALGO, seed, budget, run_csv_path(out_dir, run_label(definition), seed), env_items,
-                   tuple(sorted({**(algo_kwargs or {}), "sigma": definition}.items())), label=run_label(definition))
-            for definition in definitions for seed in seeds]
+    return [
+        RunJob(
+            experiment,
+            ALGO,
+            seed,
+            budget,
+            run_csv_path(out_dir, run_label(definition), seed),
+            env_items,
+            tuple(sorted({**(algo_kwargs or {}), "sigma": definition}.items())),
+            label=run_label(definition),
+        )
+        for definition in definitions
+        for seed in seeds
+    ]
 
 
 def run_score(frame: pd.DataFrame) -> float:
@@ -97,13 +114,29 @@ def sigma_table(frames: dict[str, dict[int, pd.DataFrame]]) -> pd.DataFrame:
         scores = np.array([run_score(frame) for frame in runs.values()], dtype=float)
         valid = scores[np.isfinite(scores)]
         mean, half = mean_confidence_interval(valid) if valid.size else (math.nan, math.nan)
-        falls = np.array([frame["cumulative_falls"].iloc[-1] for frame in runs.values()
-                          if not frame.empty and not frame["diverged"].any()], dtype=float)
+        falls = np.array(
+            [
+                frame["cumulative_falls"].iloc[-1]
+                for frame in runs.values()
+                if not frame.empty and not frame["diverged"].any()
+            ],
+            dtype=float,
+        )
         falls_mean, falls_half = mean_confidence_interval(falls) if falls.size else (math.nan, math.nan)
-        rows.append({"definition": definition, "thesis_number": number, "sigma": formula,
-                     "score": float(mean), "ci95": float(half), "runs": int(valid.size),
-                     "diverged": int(len(runs) - valid.size), "falls": float(falls_mean),
-                     "falls_ci95": float(falls_half), "thesis_finding": finding})
+        rows.append(
+            {
+                "definition": definition,
+                "thesis_number": number,
+                "sigma": formula,
+                "score": float(mean),
+                "ci95": float(half),
+                "runs": int(valid.size),
+                "diverged": int(len(runs) - valid.size),
+                "falls": float(falls_mean),
+                "falls_ci95": float(falls_half),
+                "thesis_finding": finding,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -131,27 +164,33 @@ def verdict(table: pd.DataFrame) -> str:
         others = scored[scored["definition"] != THESIS_BEST]
         separated = all(thesis["score"] - thesis["ci95"] > row.score + row.ci95 for row in others.itertuples())
         if best["definition"] == THESIS_BEST:
-            text += "Definition 4 scores highest" + (", its CI clear of every other's. " if separated
-                                                     else ", the CIs overlapping. ")
+            text += "Definition 4 scores highest" + (
+                ", its CI clear of every other's. " if separated else ", the CIs overlapping. "
+            )
         else:
             text += f"Definition 4 does not score highest ({best['definition']} does). "
     towards_best = [name for name in ("average", "average_best", "best") if name in set(scored["definition"])]
     if len(towards_best) >= 2:
         values = [float(scored[scored["definition"] == name]["score"].iloc[0]) for name in towards_best]
         falling = all(later < earlier for earlier, later in zip(values, values[1:]))
-        text += (f"From the average towards the best case ({' → '.join(towards_best)}) the score "
-                 + ("falls at every step, as in the thesis." if falling else "does not fall at every step."))
+        text += f"From the average towards the best case ({' → '.join(towards_best)}) the score " + (
+            "falls at every step, as in the thesis." if falling else "does not fall at every step."
+        )
     return text
 
 
 def _markdown(table: pd.DataFrame) -> str:
-    lines = ["| Definition (thesis number) | σ(s') | Score: mean distance [m per 100 s] (± 95 % CI) | Runs | Falls "
-             "(± 95 % CI) | Thesis (App. B, Fig. B.1) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| Definition (thesis number) | σ(s') | Score: mean distance [m per 100 s] (± 95 % CI) | Runs | Falls "
+        "(± 95 % CI) | Thesis (App. B, Fig. B.1) |",
+        "|---|---|---|---|---|---|",
+    ]
     for row in table.itertuples():
         runs = f"{row.runs}" + (f" ({row.diverged} diverged)" if row.diverged else "")
-        lines.append(f"| {row.definition} ({row.thesis_number}) | {row.sigma} | {_format(row.score, row.ci95)} | "
-                     f"{runs} | {_format(row.falls, row.falls_ci95)} | {row.thesis_finding} |")
+        lines.append(
+            f"| {row.definition} ({row.thesis_number}) | {row.sigma} | {_format(row.score, row.ci95)} | "
+            f"{runs} | {_format(row.falls, row.falls_ci95)} | {row.thesis_finding} |"
+        )
     return "\n".join(lines)
 
 
@@ -213,42 +252,66 @@ def reproduce_sigma(
         raise ValueError("the sigma study sets sigma itself; choose definitions with sigmas (--sigmas)")
     check_algo_kwargs([ERSigma], algo_kwargs, who="ER-sigma")
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
-    settings = {"experiment": experiment.name, "env_id": experiment.env_id, "budget": budget,
-                "env_kwargs": env_kwargs, "algo_kwargs": algo_kwargs}
+    settings = {
+        "experiment": experiment.name,
+        "env_id": experiment.env_id,
+        "budget": budget,
+        "env_kwargs": env_kwargs,
+        "algo_kwargs": algo_kwargs,
+    }
     files.lock_folder(out_dir)  # one writer per folder, until this function returns
     check_settings(out_dir, settings)
     seeds = list(range(first_seed, first_seed + n_seeds))
     jobs = sigma_jobs(out_dir, definitions, seeds, budget, env_kwargs, algo_kwargs)
-    done, skipped = run_analysis_jobs(jobs, out_dir, n_workers, show_progress, backend, address,
-                                      allow_mixed_versions, settings={out_dir: settings})
+    done, skipped = run_analysis_jobs(
+        jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions, settings={out_dir: settings}
+    )
 
-    frames = {definition: {job.seed: read_run_csv(job.csv_path) for job in jobs
-                           if job.label == run_label(definition) and job.csv_path.is_file()}
-              for definition in definitions}
+    frames = {
+        definition: {
+            job.seed: read_run_csv(job.csv_path)
+            for job in jobs
+            if job.label == run_label(definition) and job.csv_path.is_file()
+        }
+        for definition in definitions
+    }
     table = sigma_table(frames)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     labels = {definition: f"{definition} ({DEFINITIONS[definition][0]})" for definition in definitions}
-    scores = {labels[definition]: np.array([score for frame in runs.values() if math.isfinite(score := run_score(frame))])
-              for definition, runs in frames.items()}
-    figures = [plot_scores(scores, "score: mean distance [m per 100 s]",
-                           f"Simplest walker, ER-σ per σ definition (Figure B.1)\n{counted(n_seeds, 'run')} each of "
-                           f"{budget:g} s, mean and 95% CI", out_dir / "sigma_scores.png")]
+    scores = {
+        labels[definition]: np.array([score for frame in runs.values() if math.isfinite(score := run_score(frame))])
+        for definition, runs in frames.items()
+    }
+    figures = [
+        plot_scores(
+            scores,
+            "score: mean distance [m per 100 s]",
+            f"Simplest walker, ER-σ per σ definition (Figure B.1)\n{counted(n_seeds, 'run')} each of "
+            f"{budget:g} s, mean and 95% CI",
+            out_dir / "sigma_scores.png",
+        )
+    ]
     curves = {}
     for definition, runs in frames.items():
         complete = [frame for frame in runs.values() if not frame.empty and not frame["diverged"].any()]
         if complete:
             length = min(len(frame) for frame in complete)
-            curves[labels[definition]] = (complete[0][experiment.x_column].to_numpy(dtype=float)[:length],
-                                          np.stack([frame["distance"].to_numpy(dtype=float)[:length]
-                                                    for frame in complete]))
-    figures.append(plot_mean_with_ci(curves, experiment.x_label, experiment.performance_label,
-                                     "Simplest walker, ER-σ per σ definition: mean of "
-                                     f"{counted(n_seeds, 'run')}, 95% CI",
-                                     out_dir / "learning_curves.png"))
+            curves[labels[definition]] = (
+                complete[0][experiment.x_column].to_numpy(dtype=float)[:length],
+                np.stack([frame["distance"].to_numpy(dtype=float)[:length] for frame in complete]),
+            )
+    figures.append(
+        plot_mean_with_ci(
+            curves,
+            experiment.x_label,
+            experiment.performance_label,
+            f"Simplest walker, ER-σ per σ definition: mean of {counted(n_seeds, 'run')}, 95% CI",
+            out_dir / "learning_curves.png",
+        )
+    )
     reading = "".join(f", {name}={value!r}" for name, value in {**env_kwargs, **algo_kwargs}.items())
     sections = [
-        f"# {experiment.title}: {counted(n_seeds, 'seed')}, "
-        f"{budget:g} s of learning per run{reading}",
+        f"# {experiment.title}: {counted(n_seeds, 'seed')}, {budget:g} s of learning per run{reading}",
         "",
         "Score of a run: the mean of its recorded walking distances (every 100 s of learning, 10 greedy runs of 100 s; "
         "the evaluation at 0 s, the same for every definition, left out). Mean over runs ± 95 % CI; rows from the "
@@ -265,5 +328,12 @@ def reproduce_sigma(
         code_line(jobs),
     ]
     table_markdown = files.write_atomically(out_dir / "summary.md", "\n".join(sections) + "\n")
-    return Reproduction(out_dir=out_dir, table_markdown=table_markdown, table_csv=table_csv, figures=figures,
-                        runs_done=done, runs_skipped=skipped, wall_time_s=time.perf_counter() - start)
+    return Reproduction(
+        out_dir=out_dir,
+        table_markdown=table_markdown,
+        table_csv=table_csv,
+        figures=figures,
+        runs_done=done,
+        runs_skipped=skipped,
+        wall_time_s=time.perf_counter() - start,
+    )

@@ -53,8 +53,18 @@ class Curves:
     def including_out_of_bounds(self) -> "Curves":
         """These curves with the runs whose values left the possible returns averaged in."""
         seeds = tuple(sorted(self.seeds + self.out_of_bounds_seeds))
-        return Curves(self.x, self.all_performance, self.all_cumulative_falls, seeds, self.diverged_seeds,
-                      self.wall_time_s, (), self.unwatched_seeds, self.all_performance, self.all_cumulative_falls)
+        return Curves(
+            self.x,
+            self.all_performance,
+            self.all_cumulative_falls,
+            seeds,
+            self.diverged_seeds,
+            self.wall_time_s,
+            (),
+            self.unwatched_seeds,
+            self.all_performance,
+            self.all_cumulative_falls,
+        )
 
 
 def left_the_bounds(frame: pd.DataFrame) -> bool | None:
@@ -272,10 +282,24 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
         metrics.append(_out_of_bounds_row(curve))
         if curve.out_of_bounds_seeds:
             everything = summarize(experiment, curve.including_out_of_bounds()) or no_run
-            metrics.append(("rise_time_all", f"Rise time [{experiment.rise_time_unit}] (all runs)",
-                            everything.rise_time, None, None))
-            metrics.append(("end_performance_all", "End performance (all runs)", everything.end_performance,
-                            everything.end_performance_ci, None))
+            metrics.append(
+                (
+                    "rise_time_all",
+                    f"Rise time [{experiment.rise_time_unit}] (all runs)",
+                    everything.rise_time,
+                    None,
+                    None,
+                )
+            )
+            metrics.append(
+                (
+                    "end_performance_all",
+                    "End performance (all runs)",
+                    everything.end_performance,
+                    everything.end_performance_ci,
+                    None,
+                )
+            )
             if experiment.has_falls and everything.falls is not None:
                 metrics.append(("falls_all", "Falls (all runs)", everything.falls, everything.falls_ci, None))
         for key, name, value, half_width, text in metrics:
@@ -289,9 +313,9 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
                     "average": value,
                     "ci95": half_width,
                     "average_text": text or _format_with_ci(value, half_width),
-                    "difference_with_sarsa_lambda": "" if key in COUNT_ROWS else _format_difference(
-                        value, reference_value, algo
-                    ),
+                    "difference_with_sarsa_lambda": ""
+                    if key in COUNT_ROWS
+                    else _format_difference(value, reference_value, algo),
                     "thesis_average": thesis_value,
                     "thesis_difference": thesis_difference,
                     "seeds": summary.n_seeds,

@@ -107,10 +107,17 @@ class SelfAffectingSample:
         return float(self.model.policy.q_values(self.next_state[None])[0, 0])
 
 
-def self_affecting_model(variant: str, case: str = "a", n_tilings: int = 4, shared: int = 3,
-                         learning_rate: float = FIGURE_ALPHA, gamma: float = FIGURE_GAMMA,
-                         residual_zeta: float = 1.0, memory_size: int = 2**16,
-                         value_bound_action: str = "ignore") -> SelfAffectingSample:
+def self_affecting_model(
+    variant: str,
+    case: str = "a",
+    n_tilings: int = 4,
+    shared: int = 3,
+    learning_rate: float = FIGURE_ALPHA,
+    gamma: float = FIGURE_GAMMA,
+    residual_zeta: float = 1.0,
+    memory_size: int = 2**16,
+    value_bound_action: str = "ignore",
+) -> SelfAffectingSample:
     """Figure 5.6's example: a model of `variant` (a key of :data:`VARIANTS`) whose buffer holds one transition
     (s_k, a_k, r, s_{k+1}), s_{k+1} sharing `shared` of the `n_tilings` tiles of s_k, with the case's reward and
     initial values (a key of :data:`CASES`).
@@ -146,10 +153,16 @@ def self_affecting_model(variant: str, case: str = "a", n_tilings: int = 4, shar
     kwargs = {"residual_zeta": residual_zeta} if residual else {}
     env = ArtificialSamplesEnv(rewards=(values["reward"], values["reward"]))
     model = getattr(sb3_er, class_name)(
-        "TileQ", env, learning_rate=learning_rate, gamma=gamma, exploration_rate=0.0, seed=0,
+        "TileQ",
+        env,
+        learning_rate=learning_rate,
+        gamma=gamma,
+        exploration_rate=0.0,
+        seed=0,
         value_bound_action=value_bound_action,
         policy_kwargs={"n_tilings": n_tilings, "initial_value": values["q_next"], "memory_size": memory_size},
-        **kwargs)
+        **kwargs,
+    )
     coder = model.policy.tile_coder
     # Tiling k covers [j - k/N, j + 1 - k/N): s = c + 0.5/N and s' = s + (N - shared)/N cross the boundaries of
     # exactly N - shared tilings, for any integer c; the first c whose 2N - shared tiles hash to distinct slots.
@@ -185,9 +198,16 @@ def replay_values(sample: SelfAffectingSample, n_replays: int) -> np.ndarray:
     return np.array(values)
 
 
-def closed_form(variant: str, case: str, n_replays: int, n_tilings: int = 4, shared: int = 3,
-                learning_rate: float = FIGURE_ALPHA, gamma: float = FIGURE_GAMMA,
-                residual_zeta: float = 1.0) -> np.ndarray:
+def closed_form(
+    variant: str,
+    case: str,
+    n_replays: int,
+    n_tilings: int = 4,
+    shared: int = 3,
+    learning_rate: float = FIGURE_ALPHA,
+    gamma: float = FIGURE_GAMMA,
+    residual_zeta: float = 1.0,
+) -> np.ndarray:
     """Q_n(s_k, a_k) for n = 0..n_replays by the closed form of the module docstring (the hand computation).
 
     :param variant: the algorithm, a key of :data:`VARIANTS`.
@@ -211,8 +231,14 @@ def closed_form(variant: str, case: str, n_replays: int, n_tilings: int = 4, sha
     return values["q_state"] + p * delta0 * (1.0 - (1.0 - learning_rate * kappa) ** n) / kappa
 
 
-def limit_value(variant: str, case: str, n_tilings: int = 4, shared: int = 3, gamma: float = FIGURE_GAMMA,
-                residual_zeta: float = 1.0) -> float:
+def limit_value(
+    variant: str,
+    case: str,
+    n_tilings: int = 4,
+    shared: int = 3,
+    gamma: float = FIGURE_GAMMA,
+    residual_zeta: float = 1.0,
+) -> float:
     """lim Q_n(s_k, a_k) (where 0 < alpha kappa < 2): Q_0 + p delta_0 / kappa.
 
     :param variant: the algorithm, a key of :data:`VARIANTS`.
@@ -234,13 +260,40 @@ def limit_value(variant: str, case: str, n_tilings: int = 4, shared: int = 3, ga
 
 # --- The target side by side on stored data ---------------------------------------------------------------------
 
-COMPARISON_COLUMNS = ("q_sa", "target_vanilla", "target_sigma", "w_chosen", "w_total", "no_action_visited",
-                      "overlap_vanilla", "overlap_sigma", "terminal")
+COMPARISON_COLUMNS = (
+    "q_sa",
+    "target_vanilla",
+    "target_sigma",
+    "w_chosen",
+    "w_total",
+    "no_action_visited",
+    "overlap_vanilla",
+    "overlap_sigma",
+    "terminal",
+)
 
 
 @nb.njit(cache=True)
-def _compare_targets(theta, visits, slots, actions, rewards, next_slots, terminal, stride, action_columns,
-                     columns_are_actions, sigma_kind, gamma, initial_low, initial_span, initial_seed, q, w, out):
+def _compare_targets(
+    theta,
+    visits,
+    slots,
+    actions,
+    rewards,
+    next_slots,
+    terminal,
+    stride,
+    action_columns,
+    columns_are_actions,
+    sigma_kind,
+    gamma,
+    initial_low,
+    initial_span,
+    initial_seed,
+    q,
+    w,
+    out,
+):
     n, n_tilings = slots.shape
     rng = np.zeros(4, dtype=np.uint64)  # never drawn from: greedy targets (epsilon 0, Q-learning)
     for i in range(n):
@@ -257,12 +310,38 @@ def _compare_targets(theta, visits, slots, actions, rewards, next_slots, termina
         kernels.all_q_values(theta, next_slots[i], stride, action_columns, columns_are_actions, q)
         greedy = kernels.argmax_first(q)
         out[i, 1] = rewards[i] + gamma * q[greedy]
-        value, chosen, _ = kernels.next_state_value(theta, visits, next_slots[i], stride, action_columns,
-                                                 columns_are_actions, n_tilings, kernels.TARGET_Q_LEARNING,
-                                                 sigma_kind, 0.0, rng, q, w, initial_low, initial_span, initial_seed)
+        value, chosen, _ = kernels.next_state_value(
+            theta,
+            visits,
+            next_slots[i],
+            stride,
+            action_columns,
+            columns_are_actions,
+            n_tilings,
+            kernels.TARGET_Q_LEARNING,
+            sigma_kind,
+            0.0,
+            rng,
+            q,
+            w,
+            initial_low,
+            initial_span,
+            initial_seed,
+        )
         out[i, 2] = rewards[i] + gamma * value
-        kernels.all_q_values_and_visit_counts(theta, visits, next_slots[i], stride, action_columns,
-                                              columns_are_actions, q, w, initial_low, initial_span, initial_seed)
+        kernels.all_q_values_and_visit_counts(
+            theta,
+            visits,
+            next_slots[i],
+            stride,
+            action_columns,
+            columns_are_actions,
+            q,
+            w,
+            initial_low,
+            initial_span,
+            initial_seed,
+        )
         total = 0.0
         for b in range(w.shape[0]):
             total += w[b]
@@ -321,10 +400,24 @@ def target_comparison(model, sigma: str = "average_worst") -> dict[str, np.ndarr
     out = np.zeros((rows.size, len(COMPARISON_COLUMNS)))
     q = np.zeros(coder.n_actions)
     w = np.zeros(coder.n_actions)
-    _compare_targets(policy.theta_array, buffer.visits, np.ascontiguousarray(buffer.slots[rows]),
-                     np.ascontiguousarray(buffer.actions[rows]), np.ascontiguousarray(buffer.rewards[rows]),
-                     next_slots, terminal, coder.stride, coder.action_columns, coder.columns_are_actions,
-                     SIGMAS[sigma], float(model.gamma), *policy.initial_arguments, q, w, out)
+    _compare_targets(
+        policy.theta_array,
+        buffer.visits,
+        np.ascontiguousarray(buffer.slots[rows]),
+        np.ascontiguousarray(buffer.actions[rows]),
+        np.ascontiguousarray(buffer.rewards[rows]),
+        next_slots,
+        terminal,
+        coder.stride,
+        coder.action_columns,
+        coder.columns_are_actions,
+        SIGMAS[sigma],
+        float(model.gamma),
+        *policy.initial_arguments,
+        q,
+        w,
+        out,
+    )
     result = {name: out[:, i] for i, name in enumerate(COMPARISON_COLUMNS)}
     result["terminal"] = result["terminal"].astype(bool)
     result["no_action_visited"] = result["no_action_visited"].astype(bool)
@@ -364,8 +457,14 @@ def comparison_summary(comparison: dict[str, np.ndarray]) -> dict[str, float]:
     }
 
 
-def replay_gain(model, n_phases: int = 30, n_trajectories: int | None = None, sigma: str | None = "keep",
-                skip: int = 10, seed: int = 1) -> float:
+def replay_gain(
+    model,
+    n_phases: int = 30,
+    n_trajectories: int | None = None,
+    sigma: str | None = "keep",
+    skip: int = 10,
+    seed: int = 1,
+) -> float:
     """The growth factor per replay phase of the replay operator on `model`'s stored data with every reward 0.
 
     Replays ``n_phases`` phases of `n_trajectories` (default: the model's own per phase) from the model's weights,
