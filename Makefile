@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo docs install clean
+.PHONY: test lint demo docs install clean
 
 install: $(STAMP)
 
@@ -17,6 +17,11 @@ $(STAMP): pyproject.toml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadfile -q
+
+# ruff's lint and format check (configured in pyproject.toml); `ruff format .` and `ruff check --fix .` mend.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 
 # The main job in about a minute on 2 idle cores, 2-3 on busy ones (after make test built the venv): Sarsa(lambda)
 # and ER-sigma on the simplest walker, 5 seeds (the fewest with which a side of a finding can get a verdict,

@@ -7,8 +7,9 @@ ranges measured here. Each task runs ``--episodes`` whole episodes (1,000 steps)
 the 7 torque levels a model uses by default (-1 to 1): ``random`` draws a level every step (what an untrained
 epsilon-greedy learner does), ``held`` keeps a random level for 10-200 steps (slow, wide swings), ``pump`` pushes
 with the actuated joint's velocity (full torque in its direction; the cart-pole's cart against the pole's
-angular velocity times cos(angle): pumps energy in, the fastest the system moves under these torques). Printed per flattened observation dimension (the Dict's keys in FlattenObservation's order): the
-minimum and maximum over all rollouts, per behaviour, and the 0.5 and 99.5 percentiles over all of them.
+angular velocity times cos(angle): pumps energy in, the fastest the system moves under these torques). Printed per
+flattened observation dimension (the Dict's keys in FlattenObservation's order): the minimum and maximum over all
+rollouts, per behaviour, and the 0.5 and 99.5 percentiles over all of them.
 """
 
 import argparse

@@ -28,7 +28,7 @@ import os
 import statistics
 import time
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -109,7 +109,7 @@ def random_baseline(task: str, out: Path, episodes: int = FINAL_EPISODES) -> dic
     return record
 
 
-def steps_to_reach(curve: list[dict[str, Any]], reached: float) -> Optional[int]:
+def steps_to_reach(curve: list[dict[str, Any]], reached: float) -> int | None:
     """The first step of ``curve`` whose mean greedy return is at ``REACHED_FRACTION`` of ``reached`` or more."""
     for point in curve:
         if point["mean_return"] >= REACHED_FRACTION * reached:
@@ -124,8 +124,8 @@ def run(
     steps: int,
     every: int,
     out: Path,
-    policy_kwargs: Optional[dict] = None,
-    label: Optional[str] = None,
+    policy_kwargs: dict | None = None,
+    label: str | None = None,
     final_episodes: int = FINAL_EPISODES,
 ) -> dict[str, Any]:
     """Run (or continue) one run; returns its record. ``policy_kwargs`` (a tiling screen's candidate, filed under
@@ -202,7 +202,8 @@ def run(
         path.parent.mkdir(parents=True, exist_ok=True)
         write_atomically(path, json.dumps(record, indent=1))
         print(
-            f"{task} {algo} seed {seed}: {model.num_timesteps} steps, greedy mean {record['curve'][-1]['mean_return']:.1f}"
+            f"{task} {algo} seed {seed}: {model.num_timesteps} steps, "
+            f"greedy mean {record['curve'][-1]['mean_return']:.1f}"
             f", {record['learn_cpu_s']:.0f} learn CPU s",
             flush=True,
         )
@@ -306,8 +307,8 @@ def summarize(out: Path) -> None:
     tasks = [t for t in TASKS if any(r["task"] == t for r in runs)]
     if tasks:
         figure, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
-        for ax, task in zip(axes[0], tasks):
-            for algo, colour in zip(ALGOS, ("tab:blue", "tab:orange")):
+        for ax, task in zip(axes[0], tasks, strict=True):
+            for algo, colour in zip(ALGOS, ("tab:blue", "tab:orange"), strict=True):
                 for r in (r for r in runs if r["task"] == task and r["algo"] == algo):
                     ax.plot(
                         [p["steps"] for p in r["curve"]],

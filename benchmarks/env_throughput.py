@@ -79,8 +79,8 @@ def main() -> None:
             print(f"{env_id:<28} skipped: needs {needed} (pip install 'sb3-er[dmc]')")
             continue
         spec = gymnasium.spec(env_id)
-        raw = best_of(lambda: load_env_creator(spec.entry_point)(**spec.kwargs), args.seconds, args.repeats)
-        made = best_of(lambda: gymnasium.make(env_id), args.seconds, args.repeats)
+        raw = best_of(lambda spec=spec: load_env_creator(spec.entry_point)(**spec.kwargs), args.seconds, args.repeats)
+        made = best_of(lambda env_id=env_id: gymnasium.make(env_id), args.seconds, args.repeats)
         target = TARGETS.get(env_id)
         verdict = "" if target is None else f"{target:,.0f} steps/s {'met' if raw >= target else 'NOT met'}"
         print(f"{env_id:<28} {raw:>12,.0f}/s {made:>13,.0f}/s  {verdict}", flush=True)

@@ -61,8 +61,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as directory:
         for suffix in (".pkl", ".npz"):
             path = Path(directory) / f"buffer{suffix}"
-            save = best_of(args.repeats, lambda: save_buffer(buffer, path))
-            load = best_of(args.repeats, lambda: load_buffer(path, coder))
+            save = best_of(args.repeats, lambda path=path: save_buffer(buffer, path))
+            load = best_of(args.repeats, lambda path=path: load_buffer(path, coder))
             print(
                 f"  {suffix}: save {save:.3f} s, load {load:.3f} s (checks included), "
                 f"{path.stat().st_size / 1e6:.1f} MB"

@@ -270,13 +270,13 @@ def mushroom_tiles(n_tilings: int, tile_widths, low, high) -> list[int]:
     """Tiles per dimension for MushroomRL's ``Tiles.generate(n_tilings, n_tiles, low, high)`` whose width comes
     closest to ``tile_widths``: its tiles are (high - low) / (n - (N - 1) / N) wide (mushroom_rl/features/tiles)."""
     spill = (n_tilings - 1) / n_tilings
-    return [max(1, round((h - lo) / w + spill)) for w, lo, h in zip(tile_widths, low, high)]
+    return [max(1, round((h - lo) / w + spill)) for w, lo, h in zip(tile_widths, low, high, strict=True)]
 
 
 def mushroom_widths(n_tilings: int, n_tiles, low, high) -> list[float]:
     """The tile widths of ``Tiles.generate(n_tilings, n_tiles, low, high)``."""
     spill = (n_tilings - 1) / n_tilings
-    return [(h - lo) / (n - spill) for n, lo, h in zip(n_tiles, low, high)]
+    return [(h - lo) / (n - spill) for n, lo, h in zip(n_tiles, low, high, strict=True)]
 
 
 def _run_mushroom(config: dict) -> dict:
@@ -317,10 +317,10 @@ def _run_mushroom(config: dict) -> dict:
             return np.asarray(obs, dtype=np.float64), float(reward), bool(terminated), info
 
     env_id, seed, tiling, hyper = config["env"], config["seed"], config["tiling"], config["hyperparameters"]
-    np.random.seed(seed)  # MushroomRL draws from NumPy's global generator
+    np.random.seed(seed)  # noqa: NPY002 (MushroomRL draws from NumPy's global generator)
     mdp = _MushroomGymnasium(env_id, hyper["gamma"], seed)
     n_tilings = int(tiling["n_tilings"])
-    low, high = (np.array(bound, dtype=np.float64) for bound in zip(*tiling["range"]))
+    low, high = (np.array(bound, dtype=np.float64) for bound in zip(*tiling["range"], strict=True))
     n_tiles = mushroom_tiles(n_tilings, tiling["tile_widths"], low, high)
     tilings = Tiles.generate(n_tilings, n_tiles, low, high, uniform=False)
     features = Features(tilings=tilings)
@@ -434,7 +434,9 @@ def mushroom_tiling(env_id: str) -> dict:
 
     entry = package_tilings()[env_id]
     space = gym.make(env_id).observation_space
-    ranges = CARTPOLE_RANGE if env_id == "CartPole-v1" else tuple(zip(space.low.tolist(), space.high.tolist()))
+    ranges = (
+        CARTPOLE_RANGE if env_id == "CartPole-v1" else tuple(zip(space.low.tolist(), space.high.tolist(), strict=True))
+    )
     return {"n_tilings": int(entry["n_tilings"]), "tile_widths": list(entry["tile_widths"]), "range": ranges}
 
 
@@ -494,8 +496,11 @@ def markdown_tables(results: list[dict]) -> str:
             f"{_median([r['peak_rss_mb'] for r in group]):.0f} | "
             f"{_median([r['peak_rss_mb'] - r['baseline_rss_mb'] for r in group]):.0f} |"
         )
+
+        def fmt(v):
+            return "-" if v is None else f"{v:,}"
+
         for r in group:
-            fmt = lambda v: "-" if v is None else f"{v:,}"
             per_seed.append(
                 f"| {env_id} | {METHOD_LABELS[method]} | {r['seed']} | {r['final_mean']:.1f} | {r['final_median']:.1f} "
                 f"| {fmt(r['steps_to_threshold'])} | {fmt(r['steps_to_target'])} | {r['learn_cpu_s']:.1f} | "

@@ -13,8 +13,8 @@ algorithm takes). The issue's target is grid world + pendulum + walker, all five
 ``--cpu-estimate`` is for a machine that is not quiet: it runs each reproduction with ``--seeds`` seeds (say 2) in
 this process, one run after another, and measures its CPU time (this process and its children), which other jobs on
 the machine barely change (a short warm-up run first takes the imports and kernel compiles out); scaled to 20 seeds
-(the summary and figures too, so the estimate leans high) and divided by ``--jobs`` it estimates the wall time of the full
-reproduction on an otherwise idle machine with that many cores.
+(the summary and figures too, so the estimate leans high) and divided by ``--jobs`` it estimates the wall time of the
+full reproduction on an otherwise idle machine with that many cores.
 
     python benchmarks/reproduce_wall_time.py --cpu-estimate --seeds 2
 
@@ -65,7 +65,8 @@ def report(name: str, wall_s: float | None, times: dict[str, tuple[int, float]],
     for algo, (n_runs, seconds) in times.items():
         share = 100 * seconds / total_runs if total_runs else 0.0
         print(
-            f"  {algo:18s} {n_runs:3d} runs  {seconds:8,.0f} s of runs  {seconds / n_runs:6.1f} s per run  {share:5.1f} %"
+            f"  {algo:18s} {n_runs:3d} runs  {seconds:8,.0f} s of runs  "
+            f"{seconds / n_runs:6.1f} s per run  {share:5.1f} %"
         )
     return wall
 

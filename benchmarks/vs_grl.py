@@ -103,7 +103,8 @@ def main() -> None:
         figures = json.loads(stdout.strip().splitlines()[-1])
         ours.append({"wall": wall, "peak": peak, **figures})
         print(
-            f"pair {pair + 1}: GRL {steps / seconds:,.0f} steps/s, {grl[-1]['wall']:.2f} s, {grl[-1]['peak']:.0f} MiB | "
+            f"pair {pair + 1}: GRL {steps / seconds:,.0f} steps/s, {grl[-1]['wall']:.2f} s, "
+            f"{grl[-1]['peak']:.0f} MiB | "
             f"sb3-er {figures['steps'] / figures['learn_s']:,.0f} steps/s, {ours[-1]['wall']:.2f} s, "
             f"{ours[-1]['peak']:.0f} MiB",
             flush=True,

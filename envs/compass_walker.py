@@ -50,7 +50,6 @@ The 1001-step greedy test env of GRL's protocol::
 
 from __future__ import annotations
 
-
 from sb3_er_envs.simplest_walker import GRL_TILE_WIDTHS, SimplestWalkerEnv
 
 LEARNING_EPISODE_STEPS = 500

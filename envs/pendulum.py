@@ -44,9 +44,9 @@ Readings (the thesis does not settle these; each is an option, with the printed 
   defines no goal. Ours: the episode ends (``terminated``, ``info["goal_reached"]``) when ``|theta| < goal_angle``
   (0.2 rad) and ``|theta'| < goal_velocity`` (2 rad/s), the goal nearest the thesis's Sarsa(lambda) row in a screen
   of goals (0.05 rad & 0.5 rad/s, 0.1 rad & 1 rad/s, the earlier default, pointing up at any rate with
-  ``goal_velocity=None``, and none). GRL's swing-up task has no goal at all: it never marks a state absorbing and ends every episode at its
-  timeout (2.99 s of 0.03 s steps, 100 steps); ``terminate_at_goal=False`` runs every episode for
-  ``episode_seconds``, as GRL does.
+  ``goal_velocity=None``, and none). GRL's swing-up task has no goal at all: it never marks a state absorbing and
+  ends every episode at its timeout (2.99 s of 0.03 s steps, 100 steps); ``terminate_at_goal=False`` runs every
+  episode for ``episode_seconds``, as GRL does.
 
 * Reward units, ``reward_units``. Eq. 4.1 prints no units; ``"radians"`` (default) or ``"degrees"`` (theta in
   degrees, theta' in degrees/s: 3283 times the angle and rate costs).
@@ -213,8 +213,9 @@ class PendulumSwingupEnv(gym.Env):
     terminate_at_goal, goal_angle, goal_velocity:
         With ``terminate_at_goal`` (default, thesis 4.2.1 "or when the goal is reached") the episode terminates when
         ``|theta| < goal_angle`` (0.2 rad) and ``|theta'| < goal_velocity`` (2 rad/s): the screened goal nearest the
-        thesis's Sarsa(lambda) row (the earlier default: 0.1 rad and 1 rad/s); the thesis defines none. ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to
-        move the pendulum from the initial position to pointing up"), passing through upright included.
+        thesis's Sarsa(lambda) row (the earlier default: 0.1 rad and 1 rad/s); the thesis defines none.
+        ``goal_velocity=None`` sets no condition on the rate: the goal is pointing up (the task of 4.2.1, "to move the
+        pendulum from the initial position to pointing up"), passing through upright included.
         ``terminate_at_goal=False`` runs every episode to its time limit, as GRL's swing-up task does.
     reward_units:
         Units of theta and theta' in Eq. 4.1: ``"radians"`` (default, rad and rad/s) or ``"degrees"`` (degrees and

@@ -109,12 +109,12 @@ Readings of the thesis's gaps and typos:
   ``phi_st'^2 / 2 + cos(phi_st) cos(mu) < cos(mu)``; enough energy to pass mid-stance is not enough to step: with
   zero actuation, 14 of the starts of seeds 0-19 fall before their first footstep. ``"grl_footstep"`` (default): the
   same draw, drawn again until a zero-action walk makes a footstep before the fall test ends it (within
-  ``PASSIVE_FOOTSTEP_STEPS`` control steps): every episode "has enough energy to start walking". ``"impact"`` varies the post-impact state on the impact manifold: ``phi_st ~
-  U(0.1534 (1 - v), 0.1534 (1 + v))`` with ``v`` 0.1 by default, ``phi_h = 2 phi_st``, ``phi_h' = (1 - cos(2 phi_st))
-  phi_st'`` and ``phi_st'`` fixed by the stance leg's energy ``E = phi_st'^2 / 2 + cos(phi_st - mu)``, drawn from
-  ``U(1 + 0.4 e*, 1 + 1.6 e*)`` where ``e* = 0.00105`` is the fixed point's surplus over the energy 1 needed to pass
-  over the stance foot. Every start of every kind passes mid-stance, and every ``"grl_footstep"`` and ``"impact"``
-  start makes a passive footstep (tested).
+  ``PASSIVE_FOOTSTEP_STEPS`` control steps): every episode "has enough energy to start walking". ``"impact"`` varies the
+  post-impact state on the impact manifold: ``phi_st ~ U(0.1534 (1 - v), 0.1534 (1 + v))`` with ``v`` 0.1 by default,
+  ``phi_h = 2 phi_st``, ``phi_h' = (1 - cos(2 phi_st)) phi_st'`` and ``phi_st'`` fixed by the stance leg's energy ``E =
+  phi_st'^2 / 2 + cos(phi_st - mu)``, drawn from ``U(1 + 0.4 e*, 1 + 1.6 e*)`` where ``e* = 0.00105`` is the fixed
+  point's surplus over the energy 1 needed to pass over the stance foot. Every start of every kind passes mid-stance,
+  and every ``"grl_footstep"`` and ``"impact"`` start makes a passive footstep (tested).
 * The fall reward replaces the -1 of that step, so a fall is worth exactly -50.
 """
 

@@ -1,6 +1,6 @@
 """Dyna: direct RL plus planning on a learned model (Sutton 1991; thesis 3.4 and Alg. 3-5), on tile-coded Q."""
 
-from typing import TYPE_CHECKING, Literal, Optional, Union
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv
@@ -47,7 +47,7 @@ class NearestNeighbourModel:
         self.n_actions = coder.n_actions
         self.n_neighbors = n_neighbors
         self.radius = radius
-        self.trees: list[Optional["KDTree"]] = [None] * self.n_actions
+        self.trees: list[KDTree | None] = [None] * self.n_actions
         self.rewards: list[np.ndarray] = []
         self.displacements: list[np.ndarray] = []
         self.terminal: list[np.ndarray] = []
@@ -179,8 +179,8 @@ class Dyna(BufferedTileQAlgorithm):
 
     def __init__(
         self,
-        policy: Union[str, type[TileQPolicy]] = "TileQ",
-        env: Union[GymEnv, str, None] = None,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
         planning_steps: int = 10,
         target: Literal["q_learning", "sarsa"] = "q_learning",
         planning_actions: Literal["stored", "uniform"] = "stored",
@@ -211,7 +211,7 @@ class Dyna(BufferedTileQAlgorithm):
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self.dynamics_model: Optional[NearestNeighbourModel] = None
+        self.dynamics_model: NearestNeighbourModel | None = None
         self._clear_plan()
         self._added_since_fit = 0
         self._model_error_sums = np.zeros(3)  # next-state error, reward error, count
@@ -245,11 +245,11 @@ class Dyna(BufferedTileQAlgorithm):
         self._clear_plan()
         self._added_since_fit = 0
 
-    def _seed_generators(self, seed: Optional[int]) -> None:
+    def _seed_generators(self, seed: int | None) -> None:
         super()._seed_generators(seed)
         self.planning_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(RNG_STREAM_PLANNING,)))
 
-    def fit_model(self) -> Optional[NearestNeighbourModel]:
+    def fit_model(self) -> NearestNeighbourModel | None:
         """Refit M on the stored transitions and draw the planning queries of the next steps (Alg. 4 lines 2-7)."""
         data = stored_transitions(self.replay_buffer, include_open=True)
         n = len(data)

@@ -1,6 +1,6 @@
 """Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
 
-from typing import Any, Literal, Optional, Union
+from typing import Any, Literal
 
 import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv
@@ -46,8 +46,8 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     Every transition is stored in trajectories. A trajectory is a whole episode (``replay_unit="episode"``, Alg. 7:
     D_e closes at the episode's end) or, with ``replay_unit="segment"``, also closes wherever the env sets
     ``info["segment_end"]`` (the simplest walker's footsteps). At each replay trigger, ``n_replays`` trajectories (or
-    ``replays_per_stored_trajectory`` times the number stored) are drawn uniformly and replayed from their last sample to
-    their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'. The episode in
+    ``replays_per_stored_trajectory`` times the number stored) are drawn uniformly and replayed from their last sample
+    to their first, each sample updating Q towards r + gamma Q(s', a') with a' epsilon-greedy at s'. The episode in
     progress is one of the stored trajectories (Alg. 8 line 2 draws e' from {1, ..., e}, the current episode e
     included); its last sample bootstraps from the latest s'. At an episode's end it is empty, so this matters only for
     replays triggered mid-episode (the walker's footsteps).
@@ -98,25 +98,25 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
     def __init__(
         self,
-        policy: Union[str, type[TileQPolicy]] = "TileQ",
-        env: Union[GymEnv, str, None] = None,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
         buffer_size: int = 1_000_000,
         replay_trigger: Literal["episode", "segment"] = "episode",
         replay_unit: Literal["episode", "segment"] = "episode",
         replay_every: int = 1,
         n_replays: int = 100,
-        replays_per_stored_trajectory: Optional[float] = None,
+        replays_per_stored_trajectory: float | None = None,
         replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
         target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
-        sigma: Optional[str] = None,
-        residual_zeta: Optional[float] = None,
+        sigma: str | None = None,
+        residual_zeta: float | None = None,
         residual_action: Literal["taken", "next"] = "taken",
-        online_lambda: Optional[float] = None,
+        online_lambda: float | None = None,
         priority_threshold: float = 0.0,
         predecessors: Literal["tiles", "trajectory"] = "tiles",
         max_predecessors: int = 4,
-        prioritized_updates: Optional[int] = None,
-        replay_buffer_kwargs: Optional[dict[str, Any]] = None,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
         **kwargs,
     ):
         self.buffer_size = buffer_size
@@ -138,11 +138,11 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self.priority_evaluations = 0
         self.replay_updates = 0
         self.replay_phases = 0
-        self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
+        self.replay_buffer: TrajectoryReplayBuffer | None = None
         super().__init__(policy, env, trace_lambda=online_lambda, **kwargs)
 
     @property
-    def online_lambda(self) -> Optional[float]:
+    def online_lambda(self) -> float | None:
         return self.trace_lambda
 
     def _check_hyperparameters(self) -> None:
@@ -172,12 +172,12 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {})
         )
         self._w_scratch = np.zeros(self.policy.tile_coder.n_actions, dtype=np.float64)
-        self._priority_workspace: Optional[dict[str, np.ndarray]] = None
+        self._priority_workspace: dict[str, np.ndarray] | None = None
 
     def _excluded_save_params(self) -> list[str]:
         return super()._excluded_save_params() + ["_w_scratch", "_priority_workspace"]
 
-    def _seed_generators(self, seed: Optional[int]) -> None:
+    def _seed_generators(self, seed: int | None) -> None:
         super()._seed_generators(seed)
         self.seed_replay(seed)
 
@@ -188,7 +188,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         if self.replay_buffer is not None:
             self.replay_buffer.truncate_open_trajectory()
 
-    def seed_replay(self, seed: Optional[int]) -> None:
+    def seed_replay(self, seed: int | None) -> None:
         """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones.
 
         :param seed: the seed of the replay generator; None seeds it from fresh entropy.

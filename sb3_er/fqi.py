@@ -1,7 +1,5 @@
 """Fitted Q-iteration with a linear projection on the tile features (Ernst et al. 2005; thesis 3.3.1, Alg. 6)."""
 
-from typing import Union
-
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, cg
 from stable_baselines3.common.type_aliases import GymEnv
@@ -58,8 +56,8 @@ class FQI(FittedTileQAlgorithm):
 
     def __init__(
         self,
-        policy: Union[str, type[TileQPolicy]] = "TileQ",
-        env: Union[GymEnv, str, None] = None,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
         fit_every: int = 5,
         n_iterations: int = 10,
         ridge: float = 1.0,

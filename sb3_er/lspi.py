@@ -1,7 +1,5 @@
 """Least-squares policy iteration on the tile features (Lagoudakis and Parr 2003; thesis 3.3.2)."""
 
-from typing import Union
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
@@ -54,8 +52,8 @@ class LSPI(FittedTileQAlgorithm):
 
     def __init__(
         self,
-        policy: Union[str, type[TileQPolicy]] = "TileQ",
-        env: Union[GymEnv, str, None] = None,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
         fit_every: int = 5,
         n_iterations: int = 10,
         ridge: float = 1.0,

@@ -1,7 +1,5 @@
 """Sarsa(lambda) on tile-coded Q (thesis Alg. 2), the baseline of every thesis experiment."""
 
-from typing import Union
-
 from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_er.common.base_class import TileQAlgorithm
@@ -18,8 +16,8 @@ class SarsaLambda(TileQAlgorithm):
 
     def __init__(
         self,
-        policy: Union[str, type[TileQPolicy]] = "TileQ",
-        env: Union[GymEnv, str, None] = None,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
         trace_lambda: float = 0.92,
         **kwargs,
     ):

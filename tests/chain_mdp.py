@@ -70,7 +70,10 @@ def chain_database(model, n_states: int, repeats=lambda s, a: 1) -> TrajectoryRe
 
 def dense_features(coder, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
     """Dense phi (n, n_weights), with multiplicity where tilings collide."""
-    rows = [np.bincount(coder.feature_indices(o, a), minlength=coder.n_weights) for o, a in zip(observations, actions)]
+    rows = [
+        np.bincount(coder.feature_indices(o, a), minlength=coder.n_weights)
+        for o, a in zip(observations, actions, strict=True)
+    ]
     return np.array(rows, dtype=np.float64)
 
 

@@ -14,6 +14,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from conftest import LineWalkEnv  # noqa: E402
+
 from sb3_er import ER  # noqa: E402
 
 KWARGS = dict(policy_kwargs=dict(n_tilings=8, memory_size=2**15, tile_widths=[0.7]), exploration_rate=0.1, seed=0)

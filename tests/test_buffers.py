@@ -16,7 +16,7 @@ def chain_coder() -> TileCoder:
 
 
 def add_chain(buffer, states, actions, rewards, next_state, terminated):
-    for s, a, r, s_next in zip(states, actions, rewards, [*states[1:], next_state]):
+    for s, a, r, s_next in zip(states, actions, rewards, [*states[1:], next_state], strict=True):
         buffer.add(np.array([s], float), buffer.tile_coder.slots(np.array([s], float)), a, r, np.array([s_next], float))
     buffer.close_trajectory(np.array([next_state], float), terminated)
 
@@ -73,7 +73,7 @@ def test_pickle_round_trip_keeps_everything_and_is_compact():
     assert len(data) < 50_000
     again = pickle.loads(data)
     assert again.capacity == buffer.capacity and again.open_length == 1
-    for a, b in zip(again.trajectories(), buffer.trajectories()):
+    for a, b in zip(again.trajectories(), buffer.trajectories(), strict=True):
         for key in a:
             np.testing.assert_array_equal(a[key], b[key])
     np.testing.assert_array_equal(again.visits, buffer.visits)
@@ -131,7 +131,7 @@ def test_the_open_episode_is_replayed_and_bootstraps_from_its_latest_state():
     """Alg. 8 line 2 draws e' from {1, ..., e}: the episode in progress is replayable, its last sample bootstrapping
     from the latest s'. Chain 0 -> 1 -> 2 -> 3 (rewards 0, 0, 5), still open at s' = 3, where Q(3, 0) = 2."""
     buffer = TrajectoryReplayBuffer(100, chain_coder())
-    for s, r in zip([0, 1, 2], [0.0, 0.0, 5.0]):
+    for s, r in zip([0, 1, 2], [0.0, 0.0, 5.0], strict=True):
         buffer.add(np.array([float(s)]), buffer.tile_coder.slots(np.array([float(s)])), 0, r, np.array([s + 1.0]))
     assert buffer.n_trajectories == 0 and buffer.n_stored_trajectories == 1
     coder = buffer.tile_coder

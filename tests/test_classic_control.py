@@ -1,5 +1,5 @@
-"""Tile-coding defaults for Gymnasium's classic control (issue 12): the generic rule, sb3-er's tilings for known env ids,
-their precedence, the verbose print and the zoo entries (that every algorithm's defaults learn: test_learning.py).
+"""Tile-coding defaults for Gymnasium's classic control (issue 12): the generic rule, sb3-er's tilings for known env
+ids, their precedence, the verbose print and the zoo entries (that every algorithm's defaults learn: test_learning.py).
 
 Expected widths are computed here from the envs' own constants (bounds, termination thresholds) and the sources'
 recipes, not read back from the package data.

@@ -246,8 +246,8 @@ def test_pendulum_time_limit_is_stored_as_a_truncation_that_bootstraps_from_the_
 @pytest.mark.parametrize(
     "env_id, low, high",
     [
-        # Pendulum-v1: -(theta^2 + 0.1 theta_dot^2 + 0.001 u^2) in [-(pi^2 + 6.4 + 0.004), 0], no termination: with gamma
-        # 0.99 every return lies in [-100 * 16.2736, 0].
+        # Pendulum-v1: -(theta^2 + 0.1 theta_dot^2 + 0.001 u^2) in [-(pi^2 + 6.4 + 0.004), 0], no termination: with
+        # gamma 0.99 every return lies in [-100 * 16.2736, 0].
         ("Pendulum-v1", -100.0 * (np.pi**2 + 6.4 + 0.004), 0.0),
         # MountainCarContinuous-v0: -0.1 a^2 in [-0.1, 0] a step, the goal's transition 100 - 0.1 a^2 and terminal:
         # returns in [-0.1 / 0.01, 100]; Q starting at 10 lies inside.

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import LineWalkEnv
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import LineWalkEnv
 from sb3_er import ER, SarsaLambda, TrajectoryReplayBuffer
 from sb3_er.common.buffers import _npz_bytes, field_checksum
 
@@ -331,7 +331,8 @@ def test_a_model_zip_runs_code_only_when_pickles_are_allowed(tmp_path):
     assert RAN == ["ran"]
 
 
-# --- crafted models ----------------------------------------------------------------------------------------------------
+# --- crafted models
+# ----------------------------------------------------------------------------------------------------
 
 CRAFTED_MODELS = {
     "gamma": ("gamma", "0.99"),

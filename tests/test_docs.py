@@ -34,7 +34,7 @@ HASH = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
 
 def hand_written_pages() -> list[Path]:
     """The documentation's own Markdown (the generated results pages and the build are left out)."""
-    return sorted(p for p in DOCS.rglob("*.md") if not p.relative_to(DOCS).parts[0] in ("_build", "results"))
+    return sorted(p for p in DOCS.rglob("*.md") if p.relative_to(DOCS).parts[0] not in ("_build", "results"))
 
 
 def page_text(path: Path) -> str:

@@ -152,7 +152,7 @@ def test_a_parameter_described_only_in_prose_counts_as_undocumented():
 )
 def test_algorithms_state_every_default(cls):
     fields = parameter_fields(cls.__doc__)
-    for name, parameter in inspect.signature(cls).parameters.items():
+    for name in inspect.signature(cls).parameters:
         if name in fields:
             assert "default" in fields[name].lower(), (cls.__name__, name, fields[name])
     assert "as in TileQAlgorithm" not in cls.__doc__

@@ -6,12 +6,12 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from chain_mdp import ChainEnv, chain_q_star, chain_step
+from conftest import LineWalkEnv
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.monitor import Monitor
 
-from chain_mdp import ChainEnv, chain_q_star, chain_step
-from conftest import LineWalkEnv
 from sb3_er import Dyna, TileCoder
 from sb3_er.common import kernels
 from sb3_er.dyna import NearestNeighbourModel
@@ -126,7 +126,7 @@ def test_tabular_dyna_q_with_an_exact_model_reaches_q_star(planning_actions):
     states = np.repeat(np.arange(n_states - 1.0), 2)[:, None]
     actions = np.tile([0, 1], n_states - 1)
     predicted, rewards, continuation, covered = model.dynamics_model.predict(states, actions)
-    truth = [chain_step(n_states, int(s), a) for s, a in zip(states[:, 0], actions)]
+    truth = [chain_step(n_states, int(s), a) for s, a in zip(states[:, 0], actions, strict=True)]
     assert covered.all()
     np.testing.assert_array_equal(predicted[:, 0], [t[0] for t in truth])
     np.testing.assert_array_equal(rewards, [t[1] for t in truth])
@@ -239,7 +239,9 @@ def test_save_load_round_trip_with_buffer_and_model(tmp_path):
     probes = np.linspace(0.0, 10.0, 21)[:, None]
     for a in range(6):
         actions = np.full(len(probes), a)
-        for x, y in zip(loaded.dynamics_model.predict(probes, actions), model.dynamics_model.predict(probes, actions)):
+        for x, y in zip(
+            loaded.dynamics_model.predict(probes, actions), model.dynamics_model.predict(probes, actions), strict=True
+        ):
             np.testing.assert_array_equal(x, y)
     loaded.learn(200, reset_num_timesteps=False)
     assert loaded.num_timesteps == 900

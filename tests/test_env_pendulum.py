@@ -179,7 +179,8 @@ def test_reward_in_degrees_is_equation_4_1_in_degrees():
 
 
 def test_a_semi_implicit_euler_step_by_hand():
-    """One Euler step of 0.01 s from theta = 1 rad at rest with 0.6 N m: rate first, then the angle with the new rate."""
+    """One Euler step of 0.01 s from theta = 1 rad at rest with 0.6 N m: rate first, then the angle with the new
+    rate."""
     env = PendulumSwingupEnv(integrator="euler", substeps=1, inertia_about="pivot")
     env.reset(seed=0)
     env.set_state(1.0, 0.0)

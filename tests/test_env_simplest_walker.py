@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import sb3_er_envs  # noqa: F401  (registers the ids)
-from sb3_er_envs.simplest_walker import GRL_TILE_WIDTHS, GARCIA_FIXED_POINT, SimplestWalkerEnv, impact_manifold_state
+from sb3_er_envs.simplest_walker import GARCIA_FIXED_POINT, GRL_TILE_WIDTHS, SimplestWalkerEnv, impact_manifold_state
 
 SLOPE = 0.004
 ZERO = 7  # index of hip acceleration 0 among the 15 levels
@@ -262,7 +262,7 @@ def test_literal_reading_pays_50_per_unit_step_length_and_minus_1_per_step():
     env = walker(reward="literal")
     env.reset(options={"state": GARCIA_FIXED_POINT})
     total = 0.0
-    for step in range(env.max_episode_steps):
+    for step in range(env.max_episode_steps):  # noqa: B007 (the count is checked after the loop)
         _, reward, terminated, truncated, info = env.step(ZERO)
         total += reward
         if info["footstep"]:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-
 from processes import alive, name, tree, wait_for
+
 from sb3_er.cli import main
 from sb3_er.experiments import files, records
 from sb3_er.experiments.reproduce import reproduce

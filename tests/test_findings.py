@@ -19,7 +19,7 @@ X = np.arange(1, 11, dtype=float)
 
 def _curves(ends, rise_at):
     """One curve per seed: -1000 until episode `rise_at`, then its end value."""
-    rows = np.array([[(-1000.0 if x < rise else end) for x in X] for end, rise in zip(ends, rise_at)])
+    rows = np.array([[(-1000.0 if x < rise else end) for x in X] for end, rise in zip(ends, rise_at, strict=True)])
     seeds = tuple(range(len(ends)))
     return Curves(X, rows, np.zeros_like(rows), seeds, (), 1.0, (), ())
 

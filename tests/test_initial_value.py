@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-
 from conftest import LineWalkEnv
+from test_updates import ALPHA, GAMMA, N_TILINGS, one_transition_buffer, q, run_replay, tiny_coder
+
 from sb3_er import ER, ERSigma, SarsaLambda
 from sb3_er.common import kernels
-from test_updates import ALPHA, GAMMA, N_TILINGS, one_transition_buffer, q, run_replay, tiny_coder
 
 OBSERVATIONS = np.linspace(0.0, 10.0, 57)[:, None]
 

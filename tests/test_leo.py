@@ -376,7 +376,7 @@ def test_fall_terminates_with_the_fall_penalty():
     env = LeoEnv(start_noise=0.0)
     env.reset(seed=0)
     zero_volts = np.array([3, 3, 3])
-    for step in range(200):
+    for _ in range(200):
         _, reward, terminated, truncated, info = env.step(zero_volts)
         if terminated:
             break
@@ -502,7 +502,7 @@ def test_reset_for_leaves_the_data_of_dm_controls_reset_context():
         assert a.ncon == b.ncon and np.array_equal(a.contact.dist, b.contact.dist)
         assert tasks[0].stance_values() == tasks[1].stance_values()
         assert tasks[0].stance_contact == tasks[1].stance_contact
-        for physics, task in zip(twins, tasks):
+        for physics, task in zip(twins, tasks, strict=True):
             for _ in range(20):
                 task.apply_voltages(2.0, -3.0, 1.0, physics)
                 physics.step_control(leo_domain.PHYSICS_SUBSTEPS)

@@ -212,7 +212,7 @@ def test_the_loop_reproduces_the_recorded_runs(name, mode, expected):
     got = run(name, mode)
     assert len(got["dumps"]) == len(want["dumps"]), "a different number of log dumps"
     if name in SOLVER_RUNS:
-        for (step, values), (want_step, want_values) in zip(got["dumps"], want["dumps"]):
+        for (step, values), (want_step, want_values) in zip(got["dumps"], want["dumps"], strict=True):
             assert step == want_step and values.keys() == want_values.keys(), f"the log dump at step {want_step}"
             for key, value in values.items():
                 assert close_reprs(value, want_values[key]), f"{key} at {want_step}: {value} for {want_values[key]}"
@@ -223,7 +223,7 @@ def test_the_loop_reproduces_the_recorded_runs(name, mode, expected):
         assert got == want
         return
     got.pop("weights_summary")  # the hash says more
-    for (step, values), (want_step, want_values) in zip(got["dumps"], want["dumps"]):
+    for (step, values), (want_step, want_values) in zip(got["dumps"], want["dumps"], strict=True):
         assert (step, values) == (want_step, want_values), f"the log dump at step {want_step} differs"
     assert got == want
 

@@ -4,12 +4,12 @@ SB3 verbs, save/load, errors and a short learning check."""
 import gymnasium as gym
 import numpy as np
 import pytest
+from chain_mdp import ChainEnv, chain_database, chain_q_star, dense_features, random_database
+from conftest import LineWalkEnv
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.monitor import Monitor
 
-from chain_mdp import ChainEnv, chain_database, chain_q_star, dense_features, random_database
-from conftest import LineWalkEnv
 from sb3_er import LSPI
 
 GAMMA = 0.9

@@ -8,7 +8,6 @@ import inspect
 import pytest
 
 import sb3_er_envs  # noqa: F401  (registers the environment ids)
-
 from sb3_er.common.docstrings import accepted_parameters
 from sb3_er.experiments.jobs import RUNNER_ARGUMENTS, RunJob, check_algo_kwargs, job_model_kwargs
 from sb3_er.experiments.specs import EXPERIMENTS

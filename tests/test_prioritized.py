@@ -113,7 +113,7 @@ def chain_model(order, seed=0, **kwargs):
     rng = np.random.default_rng(1)
     walks = [list(rng.integers(0, 2, size=12)) for _ in range(4)]
     walks.insert(2, [1] * (N_STATES - 1))
-    for start, walk in zip([3, 0, 0, 5, 2], walks):
+    for start, walk in zip([3, 0, 0, 5, 2], walks, strict=True):
         s = start
         for a in walk:
             s_next = max(s - 1, 0) if a == 0 else s + 1

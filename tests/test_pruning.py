@@ -16,7 +16,7 @@ from sb3_er.common.buffers import TrajectoryReplayBuffer
 def store(buffer, states, actions, terminated=False):
     """Add one trajectory through `states` with `actions` and close it; returns whether it was kept."""
     coder = buffer.tile_coder
-    for s, a in zip(states, actions):
+    for s, a in zip(states, actions, strict=True):
         obs = np.array([float(s)])
         buffer.add(obs, coder.slots(obs), int(a), 0.0, obs + 1.0)
     return buffer.close_trajectory(np.array([float(states[-1]) + 1.0]), terminated)

@@ -3,6 +3,7 @@
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import LineWalkEnv
 from gymnasium import spaces
 from gymnasium.envs.classic_control import CartPoleEnv
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback, StopTrainingOnRewardThreshold
@@ -10,7 +11,6 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.monitor import Monitor
 
-from conftest import LineWalkEnv
 from sb3_er import ER, DivergenceError, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
 
 ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma]

@@ -6,8 +6,8 @@ import pickle
 import numpy as np
 import pytest
 import torch as th
-
 from conftest import LineWalkEnv
+
 from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
 
 ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma]

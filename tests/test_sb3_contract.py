@@ -9,6 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch as th
+from conftest import LineWalkEnv
 from gymnasium import spaces
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -16,7 +17,6 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.policies import BasePolicy
 
-from conftest import LineWalkEnv
 from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda, TileQPolicy
 
 ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma, Dyna, FQI, LSPI]
@@ -164,7 +164,8 @@ def test_predict_names_the_gym_vecenv_mix_up(algo):
     assert model.predict(tuple(obs.tolist()), deterministic=True)[0].tolist() == action.tolist()  # a tuple observation
 
 
-# --- hyperparameter types: every numeric parameter of every algorithm --------------------------------------------------
+# --- hyperparameter types: every numeric parameter of every algorithm
+# --------------------------------------------------
 
 COMMON = ["learning_rate", "gamma", "exploration_rate", "trace_cutoff", "stats_window_size", "seed"]
 ER_NUMERIC = [
@@ -281,7 +282,7 @@ def _same(a, b) -> bool:
         return (
             type(a) is type(b)
             and len(a) == len(b)
-            and all(_same(x, y) for x, y in zip(a, b))
+            and all(_same(x, y) for x, y in zip(a, b, strict=True))
             and (getattr(a, "maxlen", None) == getattr(b, "maxlen", None))
         )
     if isinstance(a, dict):

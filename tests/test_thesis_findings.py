@@ -37,7 +37,7 @@ def model_with_trajectory(algo, n_actions, n_tilings, transitions, next_state, t
     )
     coder = model.policy.tile_coder
     next_states = [s for s, _, _ in transitions[1:]] + [next_state]
-    for (s, a, r), s_next in zip(transitions, next_states):
+    for (s, a, r), s_next in zip(transitions, next_states, strict=True):
         obs = np.array([s])
         model.replay_buffer.add(obs, coder.slots(obs), a, r, np.array([s_next]))
     model.replay_buffer.close_trajectory(np.array([next_state]), terminated)

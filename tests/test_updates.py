@@ -267,7 +267,7 @@ def test_sarsa_lambda_replaces_rather_than_accumulates(coder):
     sarsa_lambda_step(coder, theta, trace, 0.2, 1, 0.0, 0.2, False, lam)
     sarsa_lambda_step(coder, theta, trace, 0.2, 1, 0.0, 0.2, False, lam)
     trace_index, trace_value, _, trace_length = trace
-    values = dict(zip(trace_index[: trace_length[0]].tolist(), trace_value[: trace_length[0]].tolist()))
+    values = dict(zip(trace_index[: trace_length[0]].tolist(), trace_value[: trace_length[0]].tolist(), strict=True))
     for i in coder.feature_indices(np.array([0.2]), 1):
         assert values[i] == pytest.approx(GAMMA * lam)  # reset to 1 on the second visit, then decayed once
 

@@ -13,8 +13,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-from sb3_er import ER, ERSigma, SarsaLambda
-from sb3_er import zoo
+from sb3_er import ER, ERSigma, SarsaLambda, zoo
 
 SMALL = dict(policy_kwargs=dict(n_tilings=4, memory_size=2**14))
 

@@ -1,4 +1,5 @@
-"""The value watch: the possible returns of each env, the kernels' figures, and what learn does when values leave them."""
+"""The value watch: the possible returns of each env, the kernels' figures, and what learn does when values leave
+them."""
 
 import math
 import warnings
@@ -10,8 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import sb3_er_envs  # noqa: F401  (registers the env ids)
-from sb3_er import ER
-from sb3_er import FQI, LSPI, Dyna, ERSigma, SarsaLambda
+from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, SarsaLambda
 from sb3_er.common import kernels
 from sb3_er.common.base_class import ValueBoundWarning
 from sb3_er.common.buffers import TrajectoryReplayBuffer

@@ -9,8 +9,7 @@ import pytest
 import rl_zoo3
 from rl_zoo3 import hyperparams_opt
 
-from sb3_er import ER, ERSigma, SarsaLambda
-from sb3_er import zoo
+from sb3_er import ER, ERSigma, SarsaLambda, zoo
 from sb3_er.experiments.specs import EXPERIMENTS
 
 ENV_IDS = ["sb3_er/WindyCliff-v0", "sb3_er/PendulumSwingup-v0", "sb3_er/SimplestWalker-v0", "sb3_er/Leo-v0"]

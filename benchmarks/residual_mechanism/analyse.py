@@ -50,7 +50,7 @@ for v in ORDER:
                 "variant": v,
                 "runs": len(files),
                 "diverged": len(div),
-                "diverged at episode (seed)": ", ".join(f"{e} (s{s})" for e, s in zip(div_ep, div)) or "-",
+                "diverged at episode (seed)": ", ".join(f"{e} (s{s})" for e, s in zip(div_ep, div, strict=True)) or "-",
                 "rise [ep]": rise,
                 "best mean": round(best),
                 "last10 mean": round(m[-10:].mean()),
@@ -65,7 +65,7 @@ for v in ORDER:
                 "variant": v,
                 "runs": len(files),
                 "diverged": len(div),
-                "diverged at episode (seed)": ", ".join(f"{e} (s{s})" for e, s in zip(div_ep, div)),
+                "diverged at episode (seed)": ", ".join(f"{e} (s{s})" for e, s in zip(div_ep, div, strict=True)),
             }
         )
 print(pd.DataFrame(rows).drop(columns=["goal rate last10"]).to_string(index=False))

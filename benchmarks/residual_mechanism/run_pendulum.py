@@ -16,10 +16,10 @@ from pathlib import Path
 
 import gymnasium as gym
 import pandas as pd
-import sb3_er_envs  # noqa: F401
 import torch
 from instrument import instrumented_phase, summarize
 
+import sb3_er_envs  # noqa: F401
 from sb3_er import ER, DivergenceError
 from sb3_er.experiments import files
 from sb3_er.experiments.protocols import EpisodeReturnProtocol

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import json
 import platform
 import socket
 import sys
@@ -304,7 +303,7 @@ def figure_5_6(out: Path) -> tuple[list[Path], list[str]]:
         "max deviation kernels vs closed form |",
         "|---|---|---|---|---|",
     ]
-    for axis, case in zip(axes, vg.CASES):
+    for axis, case in zip(axes, vg.CASES, strict=True):
         values = vg.CASES[case]
         for variant in vg.VARIANTS:
             got = vg.replay_values(vg.self_affecting_model(variant, case), FIGURE_REPLAYS)
@@ -340,7 +339,7 @@ def figure_5_6(out: Path) -> tuple[list[Path], list[str]]:
     figure, axes = plt.subplots(1, 2, figsize=(10.0, 4.0))
     n_tilings = 16
     shared = np.arange(1, n_tilings)
-    for axis, case in zip(axes, vg.CASES):
+    for axis, case in zip(axes, vg.CASES, strict=True):
         for variant in vg.VARIANTS:
             axis.plot(
                 shared, [vg.limit_value(variant, case, n_tilings, int(k)) for k in shared], marker=".", label=variant
@@ -441,9 +440,12 @@ def run_table(problem: str, runs) -> list[str]:
             f"| {variant} ({what}) | {_per_seed(last['max_q_sa'], '.4g')}{diverged} "
             f"({_per_seed([frame['max_q_sa'].max() for frame in seeds.values()], '.4g')}) | "
             f"{_per_seed(last['mean_max_q_next'], '.4g')} "
-            f"({_per_seed([frame['mean_max_q_next'].max() for frame in seeds.values()], '.4g')}) | {_per_seed(last['share_raised'] * 100, '.1f')} % / "
-            f"{_per_seed(last['share_lowered'] * 100, '.1f')} % | {_per_seed(last['mean_shift_relative'] * 100, '+.2f')} % "
-            f"| {no_visit} of {int(every['transitions'].sum()):,} | {_per_seed(last['mean_overlap_sigma'] * 100, '.1f')} % "
+            f"({_per_seed([frame['mean_max_q_next'].max() for frame in seeds.values()], '.4g')}) | "
+            f"{_per_seed(last['share_raised'] * 100, '.1f')} % / "
+            f"{_per_seed(last['share_lowered'] * 100, '.1f')} % | "
+            f"{_per_seed(last['mean_shift_relative'] * 100, '+.2f')} % "
+            f"| {no_visit} of {int(every['transitions'].sum()):,} | "
+            f"{_per_seed(last['mean_overlap_sigma'] * 100, '.1f')} % "
             f"| {_per_seed(last['replay_updates'] / last['replay_phases'], ',.0f')} | {collisions} |"
         )
     return lines

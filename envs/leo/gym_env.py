@@ -44,8 +44,8 @@ class LeoEnv(gym.Env):
 
     Observation (Eq. 4.6): torso angle and rate, then angle and rate of the stance hip, swing hip, stance knee and swing
     knee [rad, rad/s]; angles about -y, so hip > 0 is the thigh forward, knee < 0 a bent knee and a positive torso
-    angle leans backward. Joint rates are low-pass filtered like Erik's (``filter_rates``). The observation is clipped to
-    the declared bounds.
+    angle leans backward. Joint rates are low-pass filtered like Erik's (``filter_rates``). The observation is clipped
+    to the declared bounds.
 
     Action: ``MultiDiscrete([7, 7, 7])``, the voltage level of the stance hip, swing hip and swing knee; level ``k``
     applies ``action_values[joint][k]`` volts (Erik's levels {0, +-3.564, +-7.128, +-10.692} V, level 3 is 0 V).
@@ -149,7 +149,10 @@ class LeoEnv(gym.Env):
     def _observation(self) -> np.ndarray:
         values = self.task.stance_values()
         return np.array(
-            [bound if value > bound else -bound if value < -bound else value for value, bound in zip(values, _BOUNDS)]
+            [
+                bound if value > bound else -bound if value < -bound else value
+                for value, bound in zip(values, _BOUNDS, strict=True)
+            ]
         )
 
     def render(self):

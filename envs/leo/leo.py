@@ -6,7 +6,8 @@ Erik's task logic:
 
 * 30 Hz control, voltages held over an exact number of physics substeps;
 * the 10-D stance/swing observation of Eq. 4.6 with Butterworth-filtered joint rates;
-* the learned voltages of the stance hip, swing hip and swing knee; proportional auto-controllers for the arm, the stance
+* the learned voltages of the stance hip, swing hip and swing knee; proportional auto-controllers for the arm, the
+stance
   knee and both ankles;
 * stance-leg choice from the foot contacts, footsteps, and the reward of time, electrical energy, swing-foot progress
   and falls; a fall ends the episode, 25 s truncate it.
@@ -287,7 +288,7 @@ class Physics(mujoco.Physics):
         if counts.tolist() != before:
             names = [
                 name
-                for name, old, new in zip(mujoco_engine.mjtWarning.__members__, before, counts.tolist())
+                for name, old, new in zip(mujoco_engine.mjtWarning.__members__, before, counts.tolist(), strict=True)
                 if new > old
             ]
             message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"

@@ -15,7 +15,6 @@ returns actions of the Box's shape and dtype, inside its bounds.
 """
 
 from collections.abc import Sequence
-from typing import Optional, Union
 
 import numpy as np
 from gymnasium import spaces
@@ -32,8 +31,8 @@ PLACEHOLDER_BOUND = 1e30
 
 def box_action_levels(
     action_space: spaces.Box,
-    action_bins: Optional[Union[int, Sequence[int]]] = None,
-    action_values: Optional[Sequence[Sequence[float]]] = None,
+    action_bins: int | Sequence[int] | None = None,
+    action_values: Sequence[Sequence[float]] | None = None,
 ) -> list[np.ndarray]:
     """The levels of each dimension of a Box action space (flattened in C order), as float64 arrays holding exactly
     the values the env receives in the Box's dtype.

@@ -10,10 +10,10 @@ import time
 import warnings
 from collections import deque
 from collections.abc import Iterable
-from typing import Any, ClassVar, Optional, TypeVar, Union
+from typing import Any, ClassVar, TypeVar
 
-import numpy as np
 import gymnasium as gym
+import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
@@ -23,7 +23,6 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
-from sb3_er.common.action_levels import PLACEHOLDER_BOUND
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
 from sb3_er.common.dict_observations import (
     dict_vec_env_message,
@@ -155,20 +154,20 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def __init__(
         self,
-        policy: Union[str, type[TileQPolicy]],
-        env: Union[GymEnv, str, None],
-        learning_rate: Union[float, Schedule] = 0.2,
+        policy: str | type[TileQPolicy],
+        env: GymEnv | str | None,
+        learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
         exploration_rate: float = 0.05,
-        trace_lambda: Optional[float] = None,
+        trace_lambda: float | None = None,
         trace_cutoff: float = 0.01,
         value_watch: bool = True,
         value_bound_action: str = "warn",
-        policy_kwargs: Optional[dict[str, Any]] = None,
+        policy_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
-        tensorboard_log: Optional[str] = None,
+        tensorboard_log: str | None = None,
         verbose: int = 0,
-        seed: Optional[int] = None,
+        seed: int | None = None,
         device: str = "cpu",
         _init_setup_model: bool = True,
     ):
@@ -201,8 +200,8 @@ class TileQAlgorithm(BaseAlgorithm):
         self.trace_cutoff = trace_cutoff
         self.value_watch = value_watch
         self.value_bound_action = value_bound_action
-        self.value_excursion: Optional[dict[str, Any]] = None
-        self._watch: Optional[ValueWatch] = None
+        self.value_excursion: dict[str, Any] | None = None
+        self._watch: ValueWatch | None = None
         self._seed_generators(seed)
         self.falls = 0
         self._td_error_sum = 0.0
@@ -214,7 +213,8 @@ class TileQAlgorithm(BaseAlgorithm):
             self._setup_model()
 
     def _check_hyperparameters(self) -> None:
-        """Validate every hyperparameter; runs wherever a model is built, loaded (``load(..., **kwargs)``) or rebuilt."""
+        """Validate every hyperparameter; runs wherever a model is built, loaded (``load(..., **kwargs)``) or
+        rebuilt."""
         learning_rate = self.learning_rate(1.0) if callable(self.learning_rate) else self.learning_rate
         check_number("learning_rate (alpha)", learning_rate, 0.0)
         check_number("gamma", self.gamma, 0.0, 1.0)
@@ -226,7 +226,7 @@ class TileQAlgorithm(BaseAlgorithm):
         check_choice("value_bound_action", self.value_bound_action, VALUE_BOUND_ACTIONS)
 
     @staticmethod
-    def _wrap_env(env: Union[GymEnv, str], verbose: int = 0, monitor_wrapper: bool = True) -> VecEnv:
+    def _wrap_env(env: GymEnv | str, verbose: int = 0, monitor_wrapper: bool = True) -> VecEnv:
         """SB3's wrapping into a VecEnv, after flattening a single env's Dict observation (Gymnasium's
         ``FlattenObservation``; pixels refused). An env id is made first (``load(path, env="dm_control/...")``)."""
         if isinstance(env, str):
@@ -446,7 +446,7 @@ class TileQAlgorithm(BaseAlgorithm):
             self._watch.observe_many(rewards, terminal)
         buffer.observed_by_watch = self._watch.token
 
-    def _reward_changing_wrapper(self) -> Optional[str]:
+    def _reward_changing_wrapper(self) -> str | None:
         """The wrapper that may change the env's rewards (VecNormalize with norm_reward, a reward wrapper), or None."""
         normalize = unwrap_vec_wrapper(self.env, VecNormalize)
         if normalize is not None and normalize.norm_reward:
@@ -456,7 +456,7 @@ class TileQAlgorithm(BaseAlgorithm):
         return None
 
     @property
-    def value_bounds(self) -> Optional[tuple[float, float]]:
+    def value_bounds(self) -> tuple[float, float] | None:
         """(low, high) of the values the learner may take (the possible returns and the initial values), or None
         without a watch."""
         return None if self._watch is None else self._watch.bounds
@@ -531,7 +531,7 @@ class TileQAlgorithm(BaseAlgorithm):
             "_observing_rewards",
         ]
 
-    def set_random_seed(self, seed: Optional[int] = None) -> None:
+    def set_random_seed(self, seed: int | None = None) -> None:
         """Seed SB3's generators, the env, and the generators of exploration and prediction.
 
         :param seed: the seed; None leaves every generator as it is.
@@ -540,7 +540,7 @@ class TileQAlgorithm(BaseAlgorithm):
         if seed is not None:
             self._seed_generators(seed)
 
-    def _seed_generators(self, seed: Optional[int]) -> None:
+    def _seed_generators(self, seed: int | None) -> None:
         check_integer("seed", seed, minimum=0, optional=True)
         self.action_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_ACTIONS)
         self.predict_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(kernels.RNG_STREAM_PREDICT,)))
@@ -552,10 +552,10 @@ class TileQAlgorithm(BaseAlgorithm):
     def predict(
         self,
         observation: np.ndarray,
-        state: Optional[tuple[np.ndarray, ...]] = None,
-        episode_start: Optional[np.ndarray] = None,
+        state: tuple[np.ndarray, ...] | None = None,
+        episode_start: np.ndarray | None = None,
         deterministic: bool = False,
-    ) -> tuple[np.ndarray, Optional[tuple[np.ndarray, ...]]]:
+    ) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
         """Greedy actions if deterministic, else epsilon-greedy with the model's exploration rate.
 
         :param observation: one observation (shape of the observation space) or a batch of them (n, ...).
@@ -653,9 +653,9 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def save(
         self,
-        path: Union[str, pathlib.Path, io.BufferedIOBase],
-        exclude: Optional[Iterable[str]] = None,
-        include: Optional[Iterable[str]] = None,
+        path: str | pathlib.Path | io.BufferedIOBase,
+        exclude: Iterable[str] | None = None,
+        include: Iterable[str] | None = None,
     ) -> None:
         """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
         pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling.
@@ -677,10 +677,10 @@ class TileQAlgorithm(BaseAlgorithm):
     @classmethod
     def load(
         cls: type[SelfTileQAlgorithm],
-        path: Union[str, pathlib.Path, io.BufferedIOBase],
-        env: Optional[GymEnv] = None,
-        device: Union[str, Any] = "auto",
-        custom_objects: Optional[dict[str, Any]] = None,
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: str | Any = "auto",
+        custom_objects: dict[str, Any] | None = None,
         print_system_info: bool = False,
         force_reset: bool = True,
         allow_pickle: bool = True,
@@ -751,9 +751,9 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def set_parameters(
         self,
-        load_path_or_dict: Union[str, pathlib.Path, dict[str, Any]],
+        load_path_or_dict: str | pathlib.Path | dict[str, Any],
         exact_match: bool = True,
-        device: Union[str, Any] = "auto",
+        device: str | Any = "auto",
     ) -> None:
         """SB3's ``set_parameters``; the weights are checked (shape, finite) before they replace the current ones,
         which stay as they were on failure. A bad file is a ValueError naming it.
@@ -791,7 +791,7 @@ class TileQAlgorithm(BaseAlgorithm):
         table = list(self.policy.to_env_actions(flat))
         return table, bool(table) and isinstance(table[0], np.ndarray)
 
-    def _interact(self, total_timesteps: int, callback: Optional[BaseCallback], log_interval: int) -> None:
+    def _interact(self, total_timesteps: int, callback: BaseCallback | None, log_interval: int) -> None:
         """The interaction loop of ``learn()``: steps until ``total_timesteps`` or a callback's on_step returns False.
 
         One step is: a_k (the pending a_{k+1} of the online update, else epsilon-greedy at s_k), the env step,
@@ -821,7 +821,6 @@ class TileQAlgorithm(BaseAlgorithm):
         step_size = self.current_learning_rate / n_tilings
         sarsa_lambda_step, clear_trace, isfinite = kernels.sarsa_lambda_step, kernels.clear_trace, math.isfinite
         observe = self._watch.observe if self._observing_rewards else None
-        ep_info_buffer, ep_success_buffer = self.ep_info_buffer, self.ep_success_buffer
         total = float(total_timesteps)
         obs = np.asarray(self._last_obs[0], dtype=np.float64)
         while self.num_timesteps < total_timesteps:

@@ -11,7 +11,7 @@
 
 import contextlib
 import time
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -150,7 +150,7 @@ class TileFeatures:
         found = (self.touched[position] == indices) & (np.asarray(actions) >= 0)[:, None]
         return np.where(found, position, -1)
 
-    def matrix(self, columns: Optional[np.ndarray] = None) -> sp.csr_matrix:
+    def matrix(self, columns: np.ndarray | None = None) -> sp.csr_matrix:
         """Phi as a scipy CSR matrix (n, f), or the matrix of other ``columns`` (entries -1 dropped).
 
         :param columns: feature columns (n, N) from :meth:`columns_of`; default None: this object's own rows.
@@ -177,11 +177,11 @@ class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
     """
 
     def __init__(
-        self, policy, env, buffer_size: int = 1_000_000, replay_buffer_kwargs: Optional[dict[str, Any]] = None, **kwargs
+        self, policy, env, buffer_size: int = 1_000_000, replay_buffer_kwargs: dict[str, Any] | None = None, **kwargs
     ):
         self.buffer_size = buffer_size
         self.replay_buffer_kwargs = replay_buffer_kwargs
-        self.replay_buffer: Optional[TrajectoryReplayBuffer] = None
+        self.replay_buffer: TrajectoryReplayBuffer | None = None
         super().__init__(policy, env, **kwargs)
 
     def _check_hyperparameters(self) -> None:

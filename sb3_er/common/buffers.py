@@ -10,7 +10,7 @@ import json
 import pathlib
 import pickle
 import zlib
-from typing import Any, Optional, Union
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.save_util import save_to_pkl
@@ -27,7 +27,8 @@ ZIP_MAGIC = b"PK\x03\x04"
 
 
 class TrajectoryReplayBuffer:
-    """Transitions (s_t, a_t, r_{t+1}) grouped in trajectories, with the tiles of s_t precomputed, and the visit vector w.
+    """Transitions (s_t, a_t, r_{t+1}) grouped in trajectories, with the tiles of s_t precomputed, and the visit vector
+    w.
 
     Transitions live in a ring of ``capacity`` rows; consecutive rows of one trajectory are consecutive time steps, so
     s_{t+1} of a row is s_t of the next row, except for a trajectory's last row, whose s_{t+1} is kept with the
@@ -63,7 +64,7 @@ class TrajectoryReplayBuffer:
         self,
         capacity: int,
         tile_coder: TileCoder,
-        prune: Optional[str] = None,
+        prune: str | None = None,
         prune_threshold: float = DEFAULT_PRUNE_THRESHOLD,
     ):
         if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1:
@@ -99,13 +100,13 @@ class TrajectoryReplayBuffer:
         self.open_covered = 0
         # The token of the value watch that has read this buffer's stored rewards (ValueWatch.token); None: none has.
         # Not saved: a loaded buffer is read again by the watch it meets.
-        self.observed_by_watch: Optional[str] = None
+        self.observed_by_watch: str | None = None
         self.n_closed_total = 0
         self.n_pruned_trajectories = 0
         self.n_pruned_transitions = 0
 
     @staticmethod
-    def check_kwargs(kwargs: Optional[dict[str, Any]]) -> None:
+    def check_kwargs(kwargs: dict[str, Any] | None) -> None:
         """ValueError for keyword arguments that this buffer does not take or whose values are out of range.
 
         :param kwargs: the keyword arguments meant for the buffer (``replay_buffer_kwargs``); None is none.
@@ -394,7 +395,9 @@ def _array(state: dict[str, Any], name: str, dtype, shape: tuple) -> np.ndarray:
         raise _field_error(name, f"expected an array, got {type(value).__name__}")
     if value.dtype != np.dtype(dtype):
         raise _field_error(name, f"expected dtype {np.dtype(dtype)}, got {value.dtype}")
-    if value.ndim != len(shape) or any(want is not None and got != want for got, want in zip(value.shape, shape)):
+    if value.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(value.shape, shape, strict=True)
+    ):
         expected = tuple("n" if want is None else want for want in shape)
         raise _field_error(name, f"expected shape {expected}, got {value.shape}")
     return value
@@ -409,7 +412,7 @@ def _in_range(name: str, values: np.ndarray, stop: int, what: str) -> None:
         )
 
 
-def _integer(state: dict[str, Any], name: str, minimum: int, maximum: Optional[int] = None) -> int:
+def _integer(state: dict[str, Any], name: str, minimum: int, maximum: int | None = None) -> int:
     if name not in state:
         raise _field_error(name, "missing")
     value = state[name]
@@ -597,9 +600,7 @@ def _resolve_read_path(path: pathlib.Path) -> pathlib.Path:
     return path
 
 
-def save_buffer(
-    buffer: TrajectoryReplayBuffer, path: Union[str, pathlib.Path, io.BufferedIOBase], verbose: int = 0
-) -> None:
+def save_buffer(buffer: TrajectoryReplayBuffer, path: str | pathlib.Path | io.BufferedIOBase, verbose: int = 0) -> None:
     """Write ``buffer`` to ``path``: an .npz archive of plain arrays if the path ends in .npz, else a pickle (SB3's
     format; ``.pkl`` is added to a path without suffix). A path is written atomically (a partial file, then renamed).
 
@@ -619,7 +620,7 @@ def save_buffer(
 
 
 def load_buffer(
-    path: Union[str, pathlib.Path, io.BufferedIOBase], tile_coder: TileCoder, allow_pickle: bool = True
+    path: str | pathlib.Path | io.BufferedIOBase, tile_coder: TileCoder, allow_pickle: bool = True
 ) -> TrajectoryReplayBuffer:
     """Read a buffer written by ``save_buffer`` and check it against ``tile_coder``; ValueError naming the file and
     the field for anything corrupt, truncated, crafted or of another tile coding.
@@ -673,9 +674,9 @@ class TrajectoryBufferIO:
     """``save_replay_buffer`` and ``load_replay_buffer`` of the algorithms that keep a ``TrajectoryReplayBuffer``
     (ER and its presets, Dyna, FQI, LSPI); a mixin before TileQAlgorithm."""
 
-    replay_buffer: Optional[TrajectoryReplayBuffer]
+    replay_buffer: TrajectoryReplayBuffer | None
 
-    def save_replay_buffer(self, path: Union[str, pathlib.Path, io.BufferedIOBase]) -> None:
+    def save_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
         """Save the trajectories and the visit vector w: an .npz archive of plain arrays if ``path`` ends in .npz
         (loadable without unpickling), else a pickle (SB3's format; .pkl is added to a path without suffix).
 
@@ -685,7 +686,7 @@ class TrajectoryBufferIO:
 
     def load_replay_buffer(
         self,
-        path: Union[str, pathlib.Path, io.BufferedIOBase],
+        path: str | pathlib.Path | io.BufferedIOBase,
         truncate_last_traj: bool = True,
         allow_pickle: bool = True,
     ) -> None:

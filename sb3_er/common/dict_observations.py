@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 import sys
-from typing import Any, Optional
+from typing import Any
 
 import gymnasium as gym
 from gymnasium import spaces
@@ -47,8 +47,8 @@ def register_dm_control_envs() -> None:
         return
     try:
         if "dm_control" not in sys.modules:
-            # dm_control picks its OpenGL backend once, at import: choose it as LEO does (sb3_er_envs.leo._gl), so that a
-            # suite env imported first does not leave a backend (GLFW without a display) that aborts LEO's rendering.
+            # dm_control picks its OpenGL backend once, at import: choose it as LEO does (sb3_er_envs.leo._gl), so that
+            # a suite env imported first does not leave a backend (GLFW without a display) that aborts LEO's rendering.
             from sb3_er_envs.leo import _gl
 
             user_choice = os.environ.get("MUJOCO_GL")
@@ -141,7 +141,7 @@ def flatten_dict_observation(env: gym.Env) -> gym.Env:
     return gym.wrappers.FlattenObservation(env)
 
 
-def flattened_dict_space(env: gym.Env) -> Optional[spaces.Dict]:
+def flattened_dict_space(env: gym.Env) -> spaces.Dict | None:
     """The Dict space the outermost ``FlattenObservation`` among ``env``'s wrappers flattens, or None.
 
     :param env: a Gymnasium env (wrapped or not).

@@ -1090,8 +1090,8 @@ def replay_phase(
     ``n_transitions`` counts every stored transition, the open ones included.
     Reversed order replays each from its last sample to its first (t = k..1, the thesis default); forward replays in
     temporal order; uniform replays as many transitions drawn uniformly from all stored transitions (Appendix A).
-    Trajectory picks use ``replay_rng`` and exploration ``action_rng``, so variants replay exactly the same trajectories.
-    Every update's target and Q(s_t, a_t) go to the value ``watch`` (:func:`watch_update`).
+    Trajectory picks use ``replay_rng`` and exploration ``action_rng``, so variants replay exactly the same
+    trajectories. Every update's target and Q(s_t, a_t) go to the value ``watch`` (:func:`watch_update`).
     Returns (updates, sum of |delta|, last delta, status); status is STATUS_OUT_OF_BOUNDS when the watch saw its first
     value outside the bounds in this phase (the phase goes on), STATUS_DIVERGED on a non-finite delta (it stops).
 

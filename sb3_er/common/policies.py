@@ -4,7 +4,6 @@ import io
 import pathlib
 import pickle
 from collections.abc import Sequence
-from typing import Optional, Union
 
 import numpy as np
 import torch as th
@@ -103,17 +102,17 @@ class TileQPolicy(BasePolicy):
     def __init__(
         self,
         observation_space: spaces.Box,
-        action_space: Union[spaces.Discrete, spaces.MultiDiscrete, spaces.Box],
-        lr_schedule: Optional[Schedule] = None,
-        tile_widths: Optional[Sequence[float]] = None,
+        action_space: spaces.Discrete | spaces.MultiDiscrete | spaces.Box,
+        lr_schedule: Schedule | None = None,
+        tile_widths: Sequence[float] | None = None,
         n_tilings: int = 16,
         memory_size: int = 2**22,
-        wrap_periods: Optional[Sequence[Optional[float]]] = None,
-        action_values: Optional[Sequence[Sequence[float]]] = None,
-        action_tile_widths: Optional[Sequence[float]] = None,
-        initial_value: Union[float, Sequence[float]] = 0.0,
-        initial_value_seed: Optional[int] = None,
-        action_bins: Optional[Union[int, Sequence[int]]] = None,
+        wrap_periods: Sequence[float | None] | None = None,
+        action_values: Sequence[Sequence[float]] | None = None,
+        action_tile_widths: Sequence[float] | None = None,
+        initial_value: float | Sequence[float] = 0.0,
+        initial_value_seed: int | None = None,
+        action_bins: int | Sequence[int] | None = None,
     ):
         super().__init__(observation_space, action_space)
         if tile_widths is None:
@@ -135,11 +134,12 @@ class TileQPolicy(BasePolicy):
         )
         if self.tile_coder.n_dims != int(np.prod(observation_space.shape)):
             raise ValueError(
-                f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape {observation_space.shape}"
+                f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape "
+                f"{observation_space.shape}"
             )
         low, high = _initial_range(initial_value)
         if low != high and initial_value_seed is None:
-            initial_value_seed = int(np.random.randint(0, 2**62))
+            initial_value_seed = int(np.random.randint(0, 2**62))  # noqa: NPY002 (seeded by SB3's set_random_seed)
         self.initial_value = initial_value if low != high else low
         self.initial_value_seed = None if low == high else int(initial_value_seed)
         n = self.tile_coder.n_tilings
@@ -246,7 +246,7 @@ class TileQPolicy(BasePolicy):
         """
         self.load_state_dict({"theta": th.as_tensor(np.asarray(vector, dtype=np.float64))})
 
-    def save(self, path: Union[str, pathlib.Path, io.BufferedIOBase]) -> None:
+    def save(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
         """Save the weights and the constructor settings (SB3's policy file, ``TileQPolicy.load`` reads it back), the
         spaces in plain form, so that loading needs no pickle; written atomically.
 
@@ -262,8 +262,8 @@ class TileQPolicy(BasePolicy):
     @classmethod
     def load(
         cls,
-        path: Union[str, pathlib.Path, io.BufferedIOBase],
-        device: Union[th.device, str] = "auto",
+        path: str | pathlib.Path | io.BufferedIOBase,
+        device: th.device | str = "auto",
         allow_pickle: bool = True,
     ) -> "TileQPolicy":
         """Load a policy saved by ``save``. Its file is read with ``torch.load(weights_only=True)``: no pickle runs.

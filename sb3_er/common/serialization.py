@@ -15,7 +15,7 @@ import zipfile
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, Optional, Union
+from typing import Any
 
 import numpy as np
 import torch as th
@@ -178,7 +178,7 @@ def _decode_space(body: dict[str, Any], classes: dict[str, type]) -> spaces.Spac
     raise ValueError(f"unsupported or malformed space {str(body)[:80]}")
 
 
-def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[list[str]] = None) -> dict[str, Any]:
+def plain_state(model, exclude: list[str] | None = None, include: list[str] | None = None) -> dict[str, Any]:
     """Plain forms of the attributes that ``model.save(path, exclude, include)`` pickles (those without a JSON form);
     an attribute without a plain form (a schedule function, a custom object) is left to its pickle alone.
 
@@ -200,7 +200,7 @@ def plain_state(model, exclude: Optional[list[str]] = None, include: Optional[li
     return plain
 
 
-def resolve_zip_path(path: Union[str, pathlib.Path]) -> pathlib.Path:
+def resolve_zip_path(path: str | pathlib.Path) -> pathlib.Path:
     """SB3's convention: a path without suffix that does not exist is read with .zip added.
 
     :param path: the path as given to ``load``.
@@ -211,7 +211,7 @@ def resolve_zip_path(path: Union[str, pathlib.Path]) -> pathlib.Path:
     return path
 
 
-def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[dict[str, Any], Any]:
+def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[str, Any], Any]:
     """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and a path
     or buffer to pass on to SB3.
 
@@ -240,7 +240,7 @@ def read_zip_data(path: Union[str, pathlib.Path, io.BufferedIOBase]) -> tuple[di
 
 
 def custom_objects_without_pickle(
-    data: dict[str, Any], classes: dict[str, type], custom_objects: Optional[dict[str, Any]]
+    data: dict[str, Any], classes: dict[str, type], custom_objects: dict[str, Any] | None
 ) -> dict[str, Any]:
     """SB3 ``custom_objects`` that replace every pickled entry of ``data`` by its plain copy, so that SB3 unpickles
     none; ValueError naming an entry that only its pickle holds.
@@ -272,7 +272,7 @@ def custom_objects_without_pickle(
 
 
 @contextmanager
-def atomic_path(path: Union[str, pathlib.Path], suffix: str) -> Iterator[pathlib.Path]:
+def atomic_path(path: str | pathlib.Path, suffix: str) -> Iterator[pathlib.Path]:
     """A partial path to write to, renamed to ``path`` (with ``suffix`` added if it has none) when the block ends
     without error, so that a crash while saving never leaves a truncated file under the final name.
 

@@ -5,7 +5,7 @@ import functools
 import importlib.resources
 import math
 from collections.abc import Sequence
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 import yaml
@@ -71,9 +71,9 @@ class TileCoder:
         action_nvec: Sequence[int],
         n_tilings: int = 16,
         memory_size: int = 2**22,
-        wrap_periods: Optional[Sequence[Optional[float]]] = None,
-        action_values: Optional[Sequence[Sequence[float]]] = None,
-        action_tile_widths: Optional[Sequence[float]] = None,
+        wrap_periods: Sequence[float | None] | None = None,
+        action_values: Sequence[Sequence[float]] | None = None,
+        action_tile_widths: Sequence[float] | None = None,
     ):
         self.tile_widths = np.asarray(tile_widths, dtype=np.float64).reshape(-1)
         self.n_dims = self.tile_widths.shape[0]
@@ -136,7 +136,7 @@ class TileCoder:
         """The coder in kernel order: inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
         columns_are_actions."""
 
-    def _check_wrap_periods(self, wrap_periods) -> list[Optional[float]]:
+    def _check_wrap_periods(self, wrap_periods) -> list[float | None]:
         if wrap_periods is None:
             return [None] * self.n_dims
         periods = list(wrap_periods)

@@ -23,7 +23,7 @@ import math
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -79,11 +79,11 @@ class RewardBounds:
     """
 
     step: tuple[float, float]
-    terminal: Optional[tuple[float, float]] = None
-    horizon: Optional[int] = None
+    terminal: tuple[float, float] | None = None
+    horizon: int | None = None
 
     @classmethod
-    def from_attribute(cls, value: Any) -> "RewardBounds":
+    def from_attribute(cls, value: Any) -> RewardBounds:
         """An env's ``reward_bounds``: a RewardBounds or a mapping with ``step``, optional ``terminal`` and
         ``horizon``, e.g. ``{"step": (-1, 30), "terminal": (-50, -50)}``; ValueError naming the problem.
 
@@ -151,7 +151,7 @@ def widened(bounds: tuple[float, float], tolerance: float = TOLERANCE) -> tuple[
     return low - margin, high + margin
 
 
-def reward_changing_wrapper(env: gym.Env) -> Optional[str]:
+def reward_changing_wrapper(env: gym.Env) -> str | None:
     """The name of the outermost wrapper of ``env`` that may change rewards, or None.
 
     Observation and action wrappers and the wrappers of :data:`REWARD_PRESERVING_WRAPPERS` keep them; every other
@@ -181,7 +181,7 @@ class ValueWatch:
     """
 
     def __init__(
-        self, source: str, bounds: Optional[RewardBounds], gamma: float, initial: tuple[float, float], reason: str = ""
+        self, source: str, bounds: RewardBounds | None, gamma: float, initial: tuple[float, float], reason: str = ""
     ):
         self.source = source
         self.gamma = float(gamma)
@@ -197,7 +197,7 @@ class ValueWatch:
         self._update_bounds()
 
     @property
-    def reward_bounds(self) -> Optional[RewardBounds]:
+    def reward_bounds(self) -> RewardBounds | None:
         """The reward bounds in use: declared, or observed so far (None before the first reward)."""
         if self.source == "env":
             return self._declared

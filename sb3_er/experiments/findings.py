@@ -15,7 +15,8 @@ A rise time that the mean curve never reaches counts as the run's end (the thesi
 an algorithm that learns no gait has no end performance, and its difference is then undefined (inconclusive). Where
 the thesis prints NA (no gait learned), the finding is "learns no gait", judged on the same bootstrap: it holds when
 the resampled mean curve stays below the success level in at least 97.5 % of the resamples, does not hold when it
-stays below in at most 2.5 %, and is inconclusive in between. Runs whose values left the possible returns and diverged runs are left out, as in the tables.
+stays below in at most 2.5 %, and is inconclusive in between. Runs whose values left the possible returns and diverged
+runs are left out, as in the tables.
 
 Each side needs at least ``MIN_AVERAGED_RUNS`` averaged runs (5) for a verdict, else the finding is inconclusive:
 resampling n runs with replacement gives C(2n - 1, n) distinct resamples, and a side's own 2.5 % tail needs at least

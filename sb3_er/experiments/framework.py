@@ -537,8 +537,8 @@ def reproduce_framework(
             "Measured, per problem. Samples to the level: env steps until the mean return of the last 10 learning "
             "episodes first reaches it (mean ± 95 % CI over the seeds that reach it; in brackets how many do). End "
             "performance: mean return of the last 10 learning episodes (± 95 % CI over seeds). Updates: value-function "
-            "updates per learning episode (online steps, replayed samples, planning updates; for FQI and LSPI samples × "
-            "sweeps of each fit). CPU and wall seconds per learning episode of one run, on a machine shared by "
+            "updates per learning episode (online steps, replayed samples, planning updates; for FQI and LSPI samples "
+            "× sweeps of each fit). CPU and wall seconds per learning episode of one run, on a machine shared by "
             "`--jobs` runs. The qualitative columns are the thesis's row of the method (ER-σ and prioritized sweeping "
             "are ER-sarsa with another target or sample order)."
         ),

@@ -133,12 +133,12 @@ def plot_gait(traces: Mapping[str, GaitTrace], path: str | Path, title: str | No
         ("swing_foot_height", "swing foot height [leg lengths]"),
     )
     for label, trace in traces.items():
-        for axis, (field, _) in zip(axes, panels):
+        for axis, (field, _) in zip(axes, panels, strict=True):
             values = getattr(trace, field)
             (line,) = axis.plot(trace.time, values, label=label, linewidth=1.2)
             if trace.fell:
                 axis.plot(trace.time[-1], values[-1], "x", color=line.get_color(), markersize=8)
-    for axis, (_, y_label) in zip(axes, panels):
+    for axis, (_, y_label) in zip(axes, panels, strict=True):
         axis.set_ylabel(y_label)
         axis.grid(alpha=0.3)
     axes[2].axhline(0.0, color="0.4", linewidth=0.8)

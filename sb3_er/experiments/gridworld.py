@@ -8,8 +8,8 @@ replay generators get the same seed, and each replays the same trajectories: one
 maxima of Figure 5.4). A Sarsa(lambda) run stopped at its first goal gives Figure 5.3. This is done with one tiling of
 width 1 (tabular) and with 16 tilings of width 2 (the thesis's function approximation).
 
-The maps show V(s) = max_a Q(s, a) for every cell outside the goal column; the statistics quantify the thesis's findings:
-positive values in the doomed-to-fall (windy) area and the height of maxima.
+The maps show V(s) = max_a Q(s, a) for every cell outside the goal column; the statistics quantify the thesis's
+findings: positive values in the doomed-to-fall (windy) area and the height of maxima.
 """
 
 from __future__ import annotations

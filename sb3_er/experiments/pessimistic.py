@@ -166,8 +166,9 @@ def pessimistic_run(job: RunJob, env, report) -> TaskOutput:
 
 def pessimistic_table(frames: dict[int, pd.DataFrame], phases: int, initial_value: float) -> pd.DataFrame:
     """Per (situation, case, variant): mean over seeds with 95% CI of the cells with V > 0 (all, calm, windy), the mean
-    calm V, the windy max and the overall max of V (``max_v``), the paired difference of positive cells with ER-sigma (same data and replays), and the
-    thesis's claim beside the pessimistic rows. Situations: after phase 1 and after phase `phases`.
+    calm V, the windy max and the overall max of V (``max_v``), the paired difference of positive cells with ER-sigma
+    (same data and replays), and the thesis's claim beside the pessimistic rows. Situations: after phase 1 and after
+    phase `phases`.
 
     :param frames: the runs' CSVs by seed.
     :param phases: the long replay's phases.
@@ -233,8 +234,8 @@ def _markdown(table: pd.DataFrame, phases: int) -> str:
             "—"
             if row["variant"] == "er_sigma"
             else (
-                f"{_format(row['minus_er_sigma'], row['minus_er_sigma_ci95'])} (fewer in {row['fewer_than_er_sigma']} of "
-                f"{row['seeds']})"
+                f"{_format(row['minus_er_sigma'], row['minus_er_sigma_ci95'])} "
+                f"(fewer in {row['fewer_than_er_sigma']} of {row['seeds']})"
             )
         )
         lines.append(
@@ -265,7 +266,7 @@ def _verdict(table: pd.DataFrame, largest_value: float) -> str:
             word = "no fewer positive cells than ER-σ"
         situation = "after 1 phase" if row.situation == "after_goal" else f"after {row.phase} phases"
         at = table[(table["situation"] == row.situation) & (table["case"] == row.case)]
-        grown = [label for label, value in zip(at["label"], at["max_v"]) if value > largest_value]
+        grown = [label for label, value in zip(at["label"], at["max_v"], strict=True) if value > largest_value]
         if grown:
             word += (
                 f" (mean max V above {largest_value:g} for {', '.join(grown)}: approximation errors that grow "
@@ -406,8 +407,8 @@ def reproduce_pessimistic(
         _verdict(table, largest_value),
         "",
         f"Why Q₀ = {initial_value:g}: with γ 0.98 every path that ends in the cliff returns exactly -50 "
-        "(-(1 − γᵏ)/(1 − γ) − 50 γᵏ), every other path more: -50 is the cliff's reward, the value of a certain fall and "
-        "the lowest true Q, so a Q starting there is as pessimistic as the task allows and only the goal lifts it.",
+        "(-(1 − γᵏ)/(1 − γ) − 50 γᵏ), every other path more: -50 is the cliff's reward, the value of a certain fall "
+        "and the lowest true Q, so a Q starting there is as pessimistic as the task allows and only the goal lifts it.",
         "",
         f"Grid-world reading (env arguments at run time): {env_reading(jobs)}.",
         "",
@@ -430,7 +431,7 @@ def _plot_positive_cells(frames: dict[int, pd.DataFrame], initial_value: float, 
     data = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
     cases = list(dict.fromkeys(data["case"]))
     figure, axes = plt.subplots(1, len(cases), figsize=(5.0 * len(cases), 3.8), squeeze=False)
-    for panel, case in zip(axes[0], cases):
+    for panel, case in zip(axes[0], cases, strict=True):
         for variant in VARIANTS:
             wide = (
                 data[(data["case"] == case) & (data["variant"] == variant)]

@@ -169,7 +169,7 @@ def plot_scores(scores: Mapping[str, np.ndarray], y_label: str, title: str, path
     :param path: the image file; its suffix gives the format.
     """
     figure, axes = plt.subplots(figsize=(7.0, 4.2))
-    for index, (label, values) in enumerate(scores.items()):
+    for index, values in enumerate(scores.values()):
         values = np.asarray(values, dtype=float).reshape(-1)
         if values.size == 0:
             continue

@@ -96,7 +96,8 @@ class EpisodeReturnProtocol(BaseCallback):
 
 
 class GreedyDistanceProtocol(BaseCallback):
-    """Every ``eval_interval`` seconds of learning time, walks ``n_runs`` greedy episodes and records their mean distance.
+    """Every ``eval_interval`` seconds of learning time, walks ``n_runs`` greedy episodes and records their mean
+    distance.
 
     This is the walking protocol: the simplest walker (thesis 4.2.2: every 100 s, 10 runs of 100 s) and LEO (4.2.3:
     every 200 s, one run of 25 s). Learning time is ``num_timesteps * dt``. The greedy runs use ``eval_envs`` (one
@@ -171,13 +172,13 @@ class GreedyDistanceProtocol(BaseCallback):
     def greedy_distances(self) -> np.ndarray:
         """Distance walked in one greedy episode of every evaluation environment, stepped as one batch."""
         seeds = self._seeds.integers(0, 2**31 - 1, size=len(self.eval_envs))
-        observations = np.stack([env.reset(seed=int(seed))[0] for env, seed in zip(self.eval_envs, seeds)])
+        observations = np.stack([env.reset(seed=int(seed))[0] for env, seed in zip(self.eval_envs, seeds, strict=True)])
         distances = np.zeros(len(self.eval_envs))
         running = np.ones(len(self.eval_envs), dtype=bool)
         while running.any():
             active = np.flatnonzero(running)
             actions, _ = self.model.predict(observations[active], deterministic=True)
-            for index, action in zip(active, actions):
+            for index, action in zip(active, actions, strict=True):
                 observation, _, terminated, truncated, info = self.eval_envs[index].step(action)
                 observations[index] = observation
                 distances[index] = info["distance"]

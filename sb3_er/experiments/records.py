@@ -31,8 +31,8 @@ made where the run ran (a worker process or a Ray worker on another machine) and
 ``code_sha256`` or any ``config`` field refuses. Runs of different commits with identical code (a commit that touched
 only the README, say) mix freely, so a long reproduction survives commits that leave the code alone. Records without
 ``code_sha256`` fall back to the commit: a different or unknown commit refuses, the same commit with different
-uncommitted changes warns. Different ``dependencies`` or Python versions warn. ``resolved``, ``host``, times and wall time are never compared: the resolved
-values follow from the config and the code, which are compared already.
+uncommitted changes warns. Different ``dependencies`` or Python versions warn. ``resolved``, ``host``, times and wall
+time are never compared: the resolved values follow from the config and the code, which are compared already.
 """
 
 from __future__ import annotations

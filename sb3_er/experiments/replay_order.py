@@ -287,8 +287,9 @@ def ranking(means: dict[str, float]) -> str:
 
 def replay_order_table(frames: dict[int, pd.DataFrame]) -> pd.DataFrame:
     """Per checkpoint: per order the mean greedy return over seeds with its 95% CI (diverged replays left out and
-    counted), how many greedy episodes reached the goal, the mean actual replayed updates, the paired differences between the orders (same database per seed)
-    with their 95% CI, our ranking and the thesis's finding. `frames` maps seeds to run frames.
+    counted), how many greedy episodes reached the goal, the mean actual replayed updates, the paired differences
+    between the orders (same database per seed) with their 95% CI, our ranking and the thesis's finding. `frames` maps
+    seeds to run frames.
 
     :param frames: the runs' frames by seed.
     """

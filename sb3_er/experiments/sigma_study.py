@@ -172,7 +172,7 @@ def verdict(table: pd.DataFrame) -> str:
     towards_best = [name for name in ("average", "average_best", "best") if name in set(scored["definition"])]
     if len(towards_best) >= 2:
         values = [float(scored[scored["definition"] == name]["score"].iloc[0]) for name in towards_best]
-        falling = all(later < earlier for earlier, later in zip(values, values[1:]))
+        falling = all(later < earlier for earlier, later in zip(values, values[1:], strict=True))
         text += f"From the average towards the best case ({' → '.join(towards_best)}) the score " + (
             "falls at every step, as in the thesis." if falling else "does not fall at every step."
         )

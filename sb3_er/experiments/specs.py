@@ -172,7 +172,7 @@ class Analysis(Experiment):
             raise KeyError(f"{self.name} has no setting {name!r}; it has {sorted(settings)}")
         return settings[name]
 
-    def with_settings(self, **settings) -> "Analysis":
+    def with_settings(self, **settings) -> Analysis:
         """A copy with `settings` replacing those of the same name; ``protocol`` names all of them."""
         import dataclasses
 

@@ -50,7 +50,7 @@ class Curves:
     def n_runs(self) -> int:
         return len(self.seeds) + len(self.diverged_seeds) + len(self.out_of_bounds_seeds)
 
-    def including_out_of_bounds(self) -> "Curves":
+    def including_out_of_bounds(self) -> Curves:
         """These curves with the runs whose values left the possible returns averaged in."""
         seeds = tuple(sorted(self.seeds + self.out_of_bounds_seeds))
         return Curves(
@@ -331,7 +331,8 @@ def markdown_table(experiment: Experiment, table: pd.DataFrame) -> str:
     :param table: the table of :func:`summary_table`.
     """
     lines = [
-        "| Algorithm | Metric | Average (ours, ± 95% CI) | Difference with Sarsa(λ) | Thesis average | Thesis difference |",
+        "| Algorithm | Metric | Average (ours, ± 95% CI) | Difference with Sarsa(λ) | Thesis average "
+        "| Thesis difference |",
         "|---|---|---|---|---|---|",
     ]
     previous = None

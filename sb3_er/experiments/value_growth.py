@@ -3,7 +3,8 @@ the simplest walker and the pendulum (the page ``docs/value_growth.md``; figures
 
 Three tools, all on the public API (a TileQ model, its TrajectoryReplayBuffer, ``model.replay``):
 
-1. **Figure 5.6's self-affecting sample** (:func:`self_affecting_model`, :func:`replay_values`): one hand-made transition
+1. **Figure 5.6's self-affecting sample** (:func:`self_affecting_model`, :func:`replay_values`): one hand-made
+transition
    (s, a, r, s') whose s' shares ``shared`` of the N tiles of s, stored in a model's buffer and replayed alone, and its
    closed form (:func:`closed_form`). Per replay, with f = shared / N, step alpha on Q, discount gamma and the residual
    factor zeta (0 without): Q(s, a) moves by p alpha delta and the bootstrap value at s' by q alpha delta, so that
