@@ -106,6 +106,28 @@ def test_algorithm_pages_list_every_parameter(built):
         assert re.search(rf"\b{name}\b", text), name
 
 
+@pytest.mark.slow
+def test_each_algorithm_page_shows_the_whole_signature(built):
+    """The class heading of every algorithm's page names each parameter with its default, as ``help()`` does."""
+    from sb3_er.zoo import algorithm_classes
+
+    for cls in algorithm_classes().values():
+        pages = [p for p in (built / "algorithms").glob("*.html") if f'id="sb3_er.{cls.__name__}"' in p.read_text()]
+        assert pages, f"no algorithm page documents sb3_er.{cls.__name__}"
+        source = pages[0].read_text(encoding="utf-8")
+        start = source.index(f'id="sb3_er.{cls.__name__}"')
+        heading = page_text_of(source[start : source.index("</dt>", start)])
+        for parameter in inspect.signature(cls).parameters.values():
+            shown = f"{parameter.name}={parameter.default!r}"
+            assert re.sub(r"\s+", "", shown) in re.sub(r"\s+", "", heading), f"{cls.__name__}'s heading lacks {shown}"
+
+
+def page_text_of(markup: str) -> str:
+    """The text of an HTML fragment, as :func:`page_text` reads a page."""
+    text = html.unescape(re.sub(r"<[^>]+>", "", markup))
+    return text.translate(str.maketrans("\u2018\u2019\u201c\u201d", "''\"\""))
+
+
 def inventory_objects(objects_inv: Path, roles: tuple[str, ...]) -> list[str]:
     """The names of the objects of `roles` (e.g. ``"py:function"``) in a Sphinx ``objects.inv`` (version 2: four
     header lines, then zlib-compressed lines ``name domain:role priority uri display-name``)."""

@@ -120,7 +120,10 @@ class FlattenSuiteObservation(gym.wrappers.FlattenObservation):
     """Gymnasium's ``FlattenObservation`` of a dm_control suite task, declaring the suite's ``reward_bounds`` to the
     value watch (:data:`DM_CONTROL_REWARD_BOUNDS`), which would otherwise bound the values by the rewards observed
     so far: near zero for the many steps before a swing-up task first pays, so that possible values would be
-    reported as impossible."""
+    reported as impossible.
+
+    :param env: a dm_control suite task with a Dict observation of Box arrays (shimmy's ``dm_control/`` ids).
+    """
 
     reward_bounds = DM_CONTROL_REWARD_BOUNDS
 
