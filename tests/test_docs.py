@@ -81,6 +81,28 @@ def test_every_results_folder_is_shown_by_a_page(built):
                 ), f"{figure} is not on any page"
 
 
+#: How a results folder names the command that made it: an ``sb3-er`` command or a script of benchmarks/.
+COMMAND = re.compile(r"\bsb3-er (?:reproduce|train|enjoy|optimize) |\bpython (?:\S*/)?(benchmarks/[\w/]+\.py)")
+
+
+def test_results_folders_hold_data_and_name_the_command_that_made_them():
+    """Scripts live in benchmarks/ or the package, not beside their data; each folder's Markdown (its README.md,
+    READING.md, VERSIONS.md or generated summary) or its page's "Reproduce with" names the command, and every
+    benchmarks/ script named exists."""
+    measured = ROOT / "results" / "measured"
+    code = sorted(p.relative_to(ROOT).as_posix() for p in measured.rglob("*") if p.suffix in (".py", ".sh", ".ipynb"))
+    assert not code, f"scripts in the data folders (move them to benchmarks/ or sb3_er.experiments): {code}"
+    for folder in generator.result_dirs():
+        texts = [path.read_text(encoding="utf-8") for path in (measured / folder).glob("*.md")]
+        if folder in generator.THESIS_RESULTS:
+            texts.append(generator.THESIS_RESULTS[folder].command + " ")
+        commands = [match for text in texts for match in COMMAND.finditer(text)]
+        assert commands, f"results/measured/{folder} names no command that made it: give it a README.md saying which"
+        for match in commands:
+            if match.group(1):
+                assert (ROOT / match.group(1)).is_file(), f"results/measured/{folder} names {match.group(1)}, missing"
+
+
 @pytest.mark.slow
 def test_the_cli_reference_is_generated_from_the_parser_tree(built):
     text = page_text(built / "cli.html")
