@@ -20,6 +20,7 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinxarg.ext",
     "sb3er_docs",
+    "sb3er_benchmarks",
 ]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
