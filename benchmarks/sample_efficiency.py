@@ -35,7 +35,8 @@ target (None: never reached), the final return (mean of ``final_episodes`` greed
 reset with seed 1000 + seed; on the walker the distances of greedy 100 s runs), whether it diverged (DivergenceError)
 and where, the value watch's count of values outside the possible returns and the largest excursion beyond them
 (``model.largest_excursion`` where the class has it, else None), learn CPU and wall seconds, peak memory, the package's
-code version, and on the thesis's tasks their rise time, end performance and falls.
+code version, the worker's whole CPU time (imports and evaluations included, for planning), and on the thesis's tasks
+their rise time, end performance and falls.
 
 The summary (printed after every invocation; ``--summarize`` also writes summary.md, summary.json and
 samples_to_target.png into ``--out``): per task and method, samples to the target as the median over seeds where a
@@ -340,20 +341,13 @@ def method_unavailable(method: str) -> str | None:
     return None
 
 
-def _action_kind(env_id: str) -> str:
-    """ "discrete" or "continuous": the kind of the env's action space."""
-    return "discrete" if env_id in ("CartPole-v1", "MountainCar-v0", "Acrobot-v1") else "continuous"
-
-
 def applies(method: str, task: Task) -> bool:
     """Whether `method` runs on `task`: sb3-er's classes on every task; a peer where rl-zoo has tuned settings of it
-    for the env id (DQN for discrete actions, SAC for continuous ones)."""
+    for the env id (rl-zoo's dqn.yml holds discrete-action envs only, its sac.yml continuous-action ones)."""
     class_name, _ = METHODS[method]
     if class_name not in PEER_CLASSES:
         return True
-    algo = PEER_CLASSES[class_name]
-    kind = "discrete" if algo == "dqn" else "continuous"
-    return _action_kind(task.env_id) == kind and task.env_id in peers.rl_zoo_env_ids(algo)
+    return task.env_id in peers.rl_zoo_env_ids(PEER_CLASSES[class_name])
 
 
 def model_kwargs(method: str, task: Task) -> dict[str, Any]:
@@ -508,6 +502,7 @@ def run_task(config: dict) -> dict:
         "learn_cpu_s": learn_cpu_s,
         "learn_wall_s": learn_wall_s,
         "eval_cpu_s": clock.eval_cpu,
+        "process_cpu_s": time.process_time(),  # the whole worker: imports, set-up, learning and evaluations
         "steps": int(model.num_timesteps),
         "episodes": int(episodes),
         "peak_rss_mb": peers.peak_rss_mb(),
