@@ -1232,9 +1232,15 @@ def benchmarks_entries(summary: dict) -> list[dict]:
     return entries
 
 
+#: Where the ratio figure puts a method that never reaches a target Sarsa(lambda) reaches (top), and one that reaches
+#: a target Sarsa(lambda) never reaches (bottom); a task neither reaches shows nothing.
+NEVER_RATIO, SARSA_NEVER_RATIO = 20.0, 0.03
+
+
 def plot_ratios(summary: dict, path: Path) -> Path:
     """samples_to_target.png: each method's median samples to the target over Sarsa(lambda)'s, task by task (log
-    scale); a method that never reaches it at the top, tasks where Sarsa(lambda) never does left out."""
+    scale); open markers at NEVER_RATIO for a method that never reaches a target Sarsa(lambda) reaches, at
+    SARSA_NEVER_RATIO for one that reaches a target Sarsa(lambda) never reaches."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -1245,31 +1251,38 @@ def plot_ratios(summary: dict, path: Path) -> Path:
     tasks = [env_id for env_id, methods in summary.items() if methods.get(REFERENCE, {}).get("applies")]
     methods = [m for m in METHODS if m != REFERENCE and any(summary[t].get(m, {}).get("applies") for t in tasks)]
     figure, axes = plt.subplots(figsize=(9.0, 4.6))
-    never = 20.0
     for index, method in enumerate(methods):
-        xs, ys, open_xs = [], [], []
+        filled, hollow = [], []
         for position, env_id in enumerate(tasks):
             ours, reference = summary[env_id].get(method, {}), summary[env_id][REFERENCE]
-            if not ours.get("applies") or reference["samples_to_target_infinite"]:
+            if not ours.get("applies"):
                 continue
-            offset = position + 0.08 * (index - (len(methods) - 1) / 2)
-            if ours["samples_to_target_infinite"]:
-                open_xs.append(offset)
-            else:
-                xs.append(offset)
-                ys.append(max(ours["samples_to_target"], 1e-9) / reference["samples_to_target"])
+            x = position + 0.08 * (index - (len(methods) - 1) / 2)
+            mine, theirs = _samples(ours), _samples(reference)
+            if math.isfinite(mine) and math.isfinite(theirs):
+                filled.append((x, max(mine, 1e-9) / theirs))
+            elif math.isfinite(theirs):
+                hollow.append((x, NEVER_RATIO))
+            elif math.isfinite(mine):
+                hollow.append((x, SARSA_NEVER_RATIO))
         marker = "osD^v<>ph*"[index % 10]
-        axes.scatter(xs, ys, marker=marker, color=f"C{index}", label=label(method), zorder=3)
-        axes.scatter(open_xs, [never] * len(open_xs), marker=marker, facecolors="none", edgecolors=f"C{index}")
+        axes.scatter(
+            *zip(*filled or [(None, None)], strict=True), marker=marker, color=f"C{index}", label=label(method)
+        )
+        axes.scatter(
+            *zip(*hollow or [(None, None)], strict=True), marker=marker, facecolors="none", edgecolors=f"C{index}"
+        )
     axes.axhline(1.0, color="grey", linewidth=1.0)
     axes.axhline(0.5, color="grey", linewidth=1.0, linestyle="--", label="half of Sarsa(λ)'s")
     axes.set_yscale("log")
-    axes.set_ylim(0.02, never * 1.6)
+    axes.set_ylim(SARSA_NEVER_RATIO / 1.6, NEVER_RATIO * 1.6)
     axes.set_xticks(range(len(tasks)))
     axes.set_xticklabels([env_id.split("/")[-1] for env_id in tasks], rotation=30, ha="right", fontsize="small")
     axes.set_ylabel("median samples to the target / Sarsa(λ)'s")
     axes.set_title(
-        f"Samples to the target against Sarsa(λ) (open markers at {never:g}: never reached)", fontsize="medium"
+        f"Samples to the target against Sarsa(λ); open markers: never reached (at {NEVER_RATIO:g}), or reached where "
+        f"Sarsa(λ) never did (at {SARSA_NEVER_RATIO:g})",
+        fontsize="small",
     )
     axes.grid(alpha=0.3, axis="y")
     axes.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.0, 1.0))

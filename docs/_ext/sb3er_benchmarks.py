@@ -62,7 +62,8 @@ def results_markdown(results: Path = RESULTS, relative_to: Path = DOCS / "benchm
             ":alt: each method's median samples to the target over Sarsa(λ)'s, task by task",
             "",
             "Each method's median samples to the target divided by Sarsa(λ)'s, task by task (log scale; below the "
-            "dashed line: at most half of Sarsa(λ)'s samples; open markers at the top: never reached).",
+            "dashed line: at most half of Sarsa(λ)'s samples; open markers at the top: never reached, at the "
+            "bottom: reached where Sarsa(λ) never did).",
             "```",
         ]
     return "\n".join(lines) + "\n"
