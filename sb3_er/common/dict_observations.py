@@ -127,6 +127,11 @@ class FlattenSuiteObservation(gym.wrappers.FlattenObservation):
 
     reward_bounds = DM_CONTROL_REWARD_BOUNDS
 
+    @property
+    def dict_observation_space(self) -> spaces.Dict:
+        """The Dict space it flattens (read by the model's key-order check, across processes too)."""
+        return self.env.observation_space
+
 
 def flatten_dict_observation(env: gym.Env) -> gym.Env:
     """``env`` with its Dict observation flattened by Gymnasium's ``FlattenObservation`` (for a ``dm_control/`` id,
@@ -168,3 +173,24 @@ def dict_vec_env_message(space: spaces.Dict) -> str:
         "gymnasium.wrappers.FlattenObservation (make_vec_env(..., wrapper_class=FlattenObservation), rl-zoo's "
         "`env_wrapper: gymnasium.wrappers.FlattenObservation`)"
     )
+
+
+def vec_observation_keys(vec_env) -> list[list[Any]] | None:
+    """``[[key, size], ...]`` of the Dict observation the (first) env of a VecEnv flattens (:func:`observation_keys`),
+    or None when it flattens none or it cannot be seen: a DummyVecEnv's env is read directly, envs in subprocesses
+    through their ``dict_observation_space`` attribute (:class:`FlattenSuiteObservation` has one).
+
+    :param vec_env: a VecEnv, possibly wrapped.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper
+
+    level = vec_env
+    while isinstance(level, VecEnvWrapper):
+        level = level.venv
+    if isinstance(level, DummyVecEnv):
+        space = flattened_dict_space(level.envs[0])
+    elif level.has_attr("dict_observation_space"):
+        space = level.get_attr("dict_observation_space", indices=0)[0]
+    else:
+        space = None
+    return None if space is None else observation_keys(space)
