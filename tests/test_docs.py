@@ -460,3 +460,74 @@ def test_the_readme_table_holds_the_default_readings_only(tmp_path):
         (measured / name / "findings.json").write_text(json.dumps({"findings": [{"claim": name, "holds": True}]}))
     assert [row[0] for row in generator.verdict_rows(measured)] == ["table_6_1", "table_6_1_earlier_default", "extra"]
     assert [row[0] for row in generator.verdict_rows(measured, defaults_only=True)] == ["table_6_1"]
+
+
+# --- the "Can I use?" tables are made from what the code accepts ---
+
+
+def table_cells(markdown: str) -> dict[tuple[str, str], str]:
+    """{(row, column): cell} of the "Can I use?" tables in `markdown` (the spaces table's action and observation
+    columns; the envs table's single column is called "use")."""
+    cells, columns = {}, None
+    for line in markdown.splitlines():
+        if not line.startswith("|") or set(line) <= set("|-"):
+            columns = None if not line.startswith("|") else columns
+            continue
+        row = [cell.strip() for cell in line.strip("|").split("|")]
+        if columns is None:
+            columns = ["use"] if row[0] == "env" else row[1:]
+            continue
+        cells.update({(row[0], column): cell for column, cell in zip(columns, row[1:], strict=True)})
+    return cells
+
+
+def test_each_algorithm_page_shows_the_generated_can_i_use_table():
+    from sb3_er import zoo
+
+    for name, algorithm in zoo.algorithm_classes().items():
+        text = (DOCS / "algorithms" / f"{name}.md").read_text(encoding="utf-8")
+        section = text.split("## Can I use?", 1)[1].split("\n## ", 1)[0]
+        assert f"```{{can-i-use}} {algorithm.__name__}\n```" in section, f"{name}.md does not generate its table"
+        assert not re.search(r"^\|", section, flags=re.MULTILINE), f"{name}.md has a hand-written table beside it"
+    assert "```{can-i-use}\n```" in (DOCS / "guide" / "own_env.md").read_text(encoding="utf-8")
+
+
+# What a refusal's message must name, per cell: the space's kind, or the set-up refused.
+REFUSAL_NAMES = {
+    "image (a Box of shape H × W × C)": "image",
+    "several envs at once (a VecEnv with `n_envs` > 1)": "multiple envs",
+    "a VecEnv of Dict observations": "FlattenObservation",
+    "`VecNormalize(norm_obs=True)`, rl-zoo's `normalize: true`": "normalises observations",
+}
+
+
+@pytest.mark.parametrize(
+    "name", ["sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma", "dyna", "fqi", "lspi"]
+)
+def test_the_can_i_use_table_says_what_each_algorithm_does(name):
+    """Every ✔️ of an algorithm's tables learns on an env of that kind and acts inside its action space; every ❌ is a
+    ValueError naming the space or set-up (never a crash deep inside)."""
+    import warnings
+
+    from sb3_er import zoo
+
+    algorithm = zoo.algorithm_classes()[name]
+    cells = table_cells(generator.can_i_use_table([algorithm.__name__]))
+    cases = generator.space_cases()
+    assert {(case.row, case.column) for case in cases} <= set(cells)
+    for case in cases:
+        cell, env = cells[case.row, case.column], case.make()
+        assert cell.startswith(("✔️", "❌")), cell
+        if cell.startswith("✔️"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                model = algorithm("TileQ", env, policy_kwargs=generator.PROBE_POLICY_KWARGS, seed=0).learn(30)
+            observations = model.get_env().reset()
+            actions, _ = model.predict(observations, deterministic=True)
+            assert len(actions) == model.get_env().num_envs
+            assert all(model.action_space.contains(action) for action in actions), (case.row, case.column, actions)
+        else:
+            expected = REFUSAL_NAMES.get(case.row, case.row)
+            with pytest.raises(ValueError, match=re.escape(expected)):
+                algorithm("TileQ", env, policy_kwargs=generator.PROBE_POLICY_KWARGS)
+        env.close()

@@ -30,6 +30,7 @@ import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 DOCS = Path(__file__).resolve().parents[1]
 ROOT = DOCS.parent
@@ -394,6 +395,222 @@ def update_readme(check: bool = False) -> bool:
     return True
 
 
+# --- "Can I use?": the spaces and envs each algorithm accepts, found by building it (never written by hand) ---
+
+
+@dataclass(frozen=True)
+class SpaceCase:
+    """One cell of an algorithm page's "Can I use?" tables: an env (or VecEnv) of one kind of space, which the
+    algorithm is built on; the cell says ✔️ when the constructor accepts it and ❌ when it refuses it."""
+
+    row: str
+    column: str  # "action" or "observation" (the spaces table), or "use" (the envs table)
+    make: Any  # () -> a Gymnasium env or a VecEnv
+    #: shown after ✔️ when accepted
+    note: str = ""
+    #: shown after ❌ when refused
+    refused_note: str = ""
+
+
+class _ProbeEnv:
+    """A tiny env of the given spaces (random observations, reward 0, 10 steps an episode): what an algorithm is
+    built on to find whether it takes those spaces. Made a ``gymnasium.Env`` subclass when first used, so that this
+    module imports no more than the standard library."""
+
+    _cls = None
+
+    @classmethod
+    def make(cls, observation_space, action_space):
+        if cls._cls is None:
+            import gymnasium as gym
+
+            class ProbeEnv(gym.Env):
+                def __init__(self, observation_space, action_space):
+                    self.observation_space, self.action_space = observation_space, action_space
+                    self._steps = 0
+
+                def reset(self, *, seed=None, options=None):
+                    super().reset(seed=seed)
+                    self.observation_space.seed(seed)
+                    self._steps = 0
+                    return self.observation_space.sample(), {}
+
+                def step(self, action):
+                    self._steps += 1
+                    return self.observation_space.sample(), 0.0, False, self._steps >= 10, {}
+
+            cls._cls = ProbeEnv
+        return cls._cls(observation_space, action_space)
+
+
+SPACE_ROWS = ("Discrete", "MultiDiscrete", "Box", "MultiBinary", "Dict", "image (a Box of shape H × W × C)")
+
+
+def space_cases() -> list[SpaceCase]:
+    """The cells of the "Can I use?" tables, each with the env it is probed on: every Gymnasium space kind as the
+    action space (observing a flat Box) and as the observation space (acting in Discrete(2)), then the env set-ups
+    (one env, several, a Dict observation in a VecEnv, observation normalisation)."""
+    import numpy as np
+    from gymnasium import spaces
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    flat = spaces.Box(0.0, 1.0, (2,), np.float32)
+    dict_space = spaces.Dict({"position": spaces.Box(0.0, 1.0, (2,)), "velocity": spaces.Box(-1.0, 1.0, (1,))})
+    actions = {
+        "Discrete": spaces.Discrete(3),
+        "MultiDiscrete": spaces.MultiDiscrete([2, 3]),
+        "Box": spaces.Box(-1.0, 1.0, (1,), np.float32),
+        "MultiBinary": spaces.MultiBinary(2),
+        "Dict": spaces.Dict({"a": spaces.Discrete(2)}),
+    }
+    observations = {
+        "Discrete": spaces.Discrete(5),
+        "MultiDiscrete": spaces.MultiDiscrete([2, 3]),
+        "Box": flat,
+        "MultiBinary": spaces.MultiBinary(2),
+        "Dict": dict_space,
+        SPACE_ROWS[-1]: spaces.Box(0, 255, (8, 8, 3), np.uint8),
+    }
+    action_notes = {
+        "MultiDiscrete": "flattened into one index",
+        "Box": "discretised into levels: {doc}`Continuous actions </continuous_actions>`",
+    }
+    observation_notes = {
+        "Box": "flat; each dimension bounded or given a tile width",
+        "Dict": "of Box arrays, flattened for you: {doc}`dm_control </envs/dm_control>`",
+    }
+    cases = [
+        SpaceCase(row, "action", lambda space=space: _ProbeEnv.make(flat, space), action_notes.get(row, ""))
+        for row, space in actions.items()
+    ]
+    cases += [
+        SpaceCase(
+            row,
+            "observation",
+            lambda space=space: _ProbeEnv.make(space, spaces.Discrete(2)),
+            observation_notes.get(row, ""),
+            "extract low-dimensional features first" if row == SPACE_ROWS[-1] else "",
+        )
+        for row, space in observations.items()
+    ]
+
+    def vec_env(n_envs, observation_space=flat):
+        return DummyVecEnv([lambda: _ProbeEnv.make(observation_space, spaces.Discrete(2))] * n_envs)
+
+    cases += [
+        SpaceCase("one env, or a VecEnv of one env (`DummyVecEnv`, `SubprocVecEnv`)", "use", lambda: vec_env(1)),
+        SpaceCase("several envs at once (a VecEnv with `n_envs` > 1)", "use", lambda: vec_env(2), "", "one at a time"),
+        SpaceCase(
+            "a VecEnv of Dict observations",
+            "use",
+            lambda: vec_env(1, dict_space),
+            "",
+            "flatten each env: `make_vec_env(..., wrapper_class=gymnasium.wrappers.FlattenObservation)`",
+        ),
+        SpaceCase(
+            "`VecNormalize` of rewards only (`norm_obs=False`)",
+            "use",
+            lambda: VecNormalize(vec_env(1), norm_obs=False),
+        ),
+        SpaceCase(
+            "`VecNormalize(norm_obs=True)`, rl-zoo's `normalize: true`",
+            "use",
+            lambda: VecNormalize(vec_env(1)),
+            "",
+            "tile widths are in the raw observation units",
+        ),
+    ]
+    return cases
+
+
+#: Tile coding small enough that probing every algorithm on every case takes a moment.
+PROBE_POLICY_KWARGS = {"n_tilings": 2, "memory_size": 2**10}
+
+
+def accepts(algorithm: type, case: SpaceCase) -> bool:
+    """Whether `algorithm`'s constructor takes the env of `case` (its own checks of spaces and wrappers decide)."""
+    import warnings
+
+    env = case.make()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            algorithm("TileQ", env, policy_kwargs=dict(PROBE_POLICY_KWARGS))
+    except Exception:  # noqa: BLE001  (any refusal is a ❌; tests/test_docs.py checks it is a clear ValueError)
+        return False
+    finally:
+        env.close()
+    return True
+
+
+_SUPPORT: dict[str, dict[tuple[str, str], bool]] = {}
+
+
+def space_support(algorithm: type) -> dict[tuple[str, str], bool]:
+    """{(row, column): accepted} of every case of :func:`space_cases` for `algorithm` (computed once per process)."""
+    if algorithm.__name__ not in _SUPPORT:
+        _SUPPORT[algorithm.__name__] = {(case.row, case.column): accepts(algorithm, case) for case in space_cases()}
+    return _SUPPORT[algorithm.__name__]
+
+
+def _algorithm_classes() -> dict[str, type]:
+    from sb3_er.zoo import algorithm_classes
+
+    return {cls.__name__: cls for cls in algorithm_classes().values()}
+
+
+def can_i_use_table(algorithm_names: list[str] | None = None) -> str:
+    """The "Can I use?" tables in Markdown for the classes named (e.g. ``["ERSigma"]``; None: every algorithm, each
+    cell ✔️ only where all of them accept it, and naming those that do where they differ)."""
+    classes = _algorithm_classes()
+    chosen = [classes[name] for name in algorithm_names] if algorithm_names else list(classes.values())
+    cases = {(case.row, case.column): case for case in space_cases()}
+
+    def cell(row: str, column: str) -> str:
+        case = cases.get((row, column))
+        if case is None:
+            return "—"
+        accepted = [cls.__name__ for cls in chosen if space_support(cls)[row, column]]
+        if len(accepted) == len(chosen):
+            return "✔️" + (f" ({case.note})" if case.note else "")
+        if accepted:
+            return f"✔️ for {', '.join(f'`{name}`' for name in accepted)} only"
+        return "❌" + (f" ({case.refused_note})" if case.refused_note else "")
+
+    who = f"`{chosen[0].__name__}`" if len(chosen) == 1 else "each algorithm"
+    lines = [
+        f"Found when these pages were built, by building {who} on a small env of each kind: ✔️ the constructor takes "
+        "it, ❌ it refuses it with an error naming the problem.",
+        "",
+        "| space | action | observation |",
+        "|---|---|---|",
+    ]
+    lines += [f"| {row} | {cell(row, 'action')} | {cell(row, 'observation')} |" for row in SPACE_ROWS]
+    lines += ["", "| env | |", "|---|---|"]
+    lines += [f"| {case.row} | {cell(case.row, 'use')} |" for case in cases.values() if case.column == "use"]
+    return "\n".join(lines) + "\n"
+
+
+def _can_i_use_directive():
+    """The ``{can-i-use}`` directive: ``{can-i-use} ERSigma`` renders :func:`can_i_use_table` (no argument: every
+    algorithm) at build time, so the tables say what the code accepts when the docs are built."""
+    from docutils import nodes
+    from docutils.parsers.rst import Directive
+    from docutils.statemachine import StringList
+
+    class CanIUse(Directive):
+        optional_arguments = 1
+        has_content = False
+
+        def run(self):
+            names = self.arguments[0].split(",") if self.arguments else None
+            container = nodes.container(classes=["can-i-use"])
+            self.state.nested_parse(StringList(can_i_use_table(names).splitlines()), self.content_offset, container)
+            return [container]
+
+    return CanIUse
+
+
 def _on_builder_inited(app) -> None:
     write_results_pages()
 
@@ -425,6 +642,7 @@ def setup(app):
 
     logging.getLogger("sphinx.sphinx.directives.other").addFilter(_drop_empty_glob_warnings)
     app.connect("builder-inited", _on_builder_inited)
+    app.add_directive("can-i-use", _can_i_use_directive())
     app.connect("autodoc-process-docstring", _plain_text_docstring)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
 
