@@ -531,3 +531,90 @@ def test_the_can_i_use_table_says_what_each_algorithm_does(name):
             with pytest.raises(ValueError, match=re.escape(expected)):
                 algorithm("TileQ", env, policy_kwargs=generator.PROBE_POLICY_KWARGS)
         env.close()
+
+
+# --- the results pages read as pages: titled sections, captioned figures in reading order, versions explained ---
+
+
+def test_a_code_line_says_what_its_version_is_without_commits():
+    line = "Code: sb3-er 0.1.0, code hash 2a9aefd586 (100 runs from commit a30c8a5 with uncommitted changes)."
+    shown = generator.code_version_line(line)
+    assert shown.startswith("Code: sb3-er 0.1.0, code hash `2a9aefd586` (100 runs).")
+    assert "a30c8a5" not in shown and "uncommitted" not in shown and "checksum of the package's source" in shown
+    older = (
+        "Code: sb3-er 0.1.0, commit bdfcc619bb (9 runs); sb3-er 0.1.0, commit b002fa0dbe (dirty) (3 runs). "
+        "**Mixed versions: the runs were made by different code.**"
+    )
+    shown = generator.code_version_line(older)
+    assert "two earlier code versions" in shown and "(9 and 3 runs)" in shown and "**Mixed versions" in shown
+    assert not HASH.findall(shown)
+    assert generator.code_version_line("Code: sb3-er 0.1.0, code 78f3f2a6a9 (1 runs; commit b964b46 (dirty)).") == (
+        f"Code: sb3-er 0.1.0, code hash `78f3f2a6a9` (1 run). {generator.CODE_VERSION_NOTE}"
+    )
+
+
+FIGURE = re.compile(r"```\{figure\} (\S+)\n:alt: [^\n]+\n\n([^\n]+)\n```")
+
+
+def test_every_results_page_has_titled_sections_and_captioned_figures_in_reading_order():
+    for name in generator.result_dirs():
+        page = generator.results_page(name)
+        headings = re.findall(r"^#+ (.+)$", page, flags=re.MULTILINE)
+        assert not [h for h in headings if re.search(r"\.(md|csv|txt)$", h)], f"{name}: a file name as a heading"
+        code_lines = [line for line in page.splitlines() if line.startswith("Code:")]
+        assert not [line for line in code_lines if "commit" in line], f"{name}: a summary's code line cites commits"
+        figures = FIGURE.findall(page)
+        shown = [p for p in (generator.MEASURED / name).rglob("*") if p.suffix in generator.FIGURE_SUFFIXES]
+        assert len(figures) == len([p for p in shown if "runs" not in p.relative_to(generator.MEASURED / name).parts])
+        for target, caption in figures:
+            words = caption.rsplit("(`", 1)[0]
+            assert len(words.split()) >= 5, f"{name}: {target} is captioned {caption!r}"
+        for folder in {Path(target).parent for target, _ in figures}:
+            order = [Path(target).stem for target, _ in figures if Path(target).parent == folder]
+            kinds = [
+                0
+                if stem == "learning_curves"
+                else 2
+                if stem.startswith("gait_")
+                else 3
+                if stem.startswith("walker_")
+                else 1
+                for stem in order
+            ]
+            assert kinds == sorted(kinds), f"{name}: figures out of reading order: {order}"
+
+
+def test_the_typical_runs_caption_names_the_runs_left_out_and_why():
+    """Table 6.2's seed-0 figure shows 3 of 5 algorithms: the caption names the other two, whose seed-0 records hold
+    a value that left the possible returns (read here from the records, not from the summary's code)."""
+    folder = generator.MEASURED / "table_6_2"
+    caption = generator.figure_caption(folder, folder / "typical_runs.png")
+    labels = {"sarsa_lambda": "Sarsa(λ)", "er": "vanilla-ER", "er_sigma": "ER-σ", "residual_er": "residual ER"}
+    labels["residual_er_sigma"] = "residual ER-σ"
+    left_out = [
+        algo for algo in labels if json.loads((folder / "runs" / algo / "seed_0.json").read_text())["value_excursion"]
+    ]
+    assert 0 < len(left_out) < len(labels)
+    not_shown = caption.split("not shown")[0]
+    for algo, label in labels.items():
+        named = re.search(rf"(?<![\w-]){re.escape(label)}(?![\w-])", not_shown) is not None
+        assert named == (algo in left_out), (algo, caption)
+    assert "left the possible returns" in caption
+
+
+def test_each_walker_animation_says_who_walks_after_how_long_and_how_far():
+    folder = generator.MEASURED / "table_6_2"
+    for algo, label in {"sarsa_lambda": "Sarsa(λ)", "er_sigma": "ER-σ"}.items():
+        caption = generator.figure_caption(folder, folder / f"walker_{algo}.gif")
+        rows = (folder / "runs" / algo / "seed_0.csv").read_text().splitlines()
+        last = dict(zip(rows[0].split(","), rows[-1].split(","), strict=True))
+        assert caption.startswith(f"{label} (seed 0) after {float(last['learning_time_s']):g} s of learning")
+        assert f"{float(last['distance']):.2f} m in 100 s" in caption
+
+
+def test_the_analyses_begin_with_a_sentence_and_link_elsewhere():
+    for path in sorted((DOCS / "_notes").glob("results_*.md")):
+        text = path.read_text(encoding="utf-8")
+        assert re.match(r"[A-Z*`\[-]", text), f"{path.name} starts mid-sentence: {text[:40]!r}"
+        own = path.stem.removeprefix("results_")
+        assert f"]({own}.md)" not in text, f"{path.name} links to its own page"

@@ -211,13 +211,24 @@ def verdict_table(link, measured: Path = MEASURED, defaults_only: bool = False) 
 
 
 def _title(name: str) -> str:
+    """A results folder's title (:func:`_own_title`), with the folder's name added when another folder has the same."""
+    title = _own_title(name)
+    if sum(_own_title(other) == title for other in result_dirs()) > 1:
+        title += f" ({name.replace('_', ' ')})"
+    return title
+
+
+def _own_title(name: str) -> str:
+    """A results folder's title: the thesis result it reproduces, else the first heading of what says what the runs
+    are (READING.md, README.md), else of its summary, else its name."""
     if name in THESIS_RESULTS:
         return THESIS_RESULTS[name].title
-    summary = MEASURED / name / "summary.md"
-    if summary.is_file():
-        match = re.match(r"#\s+(.+)", summary.read_text(encoding="utf-8"))
-        if match:
-            return match.group(1).strip()
+    for file in ("READING.md", "README.md", "summary.md"):
+        path = MEASURED / name / file
+        if path.is_file():
+            match = re.match(r"#\s+(.+)", path.read_text(encoding="utf-8"))
+            if match:
+                return match.group(1).strip()
     return name.replace("_", " ").capitalize()
 
 
@@ -250,6 +261,353 @@ def shown_results_files(measured: Path = MEASURED) -> list[Path]:
     return files
 
 
+#: Section titles of a folder's Markdown files that have no heading of their own.
+FILE_TITLES = {"READING.md": "The reading", "VERSIONS.md": "Code versions", "README.md": "About these runs"}
+
+
+def _split_heading(text: str) -> tuple[str | None, str]:
+    """(the first line's ``# `` heading, the rest) of a Markdown text; (None, text) when it starts otherwise."""
+    match = re.match(r"#\s+(.+)\n?", text)
+    return (match.group(1).strip(), text[match.end() :]) if match else (None, text)
+
+
+def _shift_headings(text: str, offset: int) -> str:
+    """Markdown `text` with every heading outside code fences `offset` levels deeper."""
+    lines, fenced = [], False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+        elif not fenced and re.match(r"#{1,6}\s", line):
+            line = "#" * offset + line
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def _top_level_split(text: str, separator: str = "; ") -> list[str]:
+    """`text` split at `separator` outside parentheses."""
+    parts, depth, current, index = [], 0, "", 0
+    while index < len(text):
+        if depth == 0 and text.startswith(separator, index):
+            parts.append(current)
+            current, index = "", index + len(separator)
+            continue
+        depth += {"(": 1, ")": -1}.get(text[index], 0)
+        current += text[index]
+        index += 1
+    return [*parts, current]
+
+
+CODE_VERSION_NOTE = (
+    "The code hash is a checksum of the package's source files: runs with the same hash were made by the same code. "
+    "Each run's record (`runs/<algorithm>/seed_<n>.json`) holds it, with the version of the repository the run was "
+    "made from."
+)
+RECORD_NOTE = (
+    "Each run's record (`runs/<algorithm>/seed_<n>.json`) names the version of the repository it was made from."
+)
+NUMBER_WORDS = {2: "two", 3: "three", 4: "four", 5: "five"}
+
+
+def code_version_line(line: str) -> str:
+    """A summary's ``Code: ...`` line (``sb3_er.experiments.records.code_versions_line``, or an older form) as a reader
+    can take it: each code version with its code hash and number of runs, the repository's commits left to the
+    run records, and a sentence saying what the hash is. A line it cannot read becomes that sentence alone."""
+    body = line.removeprefix("Code:").strip()
+    warning = ""
+    if "**" in body:
+        body, _, rest = body.partition("**")
+        warning = " **" + rest.strip()
+    hashed, earlier, unknown = [], [], []
+    for part in _top_level_split(body.strip().rstrip(".")):
+        part = part.strip()
+        runs = re.search(r"(\d+) runs?\b", part)
+        count = int(runs.group(1)) if runs else 0
+        match = re.match(r"(sb3-er \S+), (?:code hash |code )([0-9a-f]{6,})\b", part)
+        if match:
+            hashed.append(f"{match.group(1)}, code hash `{match.group(2)[:10]}` ({count} run{'s' * (count != 1)})")
+        elif re.match(r"sb3-er \S+, (?:commit|code of commit) ", part):
+            earlier.append(count)
+        elif part.startswith("unknown version"):
+            unknown.append(count)
+    versions = list(hashed)
+    if earlier:
+        counts = _listed([str(count) for count in earlier])
+        versions.append(
+            "an earlier code version, from before runs recorded a code hash"
+            if len(earlier) == 1
+            else f"{NUMBER_WORDS.get(len(earlier), len(earlier))} earlier code versions, from before runs recorded a "
+            f"code hash"
+        )
+        versions[-1] += f" ({counts} runs)"
+    if unknown:
+        versions.append(f"an unknown version ({sum(unknown)} runs without a record)")
+    if not versions:
+        return RECORD_NOTE
+    note = CODE_VERSION_NOTE if hashed else RECORD_NOTE
+    return f"Code: {'; '.join(versions)}.{warning} {note}"
+
+
+def _shown_markdown(path: Path, offset: int) -> str:
+    """A committed Markdown file's text as its page shows it: headings `offset` levels deeper, ``Code:`` lines
+    explained (:func:`code_version_line`)."""
+    lines = [
+        code_version_line(line) if line.startswith("Code: ") else line
+        for line in path.read_text(encoding="utf-8").splitlines()
+    ]
+    return _shift_headings("\n".join(lines), offset).strip() + "\n"
+
+
+def section_label(name: str, sub_folder: Path) -> str:
+    """The label of the section of results folder `name`'s sub-folder (its summary), e.g.
+    ``results-walker_screens-actions3``: a note links there with ``{ref}`3 actions <results-walker_screens-actions3>```.
+    """
+    return "-".join(["results", name, *sub_folder.parts])
+
+
+def _markdown_sections(folder: Path, paths: list[Path]) -> list[str]:
+    """The page's sections of the folder's other Markdown files (sub-folder summaries, READING.md, VERSIONS.md, ...):
+    each titled by its own first heading, else by what the file is."""
+    lines = []
+    for path in paths:
+        where = path.relative_to(folder).as_posix()
+        heading, body = _split_heading(path.read_text(encoding="utf-8"))
+        title = heading or FILE_TITLES.get(path.name, path.stem.replace("_", " ").capitalize())
+        if path.name == "summary.md":  # a sub-folder's summary: a label for links to it, `results-<dir>-<sub-folder>`
+            lines += [f"({section_label(folder.name, path.parent.relative_to(folder))})="]
+        lines += [f"## {title}", "", f"From `{where}`.", ""]
+        shown = "\n".join(
+            code_version_line(line) if line.startswith("Code: ") else line for line in body.strip().splitlines()
+        )
+        lines += [_shift_headings(shown, 1), ""]
+    return lines
+
+
+# --- figures: in reading order, each with a caption saying what it shows ---
+
+#: The order of a folder's figures: the learning curves first, then falls, typical runs, the folder's own figures,
+#: gaits and animations.
+FIGURE_ORDER = ("learning_curves", "cumulative_falls", "typical_runs", "", "gait_", "walker_")
+
+#: Captions of figures made once (by a benchmark or an analysis), by file name.
+FIGURE_CAPTIONS = {
+    "value_maps_after_goal.png": "Value maps V = max_a Q of the windy cliff right after the first goal, one panel per "
+    "algorithm and case, all learning from the same data and the same replays (thesis Figures 5.2-5.7).",
+    "value_maps_long_replay.png": "Value maps V = max_a Q of the windy cliff after long replay, one panel per "
+    "algorithm and case, all learning from the same data and the same replays (thesis Figures 5.2-5.7).",
+    "value_maps_pessimistic_after_goal.png": "Value maps with a pessimistic initial Q, right after the first goal "
+    "(thesis Figure 5.5).",
+    "value_maps_pessimistic_long_replay.png": "Value maps with a pessimistic initial Q, after long replay (thesis "
+    "Figure 5.5).",
+    "positive_cells.png": "Cells of the windy cliff with V > 0 against replay phases: mean and 95 % confidence "
+    "interval per case.",
+    "replay_orders.png": "Replay orders on the same Sarsa(λ) databases (thesis Figure A.1): performance against "
+    "replayed updates, mean and 95 % confidence interval over seeds.",
+    "sigma_scores.png": "ER-σ with each definition of σ (thesis Figure B.1): scores with their 95 % confidence "
+    "intervals.",
+    "curves.png": "Greedy return (of 1,000) against steps on each dm_control task, one line per run; dashed: random "
+    "torques.",
+    "figure_5_6.png": "Thesis Figure 5.6: one self-affecting sample (4 tilings; s' shares 3 tiles of s) replayed "
+    "alone: Q(s_k, a_k) against replays for each variant; dotted: the closed form.",
+    "limit_vs_shared_tiles.png": "The limit of Q(s_k, a_k) when one sample is replayed again and again, against the "
+    "tiles s_k shares with s_{k+1} (16 tilings), for each variant.",
+}
+
+
+def _figure_key(folder: Path, path: Path) -> tuple:
+    """Sort key of a figure: its sub-folder, then :data:`FIGURE_ORDER`, then the thesis's order of algorithms."""
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    stem = path.stem
+    kind = next(
+        (i for i, prefix in enumerate(FIGURE_ORDER) if prefix and (stem == prefix or stem.startswith(prefix))),
+        FIGURE_ORDER.index(""),
+    )
+    algo = stem.split("_", 1)[1] if kind >= FIGURE_ORDER.index("gait_") else ""
+    order = list(ALGORITHM_LABELS).index(algo) if algo in ALGORITHM_LABELS else len(ALGORITHM_LABELS)
+    return (path.parent.relative_to(folder).parts, kind, order, path.name)
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return {}
+
+
+def _figure_seed(directory: Path) -> int | None:
+    """The seed of a folder's one-seed figures (typical runs, gaits, animations): the first seed of its runs."""
+    seeds = [
+        int(match.group(1))
+        for p in directory.glob("runs/*/seed_*.csv")
+        if (match := re.fullmatch(r"seed_(\d+)", p.stem))
+    ]
+    return min(seeds) if seeds else None
+
+
+def _excluded_runs(directory: Path, seed: int) -> dict[str, str]:
+    """{algorithm: why} for each algorithm of `directory` whose run of `seed` is left out of the averages (and so of
+    the typical-runs figure), by the summary's own rule (:func:`sb3_er.experiments.summary.load_curves`)."""
+    from sb3_er.experiments.specs import EXPERIMENTS
+    from sb3_er.experiments.summary import load_curves
+
+    experiment = EXPERIMENTS.get(_read_json(directory / "settings.json").get("experiment", ""))
+    if experiment is None:
+        return {}
+    excluded = {}
+    for algo_dir in sorted(p for p in (directory / "runs").iterdir() if p.is_dir()):
+        if not (algo_dir / f"seed_{seed}.csv").is_file():
+            continue
+        curves = load_curves(experiment, directory, algo_dir.name, [seed])
+        if curves is None or seed in curves.seeds:
+            continue
+        if seed in curves.diverged_seeds:
+            excluded[algo_dir.name] = "the weights diverged"
+        elif seed in curves.out_of_bounds_seeds:
+            excluded[algo_dir.name] = "the values left the possible returns"
+        else:
+            excluded[algo_dir.name] = "it is left out of the averages"
+    return excluded
+
+
+def _listed(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
+def _typical_runs_caption(directory: Path) -> str:
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    seed = _figure_seed(directory)
+    if seed is None:
+        return "Typical runs: one seed's learning curve per algorithm."
+    caption = f"Typical runs: the learning curve of seed {seed} of each algorithm."
+    excluded = _excluded_runs(directory, seed)
+    if excluded:
+        one = len(excluded) == 1
+        names = _listed([ALGORITHM_LABELS.get(algo, algo) for algo in excluded])
+        why = "; ".join(
+            f"{_listed([ALGORITHM_LABELS.get(a, a) for a, w in excluded.items() if w == reason])}: {reason}"
+            for reason in dict.fromkeys(excluded.values())
+        )
+        caption += (
+            f" {names} {'is' if one else 'are'} not shown: {'its' if one else 'their'} seed-{seed} "
+            f"run{'' if one else 's'} {'is' if one else 'are'} left out of the averages, as the table leaves out "
+            f"every such run ({why})."
+        )
+    return caption
+
+
+def gif_caption(gif: Path) -> str:
+    """What a walker animation shows, from the run that made it: the algorithm, the seed, how long it learned, and how
+    far its greedy policy walked (in the animation's walk when the run's ``gait.csv`` records it, and in the run's
+    final evaluation).
+
+    :param gif: a results folder's ``walker_<algo>.gif`` (a copy of its first seed's
+        ``runs/<algo>/seed_<n>_walker.gif``).
+    """
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    algo = gif.stem.removeprefix("walker_")
+    label = ALGORITHM_LABELS.get(algo, algo)
+    data = gif.read_bytes()
+    sources = [p for p in sorted((gif.parent / "runs" / algo).glob("seed_*_walker.gif")) if p.read_bytes() == data]
+    if not sources:
+        return f"{label}'s greedy policy after learning, walking from Garcia's fixed point."
+    source = sources[0]
+    seed = source.name.removesuffix("_walker.gif").removeprefix("seed_")
+    run_csv, gait_csv = source.with_name(f"seed_{seed}.csv"), source.with_name(f"seed_{seed}_gait.csv")
+    import csv
+
+    with run_csv.open(encoding="utf-8", newline="") as handle:
+        last = list(csv.DictReader(handle))[-1]
+    with gait_csv.open(encoding="utf-8", newline="") as handle:
+        gait = list(csv.DictReader(handle))
+    record = _read_json(run_csv.with_suffix(".json"))
+    walk = float(gait[-1]["time"])
+    fell = gait[-1].get("fell") == "True"
+    caption = (
+        f"{label} (seed {seed}) after {float(last['learning_time_s']):g} s of learning: its greedy policy walking "
+        f"{walk:g} s from Garcia's fixed point"
+    )
+    if "distance" in gait[-1]:
+        caption += f", {float(gait[-1]['distance']):.2f} m"
+    caption += f", {'and falling' if fell else 'without a fall'}."
+    runs = record.get("config", {}).get("protocol", {}).get("eval_runs")
+    seconds = record.get("resolved", {}).get("env", {}).get("episode_seconds")
+    if "distance" in last and runs and seconds:
+        caption += (
+            f" In the run's last evaluation it walked {float(last['distance']):.2f} m in {seconds:g} s (the mean of "
+            f"{runs} greedy runs)."
+        )
+    return caption
+
+
+def figure_caption(folder: Path, path: Path) -> str:
+    """The caption of a figure of results folder `folder`: what it shows, by kind (learning curves, falls, typical
+    runs, gaits, animations) or by name (:data:`FIGURE_CAPTIONS`)."""
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    stem = path.stem
+    if path.name in FIGURE_CAPTIONS:
+        return FIGURE_CAPTIONS[path.name]
+    if stem == "learning_curves":
+        return (
+            "Learning curves: each algorithm's mean over its averaged runs (n in the legend), with the 95 % "
+            "confidence interval of the mean shaded."
+        )
+    if stem == "cumulative_falls":
+        return "Falls while learning, summed from the start: each algorithm's mean with its 95 % confidence interval."
+    if stem == "typical_runs":
+        return _typical_runs_caption(path.parent)
+    if stem.startswith("gait_"):
+        algo = stem.removeprefix("gait_")
+        seed = _figure_seed(path.parent)
+        return (
+            f"The gait of {ALGORITHM_LABELS.get(algo, algo)}'s greedy policy after learning"
+            + (f" (seed {seed})" if seed is not None else "")
+            + ": stance-leg angle, hip angle and swing-foot height as it walks from Garcia's fixed point (thesis "
+            "Figures 4.6 and 6.3)."
+        )
+    if stem.startswith("walker_") and path.suffix == ".gif":
+        return gif_caption(path)
+    if stem.endswith("_values"):
+        return (
+            f"{stem.removesuffix('_values').replace('_', ' ').capitalize()}: the largest Q(s_t, a_t) over the stored "
+            "transitions and σ's mean excess over Q against steps, each line one seed."
+        )
+    return stem.replace("_", " ").capitalize() + "."
+
+
+def _figure_sections(folder: Path) -> list[str]:
+    figures = sorted(
+        (p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES and "runs" not in p.relative_to(folder).parts),
+        key=lambda p: _figure_key(folder, p),
+    )
+    if not figures:
+        return []
+    lines = ["## Figures", ""]
+    current = None
+    for path in figures:
+        directory = path.parent.relative_to(folder)
+        if directory.parts and directory != current:
+            heading, _ = _split_heading(
+                (path.parent / "summary.md").read_text(encoding="utf-8")
+                if (path.parent / "summary.md").is_file()
+                else ""
+            )
+            lines += [f"### {heading or directory.as_posix()}", ""]
+        current = directory
+        where = path.relative_to(folder).as_posix()
+        lines += [
+            f"```{{figure}} {_relative(path)}",
+            f":alt: {figure_caption(folder, path).split(':')[0].split('.')[0]}",
+            "",
+            f"{figure_caption(folder, path)} (`{where}`)",
+            "```",
+            "",
+        ]
+    return lines
+
+
 def results_page(name: str) -> str:
     """The Markdown page of ``results/measured/<name>``."""
     folder = MEASURED / name
@@ -274,33 +632,30 @@ def results_page(name: str) -> str:
     markdown = _shown(folder, (".md",))
     summaries = [p for p in markdown if p == folder / "summary.md"]
     others = [p for p in markdown if p not in summaries]
-
-    def include(path: Path, heading: str) -> list[str]:
-        return [f"## {heading}", "", "```{include} " + _relative(path), ":heading-offset: 2", "```", ""]
-
     for path in summaries:
-        lines += include(path, "Summary")
+        lines += ["## Summary", "", _shown_markdown(path, 2), ""]
     if notes.is_file():
         lines += ["## Analysis", "", "```{include} " + _relative(notes), "```", ""]
-    for path in others:
-        lines += include(path, path.relative_to(folder).as_posix())
+    lines += _markdown_sections(folder, others)
     texts = _shown(folder, TEXT_SUFFIXES)
     for path in texts:
-        lines += [f"## {path.relative_to(folder).as_posix()}", "", "```{literalinclude} " + _relative(path), "```", ""]
+        where = path.relative_to(folder).as_posix()
+        title = "Printout" if len(texts) == 1 else f"Printout of {path.stem.replace('_', ' ')}"
+        lines += [f"## {title}", "", f"From `{where}`.", "", "```{literalinclude} " + _relative(path), "```", ""]
     for path in _csv_summaries(folder):
-        lines += [f"## {path.name}", "", csv_table(path), ""]
-    figures = sorted(
-        p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES and "runs" not in p.relative_to(folder).parts
-    )
-    if figures:
-        lines += ["## Figures", ""]
-        for path in figures:
-            where = path.relative_to(folder).as_posix()
-            lines += [f"`{where}`", "", f"![{where}]({_relative(path)})", ""]
+        lines += ["## Table of runs", "", f"From `{path.name}`.", "", csv_table(path), ""]
+    figures = _figure_sections(folder)
+    lines += figures
     if not (markdown or texts or figures or _csv_summaries(folder)):
         tables = sorted(p.relative_to(folder).as_posix() for p in folder.glob("*.csv"))
         lines += ["This folder holds run data only: " + ", ".join(f"`{t}`" for t in tables or ["runs/"]) + ".", ""]
-    return "\n".join(lines)
+    text = "\n".join(lines)
+    for note in (CODE_VERSION_NOTE, RECORD_NOTE):  # what a code hash and a record are: said once a page
+        first = text.find(note)
+        if first >= 0:
+            end = first + len(note)
+            text = text[:end] + text[end:].replace(" " + note, "")
+    return text
 
 
 def _figure(cell: str) -> str:
@@ -339,6 +694,10 @@ def results_index() -> str:
         "Each thesis finding, judged on the committed runs (from each folder's `findings.json`).",
         "",
         verdict_table(lambda name: f"{name}.md"),
+        "",
+        "## Every results folder",
+        "",
+        "One page per folder of `results/measured/`: the thesis's tables above, the readings, screens and benchmarks.",
         "",
         "```{toctree}",
         ":maxdepth: 1",
