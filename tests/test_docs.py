@@ -533,6 +533,88 @@ def test_the_can_i_use_table_says_what_each_algorithm_does(name):
         env.close()
 
 
+# --- the built site's links: no link to nowhere, no missing page, file or anchor ---
+
+
+def _links_and_ids(text: str) -> tuple[list[str], set[str]]:
+    """(the href and src values, the ids and names) of an HTML text."""
+    from html.parser import HTMLParser
+
+    class Collector(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.links, self.ids = [], set()
+
+        def handle_starttag(self, tag, attrs):
+            for name, value in attrs:
+                if name in ("href", "src") and value is not None and not (tag == "link" and name == "href"):
+                    self.links.append(value)
+                if name == "id" or (tag == "a" and name == "name"):
+                    self.ids.add(value)
+
+    collector = Collector()
+    collector.feed(text)
+    return collector.links, collector.ids
+
+
+def dead_links(site: Path) -> list[str]:
+    """Every link of the pages' text (the theme's navigation, which marks the current page with ``href="#"``, left
+    out) that goes nowhere: ``href="#"``, a local file that is missing, or an anchor its page lacks."""
+    from urllib.parse import unquote, urlsplit
+
+    ids: dict[Path, set[str]] = {}
+
+    def ids_of(page: Path) -> set[str]:
+        if page not in ids:
+            ids[page] = _links_and_ids(page.read_text(encoding="utf-8"))[1]
+        return ids[page]
+
+    problems = []
+    for page in sorted(site.rglob("*.html")):
+        text = page.read_text(encoding="utf-8")
+        body = text.split('<div itemprop="articleBody">', 1)[-1].split("<footer", 1)[0]
+        for link in _links_and_ids(body)[0]:
+            where = f"{page.relative_to(site)}: {link!r}"
+            parts = urlsplit(link)
+            if parts.scheme or link.startswith("//"):
+                continue  # an address on the web, not checked offline
+            if link in ("#", ""):
+                problems.append(f"{where} links to nothing")
+                continue
+            target = (page.parent / unquote(parts.path)).resolve() if parts.path else page
+            if target.is_dir():
+                target = target / "index.html"
+            if not target.is_file():
+                problems.append(f"{where}: {target} does not exist")
+            elif parts.fragment and target.suffix == ".html" and unquote(parts.fragment) not in ids_of(target):
+                problems.append(f"{where}: {target.name} has no anchor #{parts.fragment}")
+    return problems
+
+
+def test_the_link_check_finds_each_kind_of_dead_link(tmp_path):
+    nav = '<nav><a href="#">this page</a></nav>'
+    body = (
+        '<div itemprop="articleBody"><h1 id="top">T</h1><a href="#">self</a> <a href="b.html">b</a> '
+        '<a href="missing.html">m</a> <a href="b.html#there">anchor</a> <a href="b.html#nowhere">lost</a> '
+        '<a href="#top">top</a> <img src="_images/x.png"> <img src="_images/gone.png"> '
+        '<a href="https://example.org/">web</a></div><footer><a href="#">up</a></footer>'
+    )
+    (tmp_path / "a.html").write_text(nav + body)
+    (tmp_path / "b.html").write_text('<div itemprop="articleBody"><p id="there">b</p></div>')
+    (tmp_path / "_images").mkdir()
+    (tmp_path / "_images" / "x.png").write_bytes(b"")
+    problems = dead_links(tmp_path)
+    assert len(problems) == 4, problems
+    assert "'#' links to nothing" in problems[0] and "missing.html does not exist" in problems[1]
+    assert "no anchor #nowhere" in problems[2] and "gone.png does not exist" in problems[3]
+
+
+@pytest.mark.slow
+def test_the_built_site_has_no_dead_links(built):
+    problems = dead_links(built)
+    assert not problems, f"{len(problems)} dead links, e.g.:\n" + "\n".join(problems[:20])
+
+
 # --- the results pages read as pages: titled sections, captioned figures in reading order, versions explained ---
 
 
