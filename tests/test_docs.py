@@ -377,7 +377,13 @@ def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file(
     for path in [ROOT / "README.md", *hand_written_pages()]:
         name = path.relative_to(ROOT).as_posix()
         allowed = NOT_MEASURED.get(name, {})
-        text = path.read_text(encoding="utf-8")
+        # the README's "Which algorithm?" block is generated from the results files (its own test keeps it current)
+        text = re.sub(
+            re.escape(generator.WHICH_START) + ".*?" + re.escape(generator.WHICH_END),
+            "",
+            path.read_text(encoding="utf-8"),
+            flags=re.DOTALL,
+        )
         folders = named_folders(text)
         if path.parent == DOCS / "_notes" and path.stem.startswith("results_"):
             folders.add(path.stem.removeprefix("results_"))
@@ -700,3 +706,71 @@ def test_the_analyses_begin_with_a_sentence_and_link_elsewhere():
         assert re.match(r"[A-Z*`\[-]", text), f"{path.name} starts mid-sentence: {text[:40]!r}"
         own = path.stem.removeprefix("results_")
         assert f"]({own}.md)" not in text, f"{path.name} links to its own page"
+
+
+# --- "Which algorithm?": generated from the committed benchmarks ---
+
+SUMMARY_CSV = (
+    "algorithm,metric,average,ci95,average_text,difference_with_sarsa_lambda,thesis_average,thesis_difference,seeds\n"
+    "Sarsa(λ),Rise time [s],1500.0,,1500,-,1500,-,20\n"
+    "Sarsa(λ),End performance,10.0,0.5,10.0 ± 0.50,-,11.7,-,20\n"
+    "Sarsa(λ),Falls,58.5,17.1,58.5 ± 17.1,-,74,-,20\n"
+    "Sarsa(λ),Runs whose values left the possible returns,0.0,,0 of 20,—,—,—,20\n"
+    "vanilla-ER,Rise time [s],3300.0,,3300,+120 %,3400,+127 %,20\n"
+    "vanilla-ER,End performance,8.9,0.4,8.90 ± 0.40,-11 %,11.7,+0 %,20\n"
+    "vanilla-ER,Falls,151,55.7,151 ± 55.7,+158 %,150,+103 %,20\n"
+    "vanilla-ER,Runs whose values left the possible returns,0.0,,0 of 20,—,—,—,20\n"
+    "ER-σ,Rise time [s],900.0,,900,-40 %,500,-67 %,7\n"
+    "ER-σ,End performance,12.0,0.2,12.0 ± 0.20,+20 %,11.5,-2 %,7\n"
+    "ER-σ,Falls,40,5,40.0 ± 5.00,-31 %,44,-41 %,7\n"
+    "ER-σ,Runs whose values left the possible returns,13.0,,13 of 20,—,—,—,7\n"
+)
+
+
+def test_which_algorithm_ranks_only_learners_with_enough_averaged_runs(tmp_path):
+    """Sarsa(λ) ends best of the ranked (10.0 ± 0.5); vanilla-ER's [8.5, 9.3] misses Sarsa(λ)'s [9.5, 10.5]; ER-σ
+    ends higher still but has 7 of 20 runs averaged (fewer than half), so it is not ranked, and the row says why."""
+    (tmp_path / "table_6_2").mkdir()
+    (tmp_path / "table_6_2" / "summary.csv").write_text(SUMMARY_CSV, encoding="utf-8")
+    (benchmark,), source = generator.which_algorithm_benchmarks(tmp_path)
+    assert "thesis's tables" in source
+    assert [score.algorithm for score in generator.picks(benchmark)] == ["sarsa_lambda"]
+    text = generator.which_algorithm(lambda folder, file: f"{folder}/{file}", tmp_path)
+    row = next(line for line in text.splitlines() if "simplest walker" in line)
+    assert "| Sarsa(λ) |" in row and "[summary](table_6_2/summary.md)" in row
+    assert "ER-σ (values left the possible returns in 13 of 20 runs)" in row
+    assert "soonest (rise time): Sarsa(λ), 1500 s" in row  # ER-σ's 900 s is not ranked
+    assert "In short: Sarsa(λ) is the pick, or one of the picks, on 1 of these 1 tasks" in text
+
+
+def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committed(tmp_path):
+    (tmp_path / "table_6_2").mkdir()
+    (tmp_path / "table_6_2" / "summary.csv").write_text(SUMMARY_CSV, encoding="utf-8")
+    (tmp_path / "sample_efficiency").mkdir()
+    summary = {
+        "benchmarks": [
+            {
+                "task": "balancing",
+                "metric": "steps to a return of 475",
+                "higher_is_better": False,
+                "files": ["summary.md", "cartpole.png"],
+                "scores": [
+                    {"algorithm": "sarsa_lambda", "mean": 30000, "ci95": 4000, "runs": 20, "text": "30,000"},
+                    {"algorithm": "er_sigma", "mean": 20000, "ci95": 3000, "runs": 20, "text": "20,000"},
+                    {"algorithm": "er", "mean": 25000, "ci95": 3000, "runs": 20, "text": "25,000"},
+                    {"algorithm": "residual_er", "mean": 1000, "runs": 20, "averaged": 4, "left_out": "diverged"},
+                ],
+            }
+        ]
+    }
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
+    (benchmark,), source = generator.which_algorithm_benchmarks(tmp_path)  # the thesis's table is not used
+    assert "sample-efficiency" in source and benchmark.folder == "sample_efficiency"
+    # lower is better: ER-σ's [17000, 23000] overlaps vanilla ER's [22000, 28000], not Sarsa(λ)'s [26000, 34000]
+    assert [score.algorithm for score in generator.picks(benchmark)] == ["er_sigma", "er"]
+    text = generator.which_algorithm(lambda folder, file: f"{folder}/{file}", tmp_path)
+    assert "| ER-σ or vanilla-ER |" in text and "residual ER (diverged)" in text
+    assert "[cartpole](sample_efficiency/cartpole.png)" in text
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps({"benchmarks": [{"task": "x"}]}))
+    with pytest.raises(generator.FindingsError, match="sample_efficiency/summary.json: benchmarks\\[0\\]"):
+        generator.which_algorithm_benchmarks(tmp_path)
