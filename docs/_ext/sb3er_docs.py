@@ -978,7 +978,7 @@ def can_i_use_table(algorithm_names: list[str] | None = None) -> str:
         "|---|---|---|",
     ]
     lines += [f"| {row} | {cell(row, 'action')} | {cell(row, 'observation')} |" for row in SPACE_ROWS]
-    lines += ["", "| env | |", "|---|---|"]
+    lines += ["", "| env | can I use it? |", "|---|---|"]
     lines += [f"| {case.row} | {cell(case.row, 'use')} |" for case in cases.values() if case.column == "use"]
     return "\n".join(lines) + "\n"
 
