@@ -248,6 +248,17 @@ class TileQAlgorithm(BaseAlgorithm):
                 f"{observation_space.shape}. Extract low-dimensional features first."
             )
 
+    def _get_policy_from_name(self, policy_name: str) -> type[BasePolicy]:
+        """SB3's lookup of a policy by name; a name sb3-er lacks (SB3's "MlpPolicy", "CnnPolicy") is a ValueError
+        naming the policy to use."""
+        if policy_name not in self.policy_aliases:
+            raise ValueError(
+                f"Policy {policy_name} unknown: sb3-er's algorithms learn a tile-coded linear Q-function, whose policy "
+                f'is "TileQ" (SB3\'s network policies do not apply), e.g. {type(self).__name__}("TileQ", env); '
+                f"policy_kwargs set its tile coding (see TileQPolicy)"
+            )
+        return super()._get_policy_from_name(policy_name)
+
     def _env_attribute(self, name: str) -> Any:
         """An optional attribute of the (first) env, None when absent. Probed with ``has_attr``: a SubprocVecEnv's
         ``get_attr`` of a missing attribute kills its worker."""

@@ -237,7 +237,8 @@ GAIT_SECONDS = 10.0
 
 def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
     """The data of a run's own figures, made where the run ran: for the simplest walker, the final greedy policy's
-    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` and an animation as ``walker.gif``.
+    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` (with the distance walked at each step)
+    and an animation of the same walk as ``walker.gif``.
 
     :param job: the run.
     :param model: the trained model.
@@ -259,6 +260,7 @@ def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
             "hip_angle": trace.hip_angle,
             "swing_foot_height": trace.swing_foot_height,
             "fell": trace.fell,
+            "distance": trace.distances,  # walked since the start, what the GIF's caption gives
         }
     )
     with tempfile.TemporaryDirectory() as folder:
