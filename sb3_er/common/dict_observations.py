@@ -16,6 +16,7 @@ are refused: tile coding needs the low-dimensional state.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 from typing import Any
@@ -39,12 +40,23 @@ def is_dm_control_id(env_id: Any) -> bool:
 
 
 def register_dm_control_envs() -> None:
-    """Register shimmy's ``dm_control/<domain>-<task>-v0`` ids with Gymnasium (by importing shimmy), once.
+    """Register shimmy's ``dm_control/<domain>-<task>-v0`` ids with Gymnasium (by importing shimmy), once, with
+    entry points that pickle (:class:`RegisteredEntryPoint`), so that a ``SubprocVecEnv`` worker can send an env's
+    ``spec`` back; and for subprocesses: a forkserver that starts afterwards imports
+    :mod:`sb3_er.common.register_dm_control` before it starts ``SubprocVecEnv`` workers (see
+    :mod:`sb3_er.common.env_ids`).
 
     Raises ModuleNotFoundError naming the ``dmc`` extra when shimmy or dm_control is missing.
     """
-    if "dm_control/cartpole-swingup-v0" in gym.registry:
-        return
+    if "dm_control/cartpole-swingup-v0" not in gym.registry:
+        _import_shimmy()
+    _make_entry_points_picklable()
+    from sb3_er_envs import preload_in_subprocesses
+
+    preload_in_subprocesses("sb3_er.common.register_dm_control")
+
+
+def _import_shimmy() -> None:
     try:
         if "dm_control" not in sys.modules:
             # dm_control picks its OpenGL backend once, at import: choose it as LEO does (sb3_er_envs.leo._gl), so that
@@ -72,13 +84,48 @@ def register_dm_control_envs() -> None:
         )
 
 
-def register_if_dm_control_id(env_id: Any) -> None:
-    """:func:`register_dm_control_envs` when ``env_id`` is a ``dm_control/`` id, else nothing.
+#: shimmy's own entry point of each ``dm_control/`` id, in this process (filled by register_dm_control_envs).
+_SHIMMY_ENTRY_POINTS: dict[str, Any] = {}
 
-    :param env_id: an env id, an env or None.
+
+class RegisteredEntryPoint:
+    """The entry point of a ``dm_control/`` id: shimmy's, called by the id.
+
+    shimmy registers its ids with functions defined inside its registering function, which cannot be pickled: a
+    ``SubprocVecEnv`` worker asked for such an env's ``spec`` (as a model asks, to look up the env's tiling) dies
+    sending it, and the VecEnv raises a bare ``EOFError``. This stand-in pickles as the id alone and, called in a
+    process that has not registered the ids yet, registers them first.
+
+    :param env_id: the ``dm_control/`` id.
     """
-    if is_dm_control_id(env_id):
-        register_dm_control_envs()
+
+    def __init__(self, env_id: str):
+        self.env_id = env_id
+
+    def __call__(self, **kwargs: Any) -> gym.Env:
+        if self.env_id not in _SHIMMY_ENTRY_POINTS:
+            register_dm_control_envs()
+        return _SHIMMY_ENTRY_POINTS[self.env_id](**kwargs)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, RegisteredEntryPoint) and other.env_id == self.env_id
+
+    def __hash__(self) -> int:
+        return hash((RegisteredEntryPoint, self.env_id))
+
+    def __repr__(self) -> str:
+        return f"RegisteredEntryPoint({self.env_id!r})"
+
+
+def _make_entry_points_picklable() -> None:
+    """Replace every ``dm_control/`` id's entry point that is not a string by a :class:`RegisteredEntryPoint`."""
+    for env_id, spec in list(gym.registry.items()):
+        if not env_id.startswith(DM_CONTROL_NAMESPACE + "/") or isinstance(
+            spec.entry_point, (str, RegisteredEntryPoint)
+        ):
+            continue
+        _SHIMMY_ENTRY_POINTS[env_id] = spec.entry_point
+        gym.registry[env_id] = dataclasses.replace(spec, entry_point=RegisteredEntryPoint(env_id))
 
 
 def observation_keys(space: spaces.Dict) -> list[list[Any]]:
