@@ -17,6 +17,7 @@ are refused: tile coding needs the low-dimensional state.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import sys
 from typing import Any
@@ -159,17 +160,61 @@ def check_flat_dict(space: spaces.Dict) -> None:
 
 
 #: Where the suite's rewards lie: every task's reward is in the unit interval, on terminating transitions too
-#: (Tassa et al. 2018, "DeepMind Control Suite", arXiv:1801.00690), so its returns lie in [0, 1 / (1 - gamma)].
+#: (Tassa et al. 2018, "DeepMind Control Suite", arXiv:1801.00690), so its returns lie in [0, 1 / (1 - gamma)]. Each
+#: domain's ``get_reward`` (dm_control/suite/<domain>.py) keeps to it: products and averages of ``rewards.tolerance``
+#: terms (each in [0, 1]) or 0/1 indicators. The exceptions are in :data:`DM_CONTROL_DOMAIN_REWARD_BOUNDS`.
 DM_CONTROL_REWARD_BOUNDS = {"step": (0.0, 1.0), "terminal": (0.0, 1.0)}
+
+#: The suite's domains whose rewards leave the unit interval. lqr's reward is 1 - (|q|^2 / 2 + 0.1 |u|^2 / 2)
+#: (dm_control/suite/lqr.py: a quadratic state and control cost subtracted from 1), at most 1 (at rest, no force) and
+#: unbounded below: its undamped springs and unlimited actuators bound neither the positions nor the forces.
+DM_CONTROL_DOMAIN_REWARD_BOUNDS = {"lqr": {"step": (-math.inf, 1.0), "terminal": (-math.inf, 1.0)}}
+
+
+def suite_task(env_id: Any) -> tuple[str, str] | None:
+    """``(domain, task)`` of a ``dm_control/<domain>-<task>-v0`` id of dm_control's suite (``suite.ALL_TASKS``), or
+    None for any other id (shimmy's locomotion and manipulation ids included). Imports dm_control's suite: call it
+    only for a ``dm_control/`` id.
+
+    :param env_id: an env id (a ``module:`` prefix allowed).
+    """
+    if not is_dm_control_id(env_id):
+        return None
+    name = env_id.rpartition(":")[2][len(DM_CONTROL_NAMESPACE) + 1 :]
+    name, _, version = name.rpartition("-v")
+    domain, _, task = name.partition("-")
+    from dm_control import suite
+
+    return (domain, task) if version.isdigit() and (domain, task) in suite.ALL_TASKS else None
+
+
+def dm_control_reward_bounds(env_id: Any) -> dict[str, tuple[float, float]] | None:
+    """The reward bounds of a suite task's id (:data:`DM_CONTROL_REWARD_BOUNDS`, or its domain's entry of
+    :data:`DM_CONTROL_DOMAIN_REWARD_BOUNDS`); None for an id outside dm_control's suite, whose rewards nothing
+    declares.
+
+    :param env_id: an env id.
+    """
+    task = suite_task(env_id)
+    if task is None:
+        return None
+    return DM_CONTROL_DOMAIN_REWARD_BOUNDS.get(task[0], DM_CONTROL_REWARD_BOUNDS)
 
 
 class FlattenSuiteObservation(gym.wrappers.FlattenObservation):
-    """Gymnasium's ``FlattenObservation`` of a dm_control suite task, declaring the suite's ``reward_bounds`` to the
-    value watch (:data:`DM_CONTROL_REWARD_BOUNDS`), which would otherwise bound the values by the rewards observed
+    """Gymnasium's ``FlattenObservation`` of a dm_control suite task, declaring the task's ``reward_bounds`` to the
+    value watch (:func:`dm_control_reward_bounds`), which would otherwise bound the values by the rewards observed
     so far: near zero for the many steps before a swing-up task first pays, so that possible values would be
-    reported as impossible."""
+    reported as impossible. An env outside the suite (or without a spec) declares nothing (``reward_bounds`` None).
 
-    reward_bounds = DM_CONTROL_REWARD_BOUNDS
+    rl-zoo's ``env_wrapper: sb3_er.common.dict_observations.FlattenSuiteObservation`` uses it for each env of a VecEnv.
+
+    :param env: a dm_control env made by its ``dm_control/`` id, with a Dict observation.
+    """
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self.reward_bounds = dm_control_reward_bounds(getattr(env.spec, "id", None))
 
 
 def flatten_dict_observation(env: gym.Env) -> gym.Env:
@@ -210,5 +255,6 @@ def dict_vec_env_message(space: spaces.Dict) -> str:
         f"Tile coding needs a flat Box observation, and this VecEnv observes a Dict {observation_keys(space)} "
         "([key, size] pairs). A single env is flattened for you; for a VecEnv, flatten each env with "
         "gymnasium.wrappers.FlattenObservation (make_vec_env(..., wrapper_class=FlattenObservation), rl-zoo's "
-        "`env_wrapper: gymnasium.wrappers.FlattenObservation`)"
+        "`env_wrapper: gymnasium.wrappers.FlattenObservation`); for a task of dm_control's suite, with "
+        "sb3_er.common.dict_observations.FlattenSuiteObservation, which also declares the task's reward bounds"
     )
