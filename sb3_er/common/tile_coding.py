@@ -24,8 +24,9 @@ MIN_DEFAULT_TILES_PER_DIMENSION = 2
 DEFAULT_CELL_BUDGET = 2**14
 #: sb3-er's tilings for known env ids (package data, shipped in the wheel).
 PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
-#: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
-PLACEHOLDER_BOUND = 1e30
+#: Observation bounds this large in magnitude are placeholders for "unbounded", not a range: +-float32 max, and MuJoCo's
+#: mjMAXVAL (1e10), its stand-in for "no limit".
+PLACEHOLDER_BOUND = 1e10
 
 WEIGHTS_PER_CACHE_LINE = 8  # float64 weights in a 64-byte cache line: a state tile's row starts on a line boundary
 
@@ -315,7 +316,7 @@ def default_tile_widths(
     ``tiles_per_dimension`` tiles per dimension if given; otherwise the generic rule,
     ``default_tiles_per_dimension(D, cell_budget)`` with D the number of non-constant dimensions (at most 10, at
     least 2 tiles each, ``cell_budget`` cells per tiling). Bounds that are infinite, or placeholders for infinity
-    (magnitude >= 1e30, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
+    (magnitude >= 1e10, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
     ValueError names them. A dimension whose bounds coincide (a constant) gets width 1, one tile for its only value.
 
     :param observation_space: a Box observation space with finite bounds.
@@ -336,7 +337,7 @@ def default_tile_widths(
     if unbounded.size:
         raise ValueError(
             f"Observation dimensions {unbounded.tolist()} are unbounded (bounds {low[unbounded].tolist()} to "
-            f"{high[unbounded].tolist()}; magnitudes of 1e30 or more, such as +-float32 max, count as unbounded) and "
+            f"{high[unbounded].tolist()}; magnitudes of 1e10 or more, such as +-float32 max, count as unbounded) and "
             "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
             "attribute"
         )
