@@ -30,6 +30,7 @@ from sb3_er.common.dict_observations import (
     flattened_dict_space,
     observation_keys,
 )
+from sb3_er.common.dm_control_tilings import tiling_for_env
 from sb3_er.common.env_ids import register_env_id
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
 from sb3_er.common.serialization import (
@@ -46,7 +47,6 @@ from sb3_er.common.tile_coding import (
     DEFAULT_CELL_BUDGET,
     default_tile_widths,
     default_tiles_per_dimension,
-    package_tilings,
     varying_dimensions,
 )
 from sb3_er.common.value_bounds import (
@@ -280,7 +280,8 @@ class TileQAlgorithm(BaseAlgorithm):
         """Explicit tile-coding settings, so that save/load rebuilds the same coder.
 
         Each setting comes from the first of: ``policy_kwargs``; the env's attribute of that name; sb3-er's tiling for
-        the env's id (``package_tilings()``: only when neither ``policy_kwargs`` (``tile_widths`` or
+        the env's id (``package_tilings()``, or for a task of dm_control's suite its domain's or a derived tiling:
+        ``dm_control_tilings.tiling_for_env``; only when neither ``policy_kwargs`` (``tile_widths`` or
         ``tiles_per_dimension``) nor the env give tile widths, and the observation has the entry's shape); for tile
         widths, the generic rule (``default_tile_widths``: ``tiles_per_dimension`` if given, else a cell budget per
         tiling). At ``verbose >= 1`` the tiling in use is printed with where it came from.
@@ -301,7 +302,7 @@ class TileQAlgorithm(BaseAlgorithm):
         if kwargs.get("tile_widths") is None and tiles_per_dimension is None:
             spec = self._env_attribute("spec")
             env_id = getattr(spec, "id", None)
-            entry = package_tilings().get(env_id) if isinstance(env_id, str) else None
+            entry = tiling_for_env(spec, self.action_space, kwargs)  # by id; dm_control's suite: by domain or derived
             shape = tuple(self.observation_space.shape)
             if entry is not None and tuple(entry["observation_shape"]) != shape:
                 notes.append(

@@ -23,6 +23,7 @@ import sys
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from gymnasium import spaces
 
 #: The namespace of shimmy's dm_control ids.
@@ -137,9 +138,26 @@ def observation_keys(space: spaces.Dict) -> list[list[Any]]:
     return [[key, int(spaces.flatdim(subspace))] for key, subspace in space.spaces.items()]
 
 
+#: A two-dimensional Dict entry of floats is an image when both its sides are at least this long.
+IMAGE_SIDE = 16
+
+
+def is_image(space: spaces.Box) -> bool:
+    """Whether a Box holds an image rather than state: three or more dimensions (height, width, channels), or two
+    dimensions of an integer dtype (a grayscale image) or with both sides of at least :data:`IMAGE_SIDE` pixels. A
+    small two-dimensional array of floats is state (manipulator's ``arm_pos``: the cos and sin of 8 joints, (8, 2)).
+
+    :param space: a Box space.
+    """
+    shape = space.shape
+    if len(shape) >= 3:
+        return True
+    return len(shape) == 2 and (np.issubdtype(space.dtype, np.integer) or min(shape) >= IMAGE_SIDE)
+
+
 def check_flat_dict(space: spaces.Dict) -> None:
-    """Refuse a Dict observation whose flattening tile coding cannot use: pixels (or any image or array of two or
-    more dimensions), nested Dicts and non-Box entries; a ValueError naming the key.
+    """Refuse a Dict observation whose flattening tile coding cannot use: pixels (an image, :func:`is_image`), nested
+    Dicts and non-Box entries; a ValueError naming the key. Arrays of state are flattened in C order.
 
     :param space: a Dict observation space.
     """
@@ -149,13 +167,12 @@ def check_flat_dict(space: spaces.Dict) -> None:
                 f"The observation's key {key!r} is a {type(subspace).__name__} space ({subspace}): "
                 "sb3-er flattens Dict observations of Box arrays only"
             )
-        if len(subspace.shape) >= 2:
-            kind = "pixels (an image)" if len(subspace.shape) == 3 else "an array"
+        if is_image(subspace):
             raise ValueError(
-                f"The observation's key {key!r} holds {kind} of shape {subspace.shape} ({subspace.dtype}): tile coding "
-                "needs low-dimensional state observations, and flattening it would make one tiled dimension per "
-                f"{'pixel' if len(subspace.shape) == 3 else 'entry'}. Use the task's state observations (dm_control's "
-                "suite without a pixels wrapper, shimmy's default) or extract low-dimensional features first"
+                f"The observation's key {key!r} holds pixels (an image) of shape {subspace.shape} ({subspace.dtype}): "
+                "tile coding needs low-dimensional state observations, and flattening it would make one tiled "
+                "dimension per pixel. Use the task's state observations (dm_control's suite without a pixels "
+                "wrapper, shimmy's default) or extract low-dimensional features first"
             )
 
 
