@@ -92,7 +92,7 @@ def tiling_for_env(spec: Any, action_space: spaces.Space, policy_kwargs: dict[st
     entry = _DERIVED[key]
     if entry.get("derived"):
         warnings.warn(_derived_message(env_id, entry), DerivedTilingWarning, stacklevel=2)
-    return {name: value for name, value in entry.items() if name != "derived"}
+    return copy.deepcopy({name: value for name, value in entry.items() if name != "derived"})  # the cache stays
 
 
 def _make(env_id: str, env_kwargs: dict[str, Any]) -> gym.Env:
