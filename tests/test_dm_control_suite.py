@@ -31,7 +31,7 @@ from sb3_er.common.dm_control_tilings import DerivedTilingWarning  # noqa: E402
 from sb3_er.common.tile_coding import package_tilings  # noqa: E402
 
 SMALL = dict(n_tilings=2, memory_size=2**12)
-SWEEP = Path(__file__).resolve().parents[1] / "benchmarks" / "dmc_suite_sweep.py"
+SWEEP = Path(__file__).resolve().parents[1] / "benchmarks" / "dmc_suite.py"
 
 
 def build(cls, env_id, **kwargs):
@@ -224,15 +224,17 @@ def test_a_suite_spec_pickles_and_makes_its_env_in_a_process_that_registered_not
 
 
 @pytest.mark.slow
-def test_every_task_of_the_suite_learns_or_is_refused_as_its_action_spec_says():
-    """benchmarks/dmc_suite_sweep.py over suite.ALL_TASKS (about a minute and a half): the tasks with up to 3
+def test_every_task_of_the_suite_learns_or_is_refused_as_its_action_spec_says(tmp_path):
+    """benchmarks/dmc_suite.py over suite.ALL_TASKS (about a minute and a half): the tasks with up to 3
     action dimensions, each with a control range, build, learn 1,000 steps, save, load and predict; the others raise
     the error naming action_bins (more than 3) or action_values (lqr's unlimited motors). The expectation here is
     counted from dm_control's own action specs."""
     from dm_control import suite
 
-    result = subprocess.run([sys.executable, str(SWEEP)], capture_output=True, text=True, timeout=1800)
+    command = [sys.executable, str(SWEEP), "--out", str(tmp_path)]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=1800)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert (tmp_path / "summary.md").read_text() == result.stdout  # the printed table, written at the end
     rows = {
         cells[0]: cells[3]
         for line in result.stdout.splitlines()

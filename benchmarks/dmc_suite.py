@@ -1,8 +1,8 @@
 """Every task of dm_control's suite by id: the ones a model can act on learn, save, load and predict; the others are
 refused with the error that says what to give.
 
-    python benchmarks/dmc_suite_sweep.py [--tasks cartpole-balance reacher-easy ...] [--algo er_sigma]
-        [--steps 1000] > results/measured/dmc_suite/sweep.md
+    python benchmarks/dmc_suite.py [--tasks cartpole-balance reacher-easy ...] [--algo er_sigma] [--steps 1000]
+        [--out results/measured/dmc_suite]
 
 For each task of ``dm_control.suite.ALL_TASKS`` (or ``--tasks``), the expectation comes from the task's action spec
 alone, read from dm_control and MuJoCo, not from sb3-er:
@@ -15,9 +15,10 @@ alone, read from dm_control and MuJoCo, not from sb3-er:
 - an actuator without a control range (MuJoCo reports ``mjMAXVAL`` as its bound: lqr's motors): a ValueError naming
   ``action_values``; the task then learns with explicit levels (-1, 0, 1 per dimension), shown as a second row.
 
-Each row says where the tiling came from (the id's shipped tiling, its domain's, or derived from a rollout) and the
-seconds the row took; the last lines count the outcomes and the whole sweep's time. The exit status is 1 when any
-task does not do what its action spec says.
+Each row says where the tiling came from (the id's shipped tiling, its domain's, or derived from a rollout), the
+values the learner may take and how many the value watch saw outside them, and the seconds the row took; the last
+lines count the outcomes and the whole sweep's time. The table is printed as it grows and written to
+``<out>/summary.md`` at the end. The exit status is 1 when any task does not do what its action spec says.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sb3_er import ValueBoundWarning  # noqa: E402
+from sb3_er.common.atomic import write_atomically  # noqa: E402
 from sb3_er.common.dict_observations import register_dm_control_envs  # noqa: E402
 from sb3_er.common.dm_control_tilings import DerivedTilingWarning  # noqa: E402
 from sb3_er.zoo import algorithm_classes  # noqa: E402
@@ -120,6 +122,7 @@ def main(argv=None) -> int:
     parser.add_argument("--tasks", nargs="+", default=None, help="domain-task names (default: suite.ALL_TASKS)")
     parser.add_argument("--algo", default="er_sigma", choices=sorted(algorithm_classes()))
     parser.add_argument("--steps", type=int, default=1_000)
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "results/measured/dmc_suite")
     args = parser.parse_args(argv)
     register_dm_control_envs()
     from dm_control import suite
@@ -128,10 +131,16 @@ def main(argv=None) -> int:
     from importlib.metadata import version
 
     versions = ", ".join(f"{name} {version(name)}" for name in ("sb3-er", "dm-control", "mujoco", "shimmy"))
-    print(f"## dm_control's suite by id: {args.algo}, {args.steps} steps, {len(tasks)} tasks\n")
-    print(f"`python benchmarks/dmc_suite_sweep.py --algo {args.algo} --steps {args.steps}`; {versions}.\n")
-    print("| task | action dims | expected | outcome | detail | s |")
-    print("|---|---:|---|---|---|---:|")
+    lines: list[str] = []
+
+    def emit(line: str = "") -> None:
+        lines.append(line)
+        print(line, flush=True)
+
+    emit(f"## dm_control's suite by id: {args.algo}, {args.steps} steps, {len(tasks)} tasks\n")
+    emit(f"`python benchmarks/dmc_suite.py --algo {args.algo} --steps {args.steps}`; {versions}.\n")
+    emit("| task | action dims | expected | outcome | detail | s |")
+    emit("|---|---:|---|---|---|---:|")
     start = time.perf_counter()
     counts: dict[str, int] = {}
     mismatches = []
@@ -146,17 +155,19 @@ def main(argv=None) -> int:
             began = time.perf_counter()
             levels = dict(action_values=[[-1.0, 0.0, 1.0]] * dims)
             outcome_levels, detail_levels = run(env_id, args.algo, args.steps, levels)
-            rows.append((f"{task} with action_values -1, 0, 1", "learns", outcome_levels, detail_levels, 0.0))
-            rows[-1] = (*rows[-1][:4], time.perf_counter() - began)
+            name = f"{task} with action_values -1, 0, 1"
+            rows.append((name, "learns", outcome_levels, detail_levels, time.perf_counter() - began))
         for name, want, got, text, seconds in rows:
             counts[got] = counts.get(got, 0) + 1
             if want != got:
                 mismatches.append(name)
-            print(f"| {name} | {dims} | {want} | {got} | {text.replace('|', '/')} | {seconds:.1f} |", flush=True)
+            emit(f"| {name} | {dims} | {want} | {got} | {text.replace('|', '/')} | {seconds:.1f} |")
     total = time.perf_counter() - start
-    print()
-    print(f"{len(tasks)} tasks in {total:.0f} s: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
-    print(f"mismatches with the action specs: {mismatches or 'none'}")
+    emit()
+    emit(f"{len(tasks)} tasks in {total:.0f} s: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    emit(f"mismatches with the action specs: {mismatches or 'none'}")
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_atomically(args.out / "summary.md", "\n".join(lines) + "\n")
     return 1 if mismatches else 0
 
 
