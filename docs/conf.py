@@ -32,7 +32,8 @@ suppress_warnings = ["myst.header"]
 
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
-autodoc_class_signature = "separated"
+# A class shows its constructor signature in its heading (SB3's pages do too): every parameter with its default.
+autodoc_class_signature = "mixed"
 autodoc_default_options = {"show-inheritance": True}
 
 html_theme = "sphinx_rtd_theme"

@@ -1,9 +1,9 @@
 """Dyna: direct RL plus planning on a learned model (Sutton 1991; thesis 3.4 and Alg. 3-5), on tile-coded Q."""
 
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import BufferedTileQAlgorithm, stored_transitions
@@ -188,7 +188,21 @@ class Dyna(BufferedTileQAlgorithm):
         model_radius: float = 1.0,
         model_refit_every: int = 500,
         buffer_size: int = 1_000_000,
-        **kwargs,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_lambda: float | None = None,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
     ):
         self.planning_steps = planning_steps
         self.target = target
@@ -198,7 +212,26 @@ class Dyna(BufferedTileQAlgorithm):
         self.model_refit_every = model_refit_every
         self.planning_updates = 0
         self.model_fits = 0
-        super().__init__(policy, env, buffer_size=buffer_size, **kwargs)
+        super().__init__(
+            policy,
+            env,
+            buffer_size=buffer_size,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_lambda=trace_lambda,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()

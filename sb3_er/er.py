@@ -3,7 +3,7 @@
 from typing import Any, Literal
 
 import numpy as np
-from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
 from sb3_er.common.base_class import TileQAlgorithm
@@ -117,7 +117,19 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         max_predecessors: int = 4,
         prioritized_updates: int | None = None,
         replay_buffer_kwargs: dict[str, Any] | None = None,
-        **kwargs,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
     ):
         self.buffer_size = buffer_size
         self.replay_trigger = replay_trigger
@@ -139,7 +151,24 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self.replay_updates = 0
         self.replay_phases = 0
         self.replay_buffer: TrajectoryReplayBuffer | None = None
-        super().__init__(policy, env, trace_lambda=online_lambda, **kwargs)
+        super().__init__(
+            policy,
+            env,
+            trace_lambda=online_lambda,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
     @property
     def online_lambda(self) -> float | None:
@@ -376,8 +405,75 @@ class ERSigma(ER):
         choice: halfway between the average and the worst case), "worst", "average", "best" or "average_best".
     """
 
-    def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", **kwargs):
-        super().__init__(policy, env, sigma=sigma, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
+        sigma: str = "average_worst",
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int = 100,
+        replays_per_stored_trajectory: float | None = None,
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        residual_zeta: float | None = None,
+        residual_action: Literal["taken", "next"] = "taken",
+        online_lambda: float | None = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            sigma=sigma,
+            buffer_size=buffer_size,
+            replay_trigger=replay_trigger,
+            replay_unit=replay_unit,
+            replay_every=replay_every,
+            n_replays=n_replays,
+            replays_per_stored_trajectory=replays_per_stored_trajectory,
+            replay_order=replay_order,
+            target=target,
+            residual_zeta=residual_zeta,
+            residual_action=residual_action,
+            online_lambda=online_lambda,
+            priority_threshold=priority_threshold,
+            predecessors=predecessors,
+            max_predecessors=max_predecessors,
+            prioritized_updates=prioritized_updates,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
 
 @inherit_parameters
@@ -391,8 +487,75 @@ class ResidualER(ER):
         ER, values between Baird's residual algorithm.
     """
 
-    def __init__(self, policy="TileQ", env=None, residual_zeta: float = 1.0, **kwargs):
-        super().__init__(policy, env, residual_zeta=residual_zeta, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
+        residual_zeta: float = 1.0,
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int = 100,
+        replays_per_stored_trajectory: float | None = None,
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        sigma: str | None = None,
+        residual_action: Literal["taken", "next"] = "taken",
+        online_lambda: float | None = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            residual_zeta=residual_zeta,
+            buffer_size=buffer_size,
+            replay_trigger=replay_trigger,
+            replay_unit=replay_unit,
+            replay_every=replay_every,
+            n_replays=n_replays,
+            replays_per_stored_trajectory=replays_per_stored_trajectory,
+            replay_order=replay_order,
+            target=target,
+            sigma=sigma,
+            residual_action=residual_action,
+            online_lambda=online_lambda,
+            priority_threshold=priority_threshold,
+            predecessors=predecessors,
+            max_predecessors=max_predecessors,
+            prioritized_updates=prioritized_updates,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
 
 @inherit_parameters
@@ -405,5 +568,72 @@ class ResidualERSigma(ER):
     :param residual_zeta: zeta of Eq. 5.9 in [0, 1]: 1 (default) is the thesis's residual gradient (Alg. 14).
     """
 
-    def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", residual_zeta: float = 1.0, **kwargs):
-        super().__init__(policy, env, sigma=sigma, residual_zeta=residual_zeta, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
+        sigma: str = "average_worst",
+        residual_zeta: float = 1.0,
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int = 100,
+        replays_per_stored_trajectory: float | None = None,
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        residual_action: Literal["taken", "next"] = "taken",
+        online_lambda: float | None = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            sigma=sigma,
+            residual_zeta=residual_zeta,
+            buffer_size=buffer_size,
+            replay_trigger=replay_trigger,
+            replay_unit=replay_unit,
+            replay_every=replay_every,
+            n_replays=n_replays,
+            replays_per_stored_trajectory=replays_per_stored_trajectory,
+            replay_order=replay_order,
+            target=target,
+            residual_action=residual_action,
+            online_lambda=online_lambda,
+            priority_threshold=priority_threshold,
+            predecessors=predecessors,
+            max_predecessors=max_predecessors,
+            prioritized_updates=prioritized_updates,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )

@@ -81,6 +81,28 @@ def test_every_results_folder_is_shown_by_a_page(built):
                 ), f"{figure} is not on any page"
 
 
+#: How a results folder names the command that made it: an ``sb3-er`` command or a script of benchmarks/.
+COMMAND = re.compile(r"\bsb3-er (?:reproduce|train|enjoy|optimize) |\bpython (?:\S*/)?(benchmarks/[\w/]+\.py)")
+
+
+def test_results_folders_hold_data_and_name_the_command_that_made_them():
+    """Scripts live in benchmarks/ or the package, not beside their data; each folder's Markdown (its README.md,
+    READING.md, VERSIONS.md or generated summary) or its page's "Reproduce with" names the command, and every
+    benchmarks/ script named exists."""
+    measured = ROOT / "results" / "measured"
+    code = sorted(p.relative_to(ROOT).as_posix() for p in measured.rglob("*") if p.suffix in (".py", ".sh", ".ipynb"))
+    assert not code, f"scripts in the data folders (move them to benchmarks/ or sb3_er.experiments): {code}"
+    for folder in generator.result_dirs():
+        texts = [path.read_text(encoding="utf-8") for path in (measured / folder).glob("*.md")]
+        if folder in generator.THESIS_RESULTS:
+            texts.append(generator.THESIS_RESULTS[folder].command + " ")
+        commands = [match for text in texts for match in COMMAND.finditer(text)]
+        assert commands, f"results/measured/{folder} names no command that made it: give it a README.md saying which"
+        for match in commands:
+            if match.group(1):
+                assert (ROOT / match.group(1)).is_file(), f"results/measured/{folder} names {match.group(1)}, missing"
+
+
 @pytest.mark.slow
 def test_the_cli_reference_is_generated_from_the_parser_tree(built):
     text = page_text(built / "cli.html")
@@ -104,6 +126,28 @@ def test_algorithm_pages_list_every_parameter(built):
         assert section in text
     for name in accepted_parameters(ERSigma):
         assert re.search(rf"\b{name}\b", text), name
+
+
+@pytest.mark.slow
+def test_each_algorithm_page_shows_the_whole_signature(built):
+    """The class heading of every algorithm's page names each parameter with its default, as ``help()`` does."""
+    from sb3_er.zoo import algorithm_classes
+
+    for cls in algorithm_classes().values():
+        pages = [p for p in (built / "algorithms").glob("*.html") if f'id="sb3_er.{cls.__name__}"' in p.read_text()]
+        assert pages, f"no algorithm page documents sb3_er.{cls.__name__}"
+        source = pages[0].read_text(encoding="utf-8")
+        start = source.index(f'id="sb3_er.{cls.__name__}"')
+        heading = page_text_of(source[start : source.index("</dt>", start)])
+        for parameter in inspect.signature(cls).parameters.values():
+            shown = f"{parameter.name}={parameter.default!r}"
+            assert re.sub(r"\s+", "", shown) in re.sub(r"\s+", "", heading), f"{cls.__name__}'s heading lacks {shown}"
+
+
+def page_text_of(markup: str) -> str:
+    """The text of an HTML fragment, as :func:`page_text` reads a page."""
+    text = html.unescape(re.sub(r"<[^>]+>", "", markup))
+    return text.translate(str.maketrans("\u2018\u2019\u201c\u201d", "''\"\""))
 
 
 def inventory_objects(objects_inv: Path, roles: tuple[str, ...]) -> list[str]:

@@ -115,7 +115,7 @@ class TileQAlgorithm(BaseAlgorithm):
     Pendulum-v1, MountainCarContinuous-v0), else finite observation bounds split into tiles by the generic rule
     (``default_tile_widths``).
 
-    :param policy: "TileQ" (default) or a TileQPolicy subclass.
+    :param policy: "TileQ" or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
         (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``). A single env with a Dict
         observation of Box arrays (dm_control's suite) is flattened with Gymnasium's ``FlattenObservation``. The
@@ -137,9 +137,10 @@ class TileQAlgorithm(BaseAlgorithm):
     :param value_bound_action: what a value beyond the bounds by more than 5 % of their width does: "warn" (once per
         run, a ValueBoundWarning naming the algorithm, the step, the value and the bound), "raise" (ValueBoundError)
         or "ignore" (only counted and logged). The first such value is kept in ``value_excursion``.
-    :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, default 16; ``tile_widths``; ``wrap_periods``;
-        ``memory_size``, default 2**22; ``action_values``; ``action_tile_widths``; ``initial_value``, default 0), plus
-        ``tiles_per_dimension`` for bounded observations; default None: the env's attributes and sb3-er's rules.
+    :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, 16 unless given; ``tile_widths``;
+        ``wrap_periods``; ``memory_size``, 2**22 unless given; ``action_values``; ``action_tile_widths``;
+        ``initial_value``, 0 unless given), plus ``tiles_per_dimension`` for bounded observations; None (default): the
+        env's attributes and sb3-er's rules.
     :param stats_window_size: episodes averaged in ``rollout/ep_rew_mean`` and ``rollout/ep_len_mean`` (SB3's, 100).
     :param tensorboard_log: folder of TensorBoard logs, or None for none (SB3's).
     :param verbose: 0 silent, 1 the tiling in use and SB3's training messages, 2 debug (SB3's).

@@ -226,7 +226,7 @@ class FlattenSuiteObservation(gym.wrappers.FlattenObservation):
 
     rl-zoo's ``env_wrapper: sb3_er.common.dict_observations.FlattenSuiteObservation`` uses it for each env of a VecEnv.
 
-    :param env: a dm_control env made by its ``dm_control/`` id, with a Dict observation.
+    :param env: a dm_control suite task with a Dict observation of Box arrays (shimmy's ``dm_control/`` ids).
     """
 
     def __init__(self, env: gym.Env):
