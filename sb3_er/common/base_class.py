@@ -274,6 +274,7 @@ class TileQAlgorithm(BaseAlgorithm):
             self.policy_kwargs,
             self._env_attribute,
             self.observation_space,
+            self.action_space,
             self.policy_class,
             dict_space=lambda: flattened_dict_space(envs[0]) if envs else None,
             verbose=self.verbose,

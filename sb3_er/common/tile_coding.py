@@ -25,8 +25,9 @@ MIN_DEFAULT_TILES_PER_DIMENSION = 2
 DEFAULT_CELL_BUDGET = 2**14
 #: sb3-er's tilings for known env ids (package data, shipped in the wheel).
 PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
-#: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
-PLACEHOLDER_BOUND = 1e30
+#: Observation bounds this large in magnitude are placeholders for "unbounded", not a range: +-float32 max, and MuJoCo's
+#: mjMAXVAL (1e10), its stand-in for "no limit".
+PLACEHOLDER_BOUND = 1e10
 
 WEIGHTS_PER_CACHE_LINE = 8  # float64 weights in a 64-byte cache line: a state tile's row starts on a line boundary
 
@@ -316,7 +317,7 @@ def default_tile_widths(
     ``tiles_per_dimension`` tiles per dimension if given; otherwise the generic rule,
     ``default_tiles_per_dimension(D, cell_budget)`` with D the number of non-constant dimensions (at most 10, at
     least 2 tiles each, ``cell_budget`` cells per tiling). Bounds that are infinite, or placeholders for infinity
-    (magnitude >= 1e30, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
+    (magnitude >= 1e10, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
     ValueError names them. A dimension whose bounds coincide (a constant) gets width 1, one tile for its only value.
 
     :param observation_space: a Box observation space with finite bounds.
@@ -337,7 +338,7 @@ def default_tile_widths(
     if unbounded.size:
         raise ValueError(
             f"Observation dimensions {unbounded.tolist()} are unbounded (bounds {low[unbounded].tolist()} to "
-            f"{high[unbounded].tolist()}; magnitudes of 1e30 or more, such as +-float32 max, count as unbounded) and "
+            f"{high[unbounded].tolist()}; magnitudes of 1e10 or more, such as +-float32 max, count as unbounded) and "
             "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
             "attribute"
         )
@@ -388,6 +389,7 @@ def resolve_tiling(
     policy_kwargs: dict[str, Any],
     env_attribute: Callable[[str], Any],
     observation_space: spaces.Box,
+    action_space: spaces.Space,
     policy_class: type,
     dict_space: Callable[[], spaces.Dict | None] = lambda: None,
     verbose: int = 0,
@@ -395,7 +397,8 @@ def resolve_tiling(
     """The tile-coding settings of a model, explicit, so that save/load rebuilds the same coder.
 
     Each setting comes from the first of: ``policy_kwargs``; the env's attribute of that name
-    (:data:`ENV_TILING_ATTRIBUTES`); sb3-er's tiling for the env's id (:func:`package_tilings`: only when neither
+    (:data:`ENV_TILING_ATTRIBUTES`); sb3-er's tiling for the env's id (:func:`package_tilings`, or for a task of
+    dm_control's suite its domain's or a derived tiling: ``dm_control_tilings.tiling_for_env``; only when neither
     ``policy_kwargs`` (``tile_widths`` or ``tiles_per_dimension``) nor the env give tile widths, and the observation
     has the entry's shape); for tile widths, the generic rule (:func:`default_tile_widths`: ``tiles_per_dimension`` if
     given, else a cell budget per tiling). At ``verbose >= 1`` the tiling in use is printed with where it came from.
@@ -403,6 +406,7 @@ def resolve_tiling(
     :param policy_kwargs: the model's policy_kwargs (``tiles_per_dimension`` is consumed here).
     :param env_attribute: an optional attribute of the (first) env by name, None when absent.
     :param observation_space: the (flat Box) observation space.
+    :param action_space: the action space (a derived dm_control tiling acts with its levels).
     :param policy_class: the policy class (for its default number of tilings, printed).
     :param dict_space: the Dict space the env flattens into its observation, None when out of reach: checked against
         the key order a package tiling assumes.
@@ -422,8 +426,11 @@ def resolve_tiling(
                 origins[name] = f"the env's {name} attribute"
     notes = []
     if kwargs.get("tile_widths") is None and tiles_per_dimension is None:
-        env_id = getattr(env_attribute("spec"), "id", None)
-        entry = package_tilings().get(env_id) if isinstance(env_id, str) else None
+        from sb3_er.common.dm_control_tilings import tiling_for_env  # it reads this module's package tilings
+
+        spec = env_attribute("spec")
+        env_id = getattr(spec, "id", None)
+        entry = tiling_for_env(spec, action_space, kwargs)  # by id; dm_control's suite: by domain or derived
         shape = tuple(observation_space.shape)
         if entry is not None and tuple(entry["observation_shape"]) != shape:
             notes.append(

@@ -169,15 +169,16 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     import gymnasium as gym
     import torch
 
-    import sb3_er_envs  # noqa: F401  (registers the environment ids)
     from sb3_er import DivergenceError
     from sb3_er.common.base_class import ValueBoundWarning
+    from sb3_er.common.env_ids import register_env_id
     from sb3_er.zoo import algorithm_classes
 
     torch.set_num_threads(1)
     start = time.perf_counter()
     code = records.code_version()  # the code this run starts with
     experiment = job.experiment
+    register_env_id(experiment.env_id)  # sb3_er/ (or dm_control/) ids, in this worker process
     last_reported = [-1.0]
     reports_to = [progress_queue]
 
@@ -330,8 +331,9 @@ def expected_rows(job: RunJob) -> int | None:
         return int(job.budget)
     import gymnasium as gym
 
-    import sb3_er_envs  # noqa: F401
+    from sb3_er.common.env_ids import register_env_id
 
+    register_env_id(experiment.env_id)
     env = gym.make(experiment.env_id, **dict(job.env_kwargs))
     dt = env.unwrapped.dt
     env.close()
