@@ -121,6 +121,7 @@ def self_affecting_model(
     residual_zeta: float = 1.0,
     memory_size: int = 2**16,
     value_bound_action: str = "ignore",
+    **model_kwargs,
 ) -> SelfAffectingSample:
     """Figure 5.6's example: a model of `variant` (a key of :data:`VARIANTS`) whose buffer holds one transition
     (s_k, a_k, r, s_{k+1}), s_{k+1} sharing `shared` of the `n_tilings` tiles of s_k, with the case's reward and
@@ -141,6 +142,7 @@ def self_affecting_model(
     :param residual_zeta: zeta of the residual variants (default 1).
     :param memory_size: the hashed weight table's size (default 2^16).
     :param value_bound_action: the value watch's action (default "ignore": values grow here on purpose).
+    :param model_kwargs: further keyword arguments of the model, e.g. the stabilizers (``truncate_targets=True``).
     """
     import sb3_er
 
@@ -166,6 +168,7 @@ def self_affecting_model(
         value_bound_action=value_bound_action,
         policy_kwargs={"n_tilings": n_tilings, "initial_value": values["q_next"], "memory_size": memory_size},
         **kwargs,
+        **model_kwargs,
     )
     coder = model.policy.tile_coder
     # Tiling k covers [j - k/N, j + 1 - k/N): s = c + 0.5/N and s' = s + (N - shared)/N cross the boundaries of
