@@ -40,3 +40,6 @@ autodoc_default_options = {"show-inheritance": True}
 html_theme = "sphinx_rtd_theme"
 html_title = f"sb3-er {release}"
 html_theme_options = {"navigation_depth": 3}
+# Wide tables wrap their cells instead of hiding columns (see _static/sb3er.css).
+html_static_path = ["_static"]
+html_css_files = ["sb3er.css"]

@@ -315,9 +315,7 @@ class Dyna(BufferedTileQAlgorithm):
         predicted = self.dynamics_model.predict(data.observations[rows], actions)
         next_observations, rewards, continuation, covered = predicted
         next_slots = np.zeros((queries, coder.n_tilings), dtype=np.int64)
-        kernels.batch_state_slots(
-            next_observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask, next_slots
-        )
+        kernels.batch_state_slots(next_observations, coder.layout, next_slots)
         self._plan_slots = np.ascontiguousarray(data.slots[rows])
         self._plan_next_slots = next_slots
         self._plan_actions = np.ascontiguousarray(actions, dtype=np.int64)
@@ -327,22 +325,16 @@ class Dyna(BufferedTileQAlgorithm):
         self._coverage_sums += (covered.sum(), queries)
         return self.dynamics_model
 
-    def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
-        self._store_transition(obs, action, reward, next_obs, terminated, done, info)
+    def _after_transition(self, env, slots, obs, action, reward, next_obs, terminated, done, info) -> None:
+        self._store_transition(env, slots, obs, action, reward, next_obs, terminated, done, info)
         self._added_since_fit += 1
         if self.planning_steps > 0 and self._plan_position + self.planning_steps > self._plan_actions.shape[0]:
             self.fit_model()
         start = self._plan_position
         count = min(self.planning_steps, self._plan_actions.shape[0] - start)
-        coder = self.policy.tile_coder
-        delta, updates, sum_abs_delta, status = kernels.dyna_step(
-            self.policy.theta_array,
-            self._slots,
-            action,
-            reward,
-            terminated,
-            next_obs,
-            self._next_slots,
+        # once per environment step: plain tuples (kernels.bundles)
+        transition = (slots, action, reward, terminated, next_obs, self._env_next_slots[env])
+        plan = (
             self._plan_slots,
             self._plan_actions,
             self._plan_rewards,
@@ -350,24 +342,23 @@ class Dyna(BufferedTileQAlgorithm):
             self._plan_next_slots,
             start,
             count,
-            *coder.kernel_arguments,
-            TARGETS[self.target],
-            self.current_learning_rate / coder.n_tilings,
-            self.gamma,
-            self.exploration_rate,
+        )
+        delta, updates, sum_abs_delta, status = kernels.dyna_step(
+            tuple(self._weights()),
+            self._plain_layout,
+            tuple(self._update_rule(target_kind=TARGETS[self.target])),
+            transition,
+            plan,
             self.action_rng,
-            self._q_scratch,
+            tuple(self._scratch),
             self._watch_array,
         )
         self._plan_position = start + count
         self.planning_updates += updates
-        if status == kernels.STATUS_BAD_OBSERVATION:
-            raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
-        if status == kernels.STATUS_DIVERGED:
-            where = "the direct update" if updates == 0 else f"planning update {updates}"
-            self._raise_divergence(delta, where)
-        if status == kernels.STATUS_OUT_OF_BOUNDS:
-            self._value_out_of_bounds("the direct or a planning update")
+        where = "the direct update" if updates == 0 else f"planning update {updates}"
+        self._check_status(
+            status, where if status == kernels.STATUS_DIVERGED else "the direct or a planning update", delta, next_obs
+        )
         self._td_error_sum += abs(delta) + sum_abs_delta
         self._td_error_count += 1 + updates
 
