@@ -19,24 +19,27 @@ budget, its target and how the target was chosen, and Sarsa(lambda)'s median sam
 results, of which the evaluation interval is at most a tenth.
 
 Methods (METHODS): a row is a class name and its keyword arguments, e.g. ``"er_sigma_stable": ("ERSigma", {"preset":
-"stable"})``. sb3-er's classes get nothing but the env id and their class defaults (``Algo("TileQ", env, seed=seed,
-**kwargs)``, sb3-er's tiling for the id); on the walker the ER classes replay as Table 6.2 runs them, after every
-footstep or fall (the task's ``replay_protocol``; a method's own kwargs win). A row whose class does not take its
+"stable"})``. sb3-er's classes get nothing but the env id, their class defaults and the row's arguments (``Algo("TileQ",
+env, seed=seed, **kwargs)``, sb3-er's tiling for the id; the literal ER rows name ``preset="thesis"``, so that they stay
+the thesis's algorithms whatever the default preset is); on the walker the ER classes replay as Table 6.2 runs them,
+after every footstep or fall (the task's ``replay_protocol``, which sets when to replay and leaves the volume to the
+preset; a method's own kwargs win). A row whose class does not take its
 arguments (a stable variant before its option exists) is left out, with the reason. SB3's ``DQN`` and ``SAC`` run
 with rl-zoo's tuned hyperparameters (read from the installed rl_zoo3 package by benchmarks/peers.py) on the tasks
 rl-zoo has settings for; other tasks say "no peer settings". Every method gets the task's budget (``--peer-budget
 rl-zoo`` gives the peers rl-zoo's ``n_timesteps`` instead, when smaller).
 
 Each (task, method, seed) runs in a fresh worker subprocess (``--jobs`` at a time, one thread each), so that its CPU
-seconds are its own; learn CPU and wall seconds leave out the evaluations. With ``--json FILE`` (default
-results/measured/sample_efficiency/runs.json) every finished run is written to FILE at once, atomically, and runs
-already in it (same task, method, seed and budget) are skipped. A run records its evaluation curve, samples to the
-target (None: never reached), the final return (mean of ``final_episodes`` greedy episodes after learning, on an env
-reset with seed 1000 + seed; on the walker the distances of greedy 100 s runs), whether it diverged (DivergenceError)
-and where, the value watch's count of values outside the possible returns and the largest excursion beyond them
-(``model.largest_excursion`` where the class has it, else None), learn CPU and wall seconds, peak memory, the package's
-code version, the worker's whole CPU time (imports and evaluations included, for planning), and on the thesis's tasks
-their rise time, end performance and falls.
+seconds are its own; learn CPU and wall seconds leave out the evaluations. Short untimed warm-up runs of every (task,
+sb3-er class) go first (``--no-warm-up`` skips them), so that no timed run pays for compiling numba's kernels. With
+``--json FILE`` (default results/measured/sample_efficiency/runs.json) every finished run is written to FILE at once,
+atomically, and runs already in it (same task, method, seed and budget) are skipped. A run records its evaluation curve,
+samples to the target (None: never reached), the final return (mean of ``final_episodes`` greedy episodes after
+learning, on an env reset with seed 1000 + seed; on the walker the distances of greedy 100 s runs), whether it diverged
+(DivergenceError) and where, the value watch's count of values outside the possible returns and the largest excursion
+beyond them (``model.largest_excursion`` where the class has it, else None), learn CPU and wall seconds, peak memory,
+the package's code version, the worker's whole CPU time (imports and evaluations included, for planning), and on the
+thesis's tasks their rise time, end performance and falls.
 
 The summary (printed after every invocation; ``--summarize`` also writes summary.md, summary.json and
 samples_to_target.png into ``--out``): per task and method, samples to the target as the median over seeds where a
@@ -290,13 +293,14 @@ target (tests/test_sample_efficiency.py recomputes those from the committed file
 #: tuned hyperparameters. A row runs only where its class takes every keyword (method_unavailable).
 METHODS: dict[str, tuple[str, dict[str, Any]]] = {
     "sarsa_lambda": ("SarsaLambda", {}),
-    "er": ("ER", {}),
-    "er_sigma": ("ERSigma", {}),
-    # The stable variants: a preset and single stabilizers, e.g. ("ERSigma", {"preset": "thesis", "<option>": ...}).
+    # The thesis's algorithms, literally, whatever the class default preset is.
+    "er": ("ER", {"preset": "thesis"}),
+    "er_sigma": ("ERSigma", {"preset": "thesis"}),
+    # The stable variants: a preset, or single stabilizers, e.g. ("ERSigma", {"preset": "thesis", "target_copy": True}).
     "er_stable": ("ER", {"preset": "stable"}),
     "er_sigma_stable": ("ERSigma", {"preset": "stable"}),
-    "residual_er": ("ResidualER", {}),
-    "residual_er_sigma": ("ResidualERSigma", {}),
+    "residual_er": ("ResidualER", {"preset": "thesis"}),
+    "residual_er_sigma": ("ResidualERSigma", {"preset": "thesis"}),
     "dqn": ("DQN", {}),
     "sac": ("SAC", {}),
 }
@@ -371,12 +375,9 @@ def model_kwargs(method: str, task: Task) -> dict[str, Any]:
 def _make_env(task: Task, for_evaluation: bool = False):
     import gymnasium as gym
 
-    if task.dm_control:
-        from sb3_er.common.dict_observations import register_dm_control_envs
+    from sb3_er.common.env_ids import register_env_id
 
-        register_dm_control_envs()
-    else:
-        import sb3_er_envs  # noqa: F401  (registers the thesis's ids)
+    register_env_id(task.env_id)  # the sb3_er/ and dm_control/ namespaces
     env = gym.make(task.env_id)
     if for_evaluation and task.dm_control:  # the model flattens its own learning env; greedy episodes need it too
         env = gym.wrappers.FlattenObservation(env)
@@ -715,11 +716,29 @@ def _describe(config: dict) -> str:
     return f"{config['method']} on {config['task']} (seed {config['seed']}, budget {config['budget']:g})"
 
 
+#: A warm-up run's length per protocol, in the task's unit: long enough to end an episode (and replay) once or more.
+WARM_UP_BUDGET = {"greedy": 2000, "episodes": 2, "walking": 100}
+
+
+def warm_up_configs(configs: list[dict]) -> list[dict]:
+    """One short run of every (task, sb3-er class, arguments) among `configs`, made before them and kept nowhere: it
+    compiles (and caches on disk) the numba kernels those runs use, so that no timed run pays for the compilation."""
+    warm_ups: dict[tuple, dict] = {}
+    for config in configs:
+        key = (config["task"], config["algorithm"], json.dumps(config["kwargs"], sort_keys=True))
+        if is_peer(config["method"]) or key in warm_ups:
+            continue
+        budget = min(WARM_UP_BUDGET[TASKS[config["task"]].protocol], config["budget"])
+        warm_ups[key] = {**config, "budget": budget, "eval_interval": budget, "eval_episodes": 1, "final_episodes": 1}
+    return list(warm_ups.values())
+
+
 def run_all(
     configs: list[dict], path: Path | None, jobs: int, command: str, python: str = sys.executable
 ) -> tuple[list, list]:
     """Run `configs` in worker subprocesses, `jobs` at a time; write each finished run to `path` (atomically) as it
-    ends, with `command` among the file's commands. Returns (the finished runs, the failures as (config, message))."""
+    ends, with `command` among the file's commands (with `path` None, keep them nowhere: a warm-up). Returns (the
+    finished runs, the failures as (config, message))."""
     existing = read_runs_file(path) if path is not None else {"commands": [], "runs": []}
     finished = existing["runs"]
     commands = existing["commands"] + ([command] if command not in existing["commands"] else [])
@@ -743,8 +762,9 @@ def run_all(
                 print(f"FAILED: {error}", file=sys.stderr, flush=True)
                 continue
             finished.append(run)
-            if path is not None:
-                write_runs(path, finished, commands)
+            if path is None:
+                continue
+            write_runs(path, finished, commands)
             reached = run["samples_to_target"]
             print(
                 f"{_describe(config)}: to target {'never' if reached is None else f'{reached:g}'}, final "
@@ -950,7 +970,7 @@ def check_stability(summary: dict, method: str, n_tasks: int = len(TASKS)) -> di
             "largest_excursion": ours_max,
             "sarsa_largest_excursion": reference_max,
             "text": f"{ours['diverged']} of {ours['runs']} runs diverged; largest excursion "
-            f"{_format(ours_max)} against Sarsa(λ)'s {_format(reference_max)}",
+            f"{_format_excursion(ours_max)} against Sarsa(λ)'s {_format_excursion(reference_max)}",
         }
     return {"holds": _complete(_all([task["holds"] for task in tasks.values()]), len(tasks), n_tasks), "tasks": tasks}
 
@@ -1082,6 +1102,11 @@ def _format(value, unit: str = "") -> str:
     return f"{text} {unit}".strip()
 
 
+def _format_excursion(value: float | None) -> str:
+    """An excursion beyond the possible returns to 3 significant figures: small ones are compared too."""
+    return "NA" if value is None else f"{value:.3g}"
+
+
 def _yes_no(holds: bool | None) -> str:
     return {True: "yes", False: "no", None: "not judged yet"}[holds]
 
@@ -1105,7 +1130,10 @@ def final_text(figures: dict) -> str:
 def excursion_text(figures: dict) -> str:
     if figures["largest_excursion_max"] is None:
         return "not recorded" if figures["values_out_of_range_max"] is not None else "no value watch"
-    return f"{_format(figures['largest_excursion_max'])}; {_format(figures['largest_excursion_median'])}"
+    return (
+        f"{_format_excursion(figures['largest_excursion_max'])}; "
+        f"{_format_excursion(figures['largest_excursion_median'])}"
+    )
 
 
 def markdown_summary(summary: dict, goal_result: dict, code_versions: str, commands: list[str]) -> str:
@@ -1431,6 +1459,11 @@ def _parser() -> argparse.ArgumentParser:
         default="task",
         help="the peers' run length: the task's budget (default) or rl-zoo's n_timesteps where smaller",
     )
+    parser.add_argument(
+        "--no-warm-up",
+        action="store_true",
+        help="skip the short untimed runs that compile the numba kernels before the timed ones",
+    )
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     return parser
 
@@ -1489,8 +1522,14 @@ def main(argv=None) -> int:
         file=sys.stderr,
         flush=True,
     )
-    start = time.perf_counter()
     command = shlex.join(["python", "benchmarks/sample_efficiency.py", *(sys.argv[1:] if argv is None else argv)])
+    if pending and not args.no_warm_up:
+        warm_ups = warm_up_configs(pending)
+        print(f"warming up: {len(warm_ups)} short runs compile the kernels", file=sys.stderr, flush=True)
+        _, failed = run_all(warm_ups, None, args.jobs, command)
+        if failed:
+            raise SystemExit(f"{len(failed)} warm-up runs failed; the first: {failed[0][1]}")
+    start = time.perf_counter()
     runs, failures = run_all(pending, args.json, args.jobs, command)
     print(f"{len(pending) - len(failures)} runs in {time.perf_counter() - start:.0f} s", file=sys.stderr)
     planned = {run_key(config) for config in configs}

@@ -334,18 +334,23 @@ def test_a_method_whose_class_lacks_an_argument_is_left_out_with_the_reason(monk
 
 
 def test_the_walker_replays_as_table_6_2_runs_it():
-    """Class defaults plus the task's replay protocol give the zoo's Table 6.2 entry's replay settings."""
-    import inspect
-
+    """The literal ER-sigma row with the task's replay protocol resolves to the zoo's Table 6.2 entry's replay
+    settings, and a stable row keeps its preset's stabilizers there."""
+    import sb3_er_envs  # noqa: F401  (registers the walker's id)
     from sb3_er import ERSigma
 
     zoo = yaml.safe_load((ROOT / "zoo_configs" / "er_sigma.yml").read_text())[WALKER]
-    kwargs = se.model_kwargs("er_sigma", se.TASKS[WALKER])
-    defaults = {name: p.default for name, p in inspect.signature(ERSigma).parameters.items()}
-    for name in ("replay_trigger", "replay_unit", "n_replays"):
-        assert kwargs.get(name, defaults[name]) == zoo[name], name
+    literal = ERSigma("TileQ", WALKER, **se.model_kwargs("er_sigma", se.TASKS[WALKER]))
+    assert (literal.replay_trigger, literal.replay_unit) == (zoo["replay_trigger"], zoo["replay_unit"])
+    assert literal.stabilizers["n_replays"] == zoo["n_replays"]
+    assert not any(literal.stabilizers[name] for name in ("truncate_targets", "target_copy", "step_size_bound"))
+    stable = ERSigma("TileQ", WALKER, **se.model_kwargs("er_sigma_stable", se.TASKS[WALKER]))
+    assert (
+        stable.replay_trigger == "segment"
+        and stable.stabilizers == ERSigma("TileQ", WALKER, preset="stable").stabilizers
+    )  # the task sets when to replay, not the preset's stabilizers or volume
     assert se.model_kwargs("sarsa_lambda", se.TASKS[WALKER]) == {}  # Sarsa(lambda) does not replay
-    assert se.model_kwargs("er_sigma", se.TASKS[CARTPOLE]) == {}
+    assert se.model_kwargs("er_sigma", se.TASKS[CARTPOLE]) == {"preset": "thesis"}
 
 
 # --- the task table's figures, recomputed from the committed results it cites ---
@@ -432,18 +437,19 @@ def test_a_tiny_run_end_to_end_through_the_worker(tmp_path):
     )
     assert first.returncode == 0, first.stderr[-3000:]
     assert "4 to run" in first.stderr and "| CartPole-v1 (to 450) | ER-σ |" in first.stdout
+    assert "warming up: 4 short runs" in first.stderr
     records = {(r["task"], r["method"]): r for r in se.read_runs(runs)}
     cartpole = records[(CARTPOLE, "sarsa_lambda")]
     assert cartpole["budget"] == 2000 and [x for x, _ in cartpole["curve"]] == [1000, 2000]
     assert len(cartpole["final_returns"]) == 2 and cartpole["steps"] == 2000 and cartpole["learn_cpu_s"] > 0
     assert cartpole["code_version"]["sb3_er_version"]
     walker = records[(WALKER, "er_sigma")]
-    assert walker["kwargs"] == {"replay_trigger": "segment"} and walker["budget"] == 100
+    assert walker["kwargs"] == {"replay_trigger": "segment", "preset": "thesis"} and walker["budget"] == 100
     assert [x for x, _ in walker["curve"]] == [0.0, 100.0] and isinstance(walker["falls"], int)
     again = subprocess.run(
         [sys.executable, str(SCRIPT), *tiny], check=False, capture_output=True, text=True, timeout=600
     )
-    assert again.returncode == 0 and "4 of 4 runs already" in again.stderr
+    assert again.returncode == 0 and "4 of 4 runs already" in again.stderr and "warming up" not in again.stderr
     summarized = subprocess.run(
         [sys.executable, str(SCRIPT), "--summarize", "--json", str(runs), "--out", str(out)],
         check=False,
