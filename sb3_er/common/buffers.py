@@ -936,6 +936,7 @@ class TrajectoryBufferIO:
         buffer = load_buffer(path, self.policy.tile_coder, allow_pickle)
         if truncate_last_traj:
             buffer.truncate_open_trajectory()
+        buffer.set_n_envs(self.n_envs or 1)  # saved by a model of another number of envs: its open stretches close
         self.replay_buffer = buffer
         self._on_buffer_replaced()
         self._observe_stored_rewards()  # the value watch takes the reward range of the loaded data too
