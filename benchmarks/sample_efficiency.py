@@ -301,10 +301,26 @@ METHODS: dict[str, tuple[str, dict[str, Any]]] = {
     "er_sigma_stable": ("ERSigma", {"preset": "stable"}),
     "residual_er": ("ResidualER", {"preset": "thesis"}),
     "residual_er_sigma": ("ResidualERSigma", {"preset": "thesis"}),
+    "residual_er_stable": ("ResidualER", {"preset": "stable"}),
+    "residual_er_sigma_stable": ("ResidualERSigma", {"preset": "stable"}),
+    # each stabilizer alone and in combination, on ER-sigma (the thesis's preset otherwise)
+    "er_sigma_truncate": ("ERSigma", {"preset": "thesis", "truncate_targets": True}),
+    "er_sigma_target_copy": ("ERSigma", {"preset": "thesis", "target_copy": True}),
+    "er_sigma_truncate_target_copy": ("ERSigma", {"preset": "thesis", "truncate_targets": True, "target_copy": True}),
+    "er_sigma_step_bound": ("ERSigma", {"preset": "thesis", "step_size_bound": True}),
+    "er_sigma_ratio_10": ("ERSigma", {"preset": "thesis", "replay_ratio": 10.0}),
+    "er_sigma_truncate_target_copy_ratio_10": (
+        "ERSigma",
+        {"preset": "thesis", "truncate_targets": True, "target_copy": True, "replay_ratio": 10.0},
+    ),
+    "er_sigma_truncate_target_copy_ratio_50": (
+        "ERSigma",
+        {"preset": "thesis", "truncate_targets": True, "target_copy": True, "replay_ratio": 50.0},
+    ),
     "dqn": ("DQN", {}),
     "sac": ("SAC", {}),
 }
-#: The methods run when ``--methods`` is not given (those available; the residual variants only when asked for).
+#: The methods run when ``--methods`` is not given (those available; the other rows only when asked for).
 DEFAULT_METHODS = ("sarsa_lambda", "er", "er_sigma", "er_stable", "er_sigma_stable", "dqn", "sac")
 #: SB3's classes that run as rl-zoo's tuned peers, by their rl-zoo name.
 PEER_CLASSES = {"DQN": "dqn", "SAC": "sac"}
@@ -316,6 +332,15 @@ LABELS = {
     "er_sigma_stable": "ER-σ (stable)",
     "residual_er": "residual ER",
     "residual_er_sigma": "residual ER-σ",
+    "residual_er_stable": "residual ER (stable)",
+    "residual_er_sigma_stable": "residual ER-σ (stable)",
+    "er_sigma_truncate": "ER-σ + truncation",
+    "er_sigma_target_copy": "ER-σ + target copy",
+    "er_sigma_truncate_target_copy": "ER-σ + truncation + target copy",
+    "er_sigma_step_bound": "ER-σ + step-size bound",
+    "er_sigma_ratio_10": "ER-σ + replay ratio 10",
+    "er_sigma_truncate_target_copy_ratio_10": "ER-σ + truncation + target copy + ratio 10",
+    "er_sigma_truncate_target_copy_ratio_50": "ER-σ + truncation + target copy + ratio 50",
     "dqn": "DQN (rl-zoo)",
     "sac": "SAC (rl-zoo)",
 }
