@@ -330,13 +330,16 @@ def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, floa
         step_size=ALPHA / coder.n_tilings,
         gamma=GAMMA,
         epsilon=EPSILON,
+        truncate=False,
+        value_low=-np.inf,
+        value_high=np.inf,
+        step_bound=False,
+        step_cap=np.full(1, np.inf),
     )
     scratch = (np.zeros(coder.n_actions), np.zeros(coder.n_actions))
 
     def run(steps, watch):
-        weights = make(
-            kernels.Weights, theta=np.zeros(coder.n_weights), initial_low=0.0, initial_span=0.0, initial_seed=0
-        )
+        weights = kernels.weights_bundle(np.zeros(coder.n_weights), 0.0, 0.0, 0)
         trace = make(
             kernels.Trace,
             index=np.zeros(capacity, np.int64),
@@ -388,6 +391,7 @@ def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
         exploration_rate=0.0,
         trace_lambda=0.9,
         policy_kwargs=policy_kwargs,
+        value_bound_action="ignore",  # a speed run: MountainCar's values overshoot 0 under these settings
         seed=0,
     )
     model.learn(2000)

@@ -54,6 +54,30 @@ def test_every_kernel_runs_without_the_gil():
     assert [name for name, kernel in found.items() if not kernel.targetoptions.get("nogil")] == []
 
 
+def test_every_kernel_is_compiled_without_reference_counts():
+    """The kernels allocate nothing, so they are compiled without numba's reference-counted runtime (its counting of
+    every bundled array at every helper call halved the replay rate); a kernel added with a plain ``njit`` would
+    bring it back."""
+    found = _kernels()
+    assert [name for name, kernel in found.items() if kernel.targetoptions.get("_nrt", True)] == []
+
+
+def test_a_kernel_that_allocates_does_not_compile():
+    """What ``_nrt=False`` enforces: an array made inside a kernel is a compile error, not a silent allocation per
+    call."""
+    import numba as nb
+    import numpy as np
+
+    from sb3_er.common.kernels._jit import kernel
+
+    @kernel
+    def allocates(n):
+        return np.zeros(n).sum()
+
+    with pytest.raises(nb.core.errors.NumbaError):
+        allocates(3)
+
+
 RUN_EVERY_ALGORITHM = """
 import json, warnings
 import numpy as np

@@ -107,7 +107,8 @@ def test_bad_reward_bounds_are_refused(bad):
 )
 def test_the_margin_is_five_percent_of_the_largest_reward(rewards, bounds, expected):
     got = margin(rewards, bounds)
-    assert got == pytest.approx(expected, abs=1e-5)  # plus a rounding margin of 1e-9 of the bounds
+    rounding = 1e-9 * max([1.0] + [abs(b) for b in bounds if math.isfinite(b)])  # 1e-9 of the bounds' magnitude
+    assert got == pytest.approx(expected + rounding, rel=1e-12, abs=1e-15)
     assert widened(bounds, got) == pytest.approx((bounds[0] - got, bounds[1] + got))
 
 
