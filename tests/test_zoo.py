@@ -1,6 +1,7 @@
 """rl-zoo integration: registration, the thesis hyperparameters in zoo_configs, train -> enjoy, and an optuna study."""
 
 import importlib.resources
+import inspect
 import re
 import shlex
 import subprocess
@@ -332,3 +333,25 @@ def test_plain_rl_zoo_trains_its_own_dqn_on_our_environments(tmp_path, monkeypat
     )
     zoo_train()
     assert (tmp_path / "dqn" / "sb3_er-SimplestWalker-v0_1" / "sb3_er-SimplestWalker-v0.zip").is_file()
+
+
+@pytest.mark.slow
+def test_train_prints_a_table_every_few_episodes_not_every_episode(tmp_path):
+    """`sb3-er train --algo er_sigma --env CartPole-v1 -n 20000` prints at most 30 tables (about 100 episodes,
+    learn's log_interval 8) where a table per episode made 106; the walker's episodes (100 s of 0.2 s steps at most)
+    still log at least once per 5,000 steps."""
+    train = subprocess.run(
+        _command_line("sb3-er train --algo er_sigma --env CartPole-v1 -n 20000"),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert train.returncode == 0, train.stderr[-2000:]
+    tables = train.stdout.count("| time/")
+    assert 5 <= tables <= 30, tables
+    from sb3_er.common.base_class import TileQAlgorithm
+
+    log_interval = inspect.signature(TileQAlgorithm.learn).parameters["log_interval"].default
+    longest_walker_episode = 100.0 / 0.2  # steps
+    assert log_interval * longest_walker_episode <= 5_000
