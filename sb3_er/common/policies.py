@@ -3,6 +3,7 @@
 import io
 import pathlib
 import pickle
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -15,7 +16,7 @@ from stable_baselines3.common.utils import is_vectorized_observation
 from sb3_er.common import kernels
 from sb3_er.common.action_levels import box_action_levels
 from sb3_er.common.serialization import atomic_path, decode_plain, encode_plain
-from sb3_er.common.tile_coding import TileCoder
+from sb3_er.common.tile_coding import HashCollisionWarning, TileCoder, collision_warning
 
 
 def action_start(action_space: spaces.Space) -> np.ndarray:
@@ -81,7 +82,11 @@ class TileQPolicy(BasePolicy):
     :param lr_schedule: unused (SB3 interface); the algorithm applies the learning rate.
     :param tile_widths: tile width per observation dimension.
     :param n_tilings: number of tilings N.
-    :param memory_size: upper bound on the number of weights.
+    :param memory_size: upper bound on the number of weights (default 2^22, 32 MiB). The table holds memory_size //
+        stride state-tile slots (rounded down to a power of two), the stride being the actions' row rounded up to
+        whole cache lines: many actions leave few slots. Building the policy warns (HashCollisionWarning) when more
+        than half of the state tiles a run would visit are expected to share a slot, with the memory_size that
+        avoids it; the table never grows past memory_size on its own.
     :param wrap_periods: per observation dimension a period or None.
     :param action_values: per action dimension the value of each choice (for action tiling); for a Box action space
         the levels the env receives, each inside the bounds (needed where a bound is infinite).
@@ -137,6 +142,10 @@ class TileQPolicy(BasePolicy):
                 f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape "
                 f"{observation_space.shape}"
             )
+        if isinstance(observation_space, spaces.Box):
+            crowded = collision_warning(self.tile_coder, observation_space)
+            if crowded is not None:
+                warnings.warn(crowded, HashCollisionWarning, stacklevel=2)
         low, high = _initial_range(initial_value)
         if low != high and initial_value_seed is None:
             initial_value_seed = int(np.random.randint(0, 2**62))  # noqa: NPY002 (seeded by SB3's set_random_seed)
