@@ -287,3 +287,18 @@ def test_default_tables_do_not_warn(env_id, policy_kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("error", HashCollisionWarning)
         SarsaLambda("TileQ", env_id, policy_kwargs=policy_kwargs)
+
+
+def test_a_small_memory_size_chosen_for_few_actions_does_not_warn():
+    """The warning is about long rows: a small table of short rows is the user's choice (memory_report measures it)."""
+    import warnings
+
+    from gymnasium import spaces
+
+    from sb3_er import SarsaLambda
+    from sb3_er.common.tile_coding import HashCollisionWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", HashCollisionWarning)
+        SarsaLambda("TileQ", "CartPole-v1", policy_kwargs=dict(memory_size=2**12))
+        SarsaLambda("TileQ", _box_env(spaces.Discrete(15)), policy_kwargs=dict(memory_size=2**10))

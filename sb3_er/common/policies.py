@@ -84,9 +84,9 @@ class TileQPolicy(BasePolicy):
     :param n_tilings: number of tilings N.
     :param memory_size: upper bound on the number of weights (default 2^22, 32 MiB). The table holds memory_size //
         stride state-tile slots (rounded down to a power of two), the stride being the actions' row rounded up to
-        whole cache lines: many actions leave few slots. Building the policy warns (HashCollisionWarning) when more
-        than half of the state tiles a run would visit are expected to share a slot, with the memory_size that
-        avoids it; the table never grows past memory_size on its own.
+        whole cache lines: many actions leave few slots. Building the policy warns (HashCollisionWarning) when the
+        actions leave so few slots that more than half of the state tiles a run would visit are expected to share
+        one, with the memory_size that avoids it; the table never grows past memory_size on its own.
     :param wrap_periods: per observation dimension a period or None.
     :param action_values: per action dimension the value of each choice (for action tiling); for a Box action space
         the levels the env receives, each inside the bounds (needed where a bound is infinite).

@@ -351,8 +351,12 @@ def expected_collision_rate(n_tiles: float, n_slots: int) -> float:
 
 
 def collision_warning(coder: TileCoder, observation_space: spaces.Box) -> str | None:
-    """The message of a :class:`HashCollisionWarning` when ``coder``'s table is too small for the state tiles a run on
-    ``observation_space`` is likely to visit, else None.
+    """The message of a :class:`HashCollisionWarning` when ``coder``'s actions leave its table too few state-tile rows
+    for the state tiles a run on ``observation_space`` is likely to visit, else None.
+
+    It speaks when more than ``COLLISION_WARNING_RATE`` of those tiles are expected to share a row, and rows of one
+    cache line (at most 8 action columns) would have kept under it: a long row is what a user may not see coming. A
+    memory_size too small for any action set is left to the user who chose it (``memory_report`` measures it).
 
     The tiles counted are those covering the observation space (:meth:`TileCoder.state_tiles_in_box`), at most
     ``REFERENCE_TILES_PER_TILING`` per tiling; the message gives the expected collision rate at that count, the
@@ -365,8 +369,9 @@ def collision_warning(coder: TileCoder, observation_space: spaces.Box) -> str | 
     n_tiles = min(coder.state_tiles_in_box(observation_space.low, observation_space.high), reference)
     n_tiles = max(n_tiles, 1.0)
     rate = coder.expected_collision_rate(n_tiles)
-    if rate <= COLLISION_WARNING_RATE:
-        return None
+    one_line_slots = 1 << int(np.floor(np.log2(max(coder.memory_size // WEIGHTS_PER_CACHE_LINE, 1))))
+    if rate <= COLLISION_WARNING_RATE or expected_collision_rate(n_tiles, one_line_slots) > COLLISION_WARNING_RATE:
+        return None  # enough rows, or a memory_size too small for any action set: the user's choice, not the actions'
     slots = coder.slots_for(n_tiles, SUGGESTED_COLLISION_RATE)
     memory = slots * coder.stride
     counted = (
