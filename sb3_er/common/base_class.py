@@ -31,7 +31,7 @@ from sb3_er.common.dict_observations import (
     observation_keys,
 )
 from sb3_er.common.env_ids import register_env_id
-from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
+from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec, initial_value_seed_of
 from sb3_er.common.serialization import (
     PLAIN_STATE_KEY,
     REBUILT_ON_LOAD,
@@ -379,9 +379,10 @@ class TileQAlgorithm(BaseAlgorithm):
         self._setup_lr_schedule()
         BaseAlgorithm.set_random_seed(self, self.seed)  # not ours: load() has just restored their states
         self.policy_kwargs = self._resolve_policy_kwargs()
-        self.policy = self.policy_class(
-            self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs
-        )
+        policy_kwargs = dict(self.policy_kwargs)
+        if self.seed is not None and policy_kwargs.get("initial_value_seed") is None:
+            policy_kwargs["initial_value_seed"] = initial_value_seed_of(self.seed)  # not NumPy's shared global stream
+        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **policy_kwargs)
         if self.policy.initial_value_seed is not None:  # keep the drawn seed: a reloaded model rebuilds the same start
             self.policy_kwargs["initial_value_seed"] = self.policy.initial_value_seed
         coder = self.policy.tile_coder

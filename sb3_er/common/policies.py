@@ -43,6 +43,17 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
     raise ValueError(f"Tile-coded Q-learning needs a Discrete, MultiDiscrete or Box action space, got {action_space}")
 
 
+def initial_value_seed_of(seed: int) -> int:
+    """The seed of the initial weights' draw of a model seeded with ``seed``: the first ``randint(0, 2^62)`` of NumPy's
+    legacy generator seeded with ``seed``, as NumPy's global generator gave it right after SB3's
+    ``set_random_seed(seed)``, drawn from a private generator so that models built at the same time in threads (rl-zoo's
+    ``optimize --n-jobs``) do not draw from one another's stream.
+
+    :param seed: the algorithm's seed (0 to 2^32 - 1, as NumPy's legacy seeding takes).
+    """
+    return int(np.random.RandomState(seed).randint(0, 2**62))
+
+
 def _initial_range(initial_value) -> tuple[float, float]:
     """(low, high) of Q's initial values from a number or a (low, high) pair; ValueError naming the problem."""
     values = np.atleast_1d(np.asarray(initial_value, dtype=np.float64)) if _is_numeric(initial_value) else None
@@ -99,9 +110,9 @@ class TileQPolicy(BasePolicy):
         its averaged weights from U[0, 1]: ``initial_value=(0, 1)`` here). Default 0, the thesis's Alg. 2-14 line 1.
         Optimistic values explore; pessimistic ones (thesis Figure 5.5) trust only visited features. ER-sigma
         replaces the initial values of unvisited features by sigma(s') (Eq. 5.4).
-    :param initial_value_seed: seed of the draw of (low, high) initial weights; None draws one from NumPy's global
-        generator (which the algorithm seeds with its ``seed``). The resolved seed is kept, so a reloaded model knows
-        every weight's initial value.
+    :param initial_value_seed: seed of the draw of (low, high) initial weights; None draws one from fresh entropy. An
+        algorithm with a ``seed`` passes :func:`initial_value_seed_of` its seed. The resolved seed is kept, so a
+        reloaded model knows every weight's initial value.
     """
 
     def __init__(
@@ -148,7 +159,7 @@ class TileQPolicy(BasePolicy):
                 warnings.warn(crowded, HashCollisionWarning, stacklevel=2)
         low, high = _initial_range(initial_value)
         if low != high and initial_value_seed is None:
-            initial_value_seed = int(np.random.randint(0, 2**62))  # noqa: NPY002 (seeded by SB3's set_random_seed)
+            initial_value_seed = int(np.random.default_rng().integers(0, 2**62))  # fresh entropy
         self.initial_value = initial_value if low != high else low
         self.initial_value_seed = None if low == high else int(initial_value_seed)
         n = self.tile_coder.n_tilings
