@@ -274,12 +274,43 @@ def _with_defaults(argv: Sequence[str], training: bool) -> list[str]:
     return arguments
 
 
+def _check_env_kwargs(program: str, env_id: str | None, argv: Sequence[str]) -> None:
+    """Exit with one message before rl_zoo3 starts when ``--env-kwargs`` or ``--eval-env-kwargs`` (read as rl_zoo3
+    reads them: each value a Python expression) do not make the env (:func:`sb3_er.common.env_ids.check_env_kwargs`).
+
+    :param program: the command's name, for the message.
+    :param env_id: the ``--env`` given (None: rl_zoo3 reports it missing).
+    :param argv: the command's arguments.
+    """
+    from rl_zoo3.utils import StoreDict
+
+    from sb3_er.common.env_ids import check_env_kwargs
+
+    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)  # --env is not --env-kwargs
+    for option in ("--env-kwargs", "--eval-env-kwargs"):
+        parser.add_argument(option, type=str, nargs="+", action=StoreDict, default=None)
+    try:
+        known, _ = parser.parse_known_args(argv)
+    except Exception as error:  # StoreDict evaluates each value as Python: NameError, SyntaxError, ...
+        raise SystemExit(
+            f"{program}: error: --env-kwargs: rl_zoo3 reads each NAME:VALUE's value as a Python expression ({error}); "
+            "write a string quoted, e.g. --env-kwargs \"fall:'angles'\""
+        ) from None
+    for option, env_kwargs in (("--env-kwargs", known.env_kwargs), ("--eval-env-kwargs", known.eval_env_kwargs)):
+        if env_kwargs and env_id is not None:
+            try:
+                check_env_kwargs(env_id, env_kwargs, given_as=option)
+            except ValueError as error:
+                raise SystemExit(f"{program}: error: {error}") from None
+
+
 def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str]) -> None:
     register_algorithms()
     parser = argparse.ArgumentParser(add_help=False)
     parser.add_argument("--env", default=None)
     known, _ = parser.parse_known_args(argv)
     register_env_id(known.env)  # sb3_er/ and shimmy's dm_control/ ids, in this process, before rl_zoo3 makes it
+    _check_env_kwargs(program, known.env, argv)  # one message, before any env or run exists
     saved = sys.argv
     sys.argv = [program, *argv]
     try:
@@ -293,9 +324,13 @@ def train(argv: Sequence[str]) -> None:
 
     :param argv: the arguments after ``train`` (rl_zoo3's train options).
     """
+    _train(argv, "sb3-er train")
+
+
+def _train(argv: Sequence[str], program: str) -> None:
     from rl_zoo3.train import train as zoo_train
 
-    _run_zoo_script(zoo_train, "sb3-er train", _with_defaults(argv, training=True))
+    _run_zoo_script(zoo_train, program, _with_defaults(argv, training=True))
 
 
 def optimize(argv: Sequence[str]) -> None:
@@ -306,7 +341,7 @@ def optimize(argv: Sequence[str]) -> None:
     arguments = list(argv)
     if not _has_option(arguments, "-optimize", "--optimize-hyperparameters"):
         arguments.append("--optimize-hyperparameters")
-    train(arguments)
+    _train(arguments, "sb3-er optimize")
 
 
 def enjoy(argv: Sequence[str]) -> None:
