@@ -294,6 +294,7 @@ class TileQPolicy(BasePolicy):
         :param path: the file written by ``save`` (a path or an open binary file).
         :param allow_pickle: read a policy file of SB3's own format, whose spaces are pickled (default True, as in SB3).
         """
+        start = path.tell() if hasattr(path, "seek") and hasattr(path, "tell") else None
         try:
             try:
                 saved = th.load(path, map_location="cpu", weights_only=True)
@@ -301,8 +302,8 @@ class TileQPolicy(BasePolicy):
             except pickle.UnpicklingError:
                 if not allow_pickle:
                     raise ValueError("a policy file with pickled settings, refused with allow_pickle=False") from None
-                if hasattr(path, "seek"):
-                    path.seek(0)
+                if start is not None:
+                    path.seek(start)  # where the stream stood: torch read it from there, as SB3's load does
                 saved = th.load(path, map_location="cpu", weights_only=False)
                 plain = False
             if not (isinstance(saved, dict) and set(saved) == {"state_dict", "data"}):
