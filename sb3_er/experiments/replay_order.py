@@ -161,7 +161,8 @@ def fresh_replay_model(job: RunJob, env, order: str, buffer_path: Path):
     from sb3_er import ER
 
     model = ER("TileQ", env, seed=job.seed, **{**job_model_kwargs(job), "replay_order": order})
-    model.load_replay_buffer(buffer_path)
+    model.load_replay_buffer(buffer_path, truncate_last_traj=False)
+    model.replay_buffer.truncate_open_trajectory()  # the collector's run is over: an unfinished episode ends there
     model.seed_replay(job.seed)
     return model
 
