@@ -700,6 +700,8 @@ class TileQAlgorithm(BaseAlgorithm):
 
         An entry that cannot be unpickled here (a learning-rate schedule saved under another Python version, a class
         this environment cannot import) is restored from the plain copy sb3-er saves beside it where there is one;
+        a function's bytecode saved under another Python minor version counts as such (it would unpickle, and then
+        compute something else);
         otherwise it gets SB3's warning and keeps the class's default, as in SB3, and ``custom_objects`` replaces it.
         The spaces, the tiling settings and the policy class cannot be left out: the weights and the replay buffer are
         laid out by them, so a file whose copies of them cannot be restored is refused, naming the entry.
@@ -721,9 +723,9 @@ class TileQAlgorithm(BaseAlgorithm):
         else:
             check_file_object(path, "r")  # SB3's TypeError or ValueError for what is not an open binary file
         try:
-            data, source = read_zip_data(path)
+            data, source, saved_python = read_zip_data(path)
             classes = {f"{c.__module__}:{c.__qualname__}": c for c in cls.policy_aliases.values()}
-            custom_objects, left_out = restore_entries(data, classes, custom_objects, allow_pickle)
+            custom_objects, left_out = restore_entries(data, classes, custom_objects, allow_pickle, saved_python)
             if left_out:
                 source = zip_without_entries(source, left_out)
             model = super().load(source, env, device, custom_objects, print_system_info, force_reset, **kwargs)

@@ -12,6 +12,9 @@ import base64
 import io
 import json
 import pathlib
+import pickletools
+import re
+import sys
 import warnings
 import zipfile
 from collections import deque
@@ -231,10 +234,12 @@ def check_file_object(stream: Any, mode: str) -> None:
     open_path(stream, mode)
 
 
-def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[str, Any], Any]:
-    """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and the path
-    or file object to pass on to SB3. A file object is read as SB3 reads it: the zip is found from the end of the file,
-    wherever the stream stands (a BytesIO just written needs no seek), and the stream is left open.
+def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[str, Any], Any, tuple[int, int] | None]:
+    """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC; the path or
+    file object to pass on to SB3; and the (major, minor) version of the Python that saved it, from the system
+    information SB3 writes into the zip (None if absent). A file object is read as SB3 reads it: the zip is found from
+    the end of the file, wherever the stream stands (a BytesIO just written needs no seek), and the stream is left
+    open.
 
     :param path: the model's file (a path or an open binary file).
     """
@@ -243,6 +248,8 @@ def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[st
         with zipfile.ZipFile(source) as archive:
             corrupt = archive.testzip()  # every member's CRC, also those SB3 never reads
             raw = archive.read("data") if corrupt is None else b""
+            names = archive.namelist()
+            system = archive.read("system_info.txt") if corrupt is None and "system_info.txt" in names else b""
     except KeyError:
         raise ValueError("the zip has no data entry") from None
     except (zipfile.BadZipFile, ValueError, EOFError, OSError) as error:
@@ -257,7 +264,20 @@ def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[st
         raise ValueError(f"the data entry is not JSON ({error})") from None
     if not isinstance(data, dict):
         raise ValueError("the data entry is not a JSON object")
-    return data, source
+    found = re.search(rb"Python: (\d+)\.(\d+)", system)
+    return data, source, (int(found.group(1)), int(found.group(2))) if found else None
+
+
+def holds_bytecode(pickled: bytes) -> bool:
+    """Whether a cloudpickle string rebuilds a code object (a lambda, a function defined in ``__main__``, a closure),
+    read from its opcodes without unpickling: bytecode runs only under the Python minor version that compiled it.
+
+    :param pickled: the pickle's bytes.
+    """
+    try:
+        return any(arg == "CodeType" for _, arg, _ in pickletools.genops(pickled))
+    except Exception:  # a malformed pickle: unpickling it will say what is wrong
+        return False
 
 
 def _is_pickled(item: Any) -> bool:
@@ -265,7 +285,11 @@ def _is_pickled(item: Any) -> bool:
 
 
 def restore_entries(
-    data: dict[str, Any], classes: dict[str, type], custom_objects: dict[str, Any] | None, allow_pickle: bool
+    data: dict[str, Any],
+    classes: dict[str, type],
+    custom_objects: dict[str, Any] | None,
+    allow_pickle: bool,
+    saved_python: tuple[int, int] | None = None,
 ) -> tuple[dict[str, Any], list[str]]:
     """SB3 ``custom_objects`` restoring every pickled entry of ``data``, and the entries that cannot be restored.
 
@@ -281,7 +305,12 @@ def restore_entries(
     :param classes: the classes a plain form may name, by "module:name".
     :param custom_objects: the caller's own replacements, which win (default None).
     :param allow_pickle: unpickle the entries (SB3's behaviour) before falling back on the plain copies.
+    :param saved_python: the (major, minor) version of the Python that saved the file (default None: unknown). An
+        entry holding bytecode saved under another minor version is not unpickled: code objects of one version
+        unpickle under another without an error and then compute something else, or crash.
     """
+    here = sys.version_info[:2]
+    foreign = saved_python is not None and tuple(saved_python) != here
     restored = dict(custom_objects or {})
     plain = data.get(PLAIN_STATE_KEY, {})
     if not isinstance(plain, dict):
@@ -296,8 +325,15 @@ def restore_entries(
         problem = "allow_pickle=False refuses to unpickle it"
         if allow_pickle:
             try:
-                restored[key] = cloudpickle.loads(base64.b64decode(str(item[":serialized:"]).encode()))
-                continue
+                pickled = base64.b64decode(str(item[":serialized:"]).encode())
+                if foreign and holds_bytecode(pickled):
+                    problem = (
+                        f"it holds Python {saved_python[0]}.{saved_python[1]} bytecode, which Python "
+                        f"{here[0]}.{here[1]} cannot run"
+                    )
+                else:
+                    restored[key] = cloudpickle.loads(pickled)
+                    continue
             except Exception as error:  # anything a pickle of another Python, or a missing module, raises
                 problem = f"{type(error).__name__}: {error}"
         if key in plain:
