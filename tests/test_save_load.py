@@ -306,6 +306,7 @@ def test_sb3_set_env(algo, kind, tmp_path):
 
 @pytest.mark.xfail(
     strict=True,
+    raises=ValueError,
     reason="issue 36: several envs (n_envs > 1) are refused ('does not support multiple envs'); SB3's off-policy "
     "algorithms load a model onto a VecEnv of two",
 )
