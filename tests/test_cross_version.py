@@ -1,4 +1,4 @@
-"""Models move between Python versions (issue 37): files written under the oldest supported Python and the newest
+"""Models move between Python versions: files written under the oldest supported Python and the newest
 (tests/data, by make_cross_version_models.py) load under the running one with the weights, the tiling and the replay
 buffer their writer had. A learning-rate lambda, pickled as a code object of its writer's Python, loads where that
 Python's code objects unpickle; elsewhere it keeps the class's default with SB3's warning, and custom_objects replaces
@@ -76,6 +76,9 @@ def test_a_model_its_buffer_and_its_policy_file_load(tag, allow_pickle):
     assert model.replay_buffer.n_transitions == expected["er_box_transitions"] + 100
     policy = TileQPolicy.load(DATA / f"er_box_{tag}.pth", allow_pickle=allow_pickle)
     np.testing.assert_allclose(policy.q_values(BOX_PROBES), expected["er_box_q"], rtol=1e-12, atol=1e-12)
+    fresh = ER("TileQ", IdentityEnvBox(eps=0.5), policy_kwargs=dict(n_tilings=4, memory_size=2**10))
+    fresh.set_parameters(DATA / f"er_box_{tag}.zip")
+    np.testing.assert_allclose(fresh.policy.q_values(BOX_PROBES), expected["er_box_q"], rtol=1e-12, atol=1e-12)
 
 
 def _as_if_saved_under(path: pathlib.Path, version: str) -> None:
