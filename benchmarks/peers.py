@@ -127,16 +127,17 @@ DEFAULT_MUSHROOM_VENV = Path(
 RESULT_PREFIX = "PEERS_RESULT "
 
 
-# --- measurements shared by every worker --------------------------------------------------------------------------
+# --- measurements shared by every worker (benchmarks/sample_efficiency.py uses them too) ---------------------------
 
 
-def _rss_mb() -> float:
+def peak_rss_mb() -> float:
     """Peak resident set size of this process so far, in MB (Linux reports KB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-class _Clock:
-    """Wall and CPU time of a stretch, minus the evaluations inside it."""
+class Clock:
+    """Wall and CPU time of a stretch, minus the evaluations inside it: start it before learning, run every
+    evaluation through :meth:`evaluation`, and read :meth:`learning` after learning."""
 
     def __init__(self):
         self.wall0, self.cpu0 = time.perf_counter(), time.process_time()
@@ -153,7 +154,9 @@ class _Clock:
         return (time.perf_counter() - self.wall0 - self.eval_wall, time.process_time() - self.cpu0 - self.eval_cpu)
 
 
-def _first_reaching(evaluations: list[tuple[int, float]], level):
+def first_reaching(evaluations: list[tuple[int, float]], level):
+    """The step of the first (step, value) of `evaluations` whose value reaches `level`; None if none does or the
+    level is None."""
     if level is None:
         return None
     return next((step for step, value in evaluations if value >= level), None)
@@ -175,15 +178,15 @@ def _result(
         "threshold": threshold,
         "target": target,
         "evaluations": evaluations,
-        "steps_to_threshold": _first_reaching(evaluations, threshold),
-        "steps_to_target": _first_reaching(evaluations, target),
+        "steps_to_threshold": first_reaching(evaluations, threshold),
+        "steps_to_target": first_reaching(evaluations, target),
         "final_returns": [float(r) for r in final_returns],
         "final_mean": float(statistics.fmean(final_returns)),
         "final_median": float(statistics.median(final_returns)),
         "learn_wall_s": wall,
         "learn_cpu_s": cpu,
         "steps_per_cpu_s": config["budget"] / max(cpu, 1e-9),
-        "peak_rss_mb": _rss_mb(),
+        "peak_rss_mb": peak_rss_mb(),
         "baseline_rss_mb": baseline_mb,
         "episodes": episodes,
         **(extra or {}),
@@ -198,14 +201,23 @@ def rl_zoo_dqn_hyperparameters(env_id: str) -> tuple[int, dict]:
     return rl_zoo_hyperparameters("dqn", env_id)
 
 
-def rl_zoo_hyperparameters(algo: str, env_id: str) -> tuple[int, dict]:
-    """rl-zoo's tuned settings of SB3's ``algo`` (dqn, sac) for env_id from the installed rl_zoo3 package:
-    (n_timesteps, the algorithm's kwargs)."""
+def _rl_zoo_file(algo: str) -> dict:
     import rl_zoo3
     import yaml
 
     with open(Path(rl_zoo3.__file__).parent / "hyperparams" / f"{algo}.yml") as stream:
-        hyperparameters = dict(yaml.safe_load(stream)[env_id])
+        return yaml.safe_load(stream)
+
+
+def rl_zoo_env_ids(algo: str) -> set[str]:
+    """The env ids rl-zoo has tuned settings of SB3's ``algo`` (dqn, sac) for, in the installed rl_zoo3 package."""
+    return {key for key in _rl_zoo_file(algo) if key not in ("default", "atari")}
+
+
+def rl_zoo_hyperparameters(algo: str, env_id: str) -> tuple[int, dict]:
+    """rl-zoo's tuned settings of SB3's ``algo`` (dqn, sac) for env_id from the installed rl_zoo3 package:
+    (n_timesteps, the algorithm's kwargs)."""
+    hyperparameters = dict(_rl_zoo_file(algo)[env_id])
     n_timesteps = int(hyperparameters.pop("n_timesteps"))
     hyperparameters.pop("policy")
     if isinstance(hyperparameters.get("policy_kwargs"), str):  # rl-zoo evaluates this string the same way
@@ -213,13 +225,50 @@ def rl_zoo_hyperparameters(algo: str, env_id: str) -> tuple[int, dict]:
     return n_timesteps, hyperparameters
 
 
+def rl_zoo_model(algo: str, env, seed: int):
+    """SB3's ``algo`` (dqn, sac) with rl-zoo's tuned settings for ``env``'s id, on the CPU, torch on one thread."""
+    import torch
+    from stable_baselines3 import DQN, SAC
+
+    torch.set_num_threads(1)
+    _, kwargs = rl_zoo_hyperparameters(algo, env.spec.id)
+    return {"dqn": DQN, "sac": SAC}[algo]("MlpPolicy", env, seed=seed, device="cpu", **kwargs)
+
+
+def greedy_evaluations(model, eval_env, episodes: int, every: int, budget: int, clock: Clock, evaluations: list):
+    """An SB3 callback that appends ``(step, mean greedy return)`` to `evaluations` every `every` environment steps and
+    at step `budget`: the mean over `episodes` episodes of ``evaluate_policy(model, eval_env, deterministic=True)``,
+    timed by `clock` as evaluation (so that it is not counted as learning).
+
+    :param model: the learning model.
+    :param eval_env: the env the greedy episodes run on (not the learning env).
+    :param episodes: episodes per evaluation.
+    :param every: environment steps between evaluations.
+    :param budget: the run's last step, evaluated too.
+    :param clock: the run's clock.
+    :param evaluations: the list the ``(step, mean return)`` pairs go to.
+    """
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    def greedy_mean() -> float:
+        mean, _ = evaluate_policy(model, eval_env, n_eval_episodes=episodes, deterministic=True)
+        return float(mean)
+
+    class Evaluations(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps % every == 0 or self.num_timesteps == budget:
+                evaluations.append((self.num_timesteps, clock.evaluation(greedy_mean)))
+            return True
+
+    return Evaluations()
+
+
 def _run_sb3(config: dict) -> dict:
     import torch
 
     torch.set_num_threads(1)
     import gymnasium as gym
-    from stable_baselines3 import DQN, SAC
-    from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.monitor import Monitor
 
@@ -232,28 +281,19 @@ def _run_sb3(config: dict) -> dict:
         )
     eval_env.reset(seed=2000 + seed)
     final_env.reset(seed=1000 + seed)
-    baseline = _rss_mb()
+    baseline = peak_rss_mb()
     if method in RL_ZOO_PEERS:
-        _, kwargs = rl_zoo_hyperparameters(method, env_id)
-        model = {"dqn": DQN, "sac": SAC}[method]("MlpPolicy", train_env, seed=seed, device="cpu", **kwargs)
+        model = rl_zoo_model(method, train_env, seed)
     else:  # imported only here, so that DQN's memory does not count sb3-er's imports
         from sb3_er import ERSigma, SarsaLambda
 
         model = {"sarsa_lambda": SarsaLambda, "er_sigma": ERSigma}[method]("TileQ", train_env, seed=seed)
-    clock = _Clock()
+    clock = Clock()
     evaluations = []
-
-    def greedy_mean() -> float:
-        mean, _ = evaluate_policy(model, eval_env, n_eval_episodes=config["eval_episodes"], deterministic=True)
-        return float(mean)
-
-    class Evaluations(BaseCallback):
-        def _on_step(self) -> bool:
-            if self.num_timesteps % config["eval_freq"] == 0 or self.num_timesteps == config["budget"]:
-                evaluations.append((self.num_timesteps, clock.evaluation(greedy_mean)))
-            return True
-
-    model.learn(config["budget"], callback=Evaluations())
+    callback = greedy_evaluations(
+        model, eval_env, config["eval_episodes"], config["eval_freq"], config["budget"], clock, evaluations
+    )
+    model.learn(config["budget"], callback=callback)
     learning = clock.learning()
     returns, _ = evaluate_policy(
         model, final_env, n_eval_episodes=config["final_episodes"], deterministic=True, return_episode_rewards=True
@@ -335,7 +375,7 @@ def _run_mushroom(config: dict) -> dict:
         features=features,
         approximator_params={"input_shape": (features.size,), "output_shape": (n_actions,), "n_actions": n_actions},
     )
-    baseline = _rss_mb()
+    baseline = peak_rss_mb()
 
     def greedy_returns(env, n_episodes: int, reset_seed=None) -> list[float]:
         returns = []
@@ -352,7 +392,7 @@ def _run_mushroom(config: dict) -> dict:
 
     eval_env, final_env = gym.make(env_id), gym.make(env_id)
     eval_env.reset(seed=2000 + seed)
-    clock = _Clock()
+    clock = Clock()
     evaluations = []
     counter = {"steps": 0, "episodes": 0}
 
@@ -440,16 +480,39 @@ def mushroom_tiling(env_id: str) -> dict:
     return {"n_tilings": int(entry["n_tilings"]), "tile_widths": list(entry["tile_widths"]), "range": ranges}
 
 
+#: Thread limits of a worker subprocess: one BLAS/OpenMP/numba thread, so that N workers use N cores.
+WORKER_THREADS = {
+    name: "1" for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+}
+
+
+def run_in_subprocess(
+    script: str | Path, config: dict, python: str, prefix: str, what: str, environment: dict | None = None
+) -> dict:
+    """Run ``python script --worker <config as JSON>`` in a fresh subprocess and return the JSON that its last stdout
+    line starting with `prefix` carries; RuntimeError naming `what` and the end of the child's stderr when it fails or
+    prints no result.
+
+    :param script: the benchmark script whose ``--worker`` runs one configuration.
+    :param config: the run's configuration (JSON-able).
+    :param python: the interpreter to run it with.
+    :param prefix: the marker of the result line.
+    :param what: the run, for the error message.
+    :param environment: variables set in the child beside this process's (default None: none), e.g. WORKER_THREADS.
+    """
+    command = [python, os.path.abspath(script), "--worker", json.dumps(config)]
+    environment = {**os.environ, **(environment or {})}
+    process = subprocess.run(command, check=False, capture_output=True, text=True, env=environment)
+    lines = [line for line in process.stdout.splitlines() if line.startswith(prefix)]
+    if process.returncode != 0 or not lines:
+        raise RuntimeError(f"{what} failed (exit code {process.returncode}):\n{process.stderr[-3000:]}")
+    return json.loads(lines[-1][len(prefix) :])
+
+
 def run_one(config: dict, python: str) -> dict:
     """One (method, env, seed) in a fresh subprocess; its result dict."""
-    command = [python, os.path.abspath(__file__), "--worker", json.dumps(config)]
-    process = subprocess.run(command, check=False, capture_output=True, text=True)
-    lines = [line for line in process.stdout.splitlines() if line.startswith(RESULT_PREFIX)]
-    if process.returncode != 0 or not lines:
-        raise RuntimeError(
-            f"{config['method']} on {config['env']} (seed {config['seed']}) failed:\n{process.stderr[-3000:]}"
-        )
-    return json.loads(lines[-1][len(RESULT_PREFIX) :])
+    what = f"{config['method']} on {config['env']} (seed {config['seed']})"
+    return run_in_subprocess(__file__, config, python, RESULT_PREFIX, what)
 
 
 def _median(values):

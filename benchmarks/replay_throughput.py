@@ -20,8 +20,8 @@ the machine's drift affects far less. Use it to check that a change keeps the re
 
 import argparse
 import importlib.util
-import inspect
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -93,47 +93,113 @@ def _alternate(rate, size, watch, rounds) -> tuple[float, float]:
 
 
 def load_kernels(checkout: str):
-    """The kernels module of another checkout (a directory holding ``sb3_er/common/kernels.py``, or that file), loaded
-    under its own module name beside the current one; numba caches it next to that file."""
+    """The kernels of another checkout, loaded beside the current ones under their own module name (numba caches
+    them next to their files): a checkout's ``sb3_er/common/kernels.py`` (the single module of earlier versions, which
+    took positional arguments) or its ``sb3_er/common/kernels/`` package (argument bundles), copied into a temporary
+    folder as the package ``baseline_kernels`` with its imports pointed at itself.
+
+    :param checkout: a checkout of this repository, or its kernels module or package folder.
+    """
     path = Path(checkout)
-    if path.is_dir():
-        path = path / "sb3_er" / "common" / "kernels.py"
-    if not path.is_file():
-        raise SystemExit(
-            f"--baseline: {path} does not exist; give a checkout of this repository (a folder holding "
-            "sb3_er/common/kernels.py) or that file"
-        )
+    if path.is_dir() and (path / "__init__.py").is_file() and (path / "bundles.py").is_file():
+        package = path
+    elif path.is_dir() and (path / "sb3_er" / "common" / "kernels" / "__init__.py").is_file():
+        package = path / "sb3_er" / "common" / "kernels"
+    else:
+        package = None
+        if path.is_dir():
+            path = path / "sb3_er" / "common" / "kernels.py"
+        if not path.is_file():
+            raise SystemExit(
+                f"--baseline: {path} does not exist; give a checkout of this repository (a folder holding "
+                "sb3_er/common/kernels.py or sb3_er/common/kernels/), or that file or folder"
+            )
+    if package is not None:
+        folder = Path(tempfile.mkdtemp(prefix="baseline_kernels_"))
+        (folder / "baseline_kernels").mkdir()
+        for source in package.glob("*.py"):
+            text = source.read_text(encoding="utf-8").replace("sb3_er.common.kernels", "baseline_kernels")
+            (folder / "baseline_kernels" / source.name).write_text(text, encoding="utf-8")
+        sys.path.insert(0, str(folder))
+        return importlib.import_module("baseline_kernels")
     spec = importlib.util.spec_from_file_location("baseline_kernels", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # numba's cache finds a module by name when it loads a cached kernel
     spec.loader.exec_module(module)
-    current = [name for name in inspect.signature(kernels.replay_phase.py_func).parameters if name != "watch"]
-    theirs = [name for name in inspect.signature(module.replay_phase.py_func).parameters if name != "watch"]
-    if current != theirs:
-        raise SystemExit(
-            f"--baseline: {path}'s replay_phase takes ({', '.join(theirs)}), this version's "
-            f"({', '.join(current)}) besides the watch; only versions with the same arguments compare"
-        )
     return module
+
+
+def bundled(module) -> bool:
+    """Whether ``module``'s kernels take argument bundles (else the positional arguments of earlier versions)."""
+    return hasattr(module, "Weights")
 
 
 class ReplayTimer:
     """Times one replay phase of ``n`` trajectories from all-zero weights, in CPU seconds, with a given kernels module
-    (the current one, or a baseline's: a version without the value watch gets no watch argument)."""
+    (the current one, or a baseline's: each called in its own convention; a version without the value watch gets no
+    watch argument)."""
 
     def __init__(self, coder, buffer, sigma, zeta):
         self.coder, self.buffer, self.sigma, self.zeta = coder, buffer, sigma, zeta
         self.theta = np.ones(coder.n_weights)  # touched once, so that no timed phase pays first-touch page faults
         self.q_scratch, self.w_scratch = np.zeros(coder.n_actions), np.zeros(coder.n_actions)
 
-    def rate(self, module, n, watch_array) -> float:
-        """Updates per CPU second of one phase of ``n`` replays with ``module``'s kernels."""
-        coder = self.coder
-        self.theta.fill(0.0)
+    def _bundled_call(self, module, n, watch_array):
+        """A version that takes bundles: each built by that version's own constructors (its fields may differ)."""
+        coder, buffer = self.coder, self.buffer
+        make = module.make
+        data = buffer.replay_data()
+        rule = dict(
+            target_kind=module.TARGET_SARSA,
+            sigma_kind=self.sigma,
+            residual_zeta=self.zeta,
+            residual_next_action=False,
+            step_size=ALPHA / coder.n_tilings,
+            gamma=GAMMA,
+            epsilon=EPSILON,
+        )
+        replay = dict(n_trajectories=n, order=module.ORDER_REVERSED, picks_rng=module.new_rng_state(1, 1))
+        if "truncate" in module.UpdateRule._fields:
+            rule.update(
+                truncate=False, value_low=-np.inf, value_high=np.inf, step_bound=False, step_cap=np.full(1, np.inf)
+            )
+            replay.update(max_updates=-1)
+        if hasattr(module, "weights_bundle"):
+            weights = module.weights_bundle(self.theta, 0.0, 0.0, 0)
+        else:
+            weights = make(module.Weights, theta=self.theta, initial_low=0.0, initial_span=0.0, initial_seed=0)
+        return module.replay_phase(
+            weights,
+            module.Trajectories(*data),
+            module.TileLayout(*coder.layout),
+            make(module.UpdateRule, **rule),
+            make(module.Replay, **replay),
+            module.new_rng_state(1, 0),
+            module.Scratch(self.q_scratch, self.w_scratch),
+            watch_array if module is kernels else module.NO_WATCH,
+        )
+
+    def _positional_call(self, module, n):
+        """Earlier versions' replay_phase: the buffer's arrays and counters, the coder, then the update's settings."""
+        coder, data = self.coder, self.buffer.replay_data()
         arguments = [
             self.theta,
-            self.buffer.visits,
-            *self.buffer.replay_arguments(),
+            data.visits,
+            data.slots,
+            data.actions,
+            data.rewards,
+            data.transition_trajectory,
+            data.trajectory_start,
+            data.trajectory_length,
+            data.trajectory_terminated,
+            data.trajectory_next_slots,
+            data.oldest_trajectory,
+            data.n_closed_trajectories,
+            data.first_row,
+            data.n_transitions,
+            data.open_trajectory,
+            data.open_length,
+            data.open_next_slots,
             coder.stride,
             coder.action_columns,
             coder.columns_are_actions,
@@ -153,9 +219,22 @@ class ReplayTimer:
             *getattr(module, "ZERO_INITIAL", ()),
         ]
         if hasattr(module, "NO_WATCH"):
-            arguments.append(watch_array if module is kernels else module.NO_WATCH)
+            arguments.append(module.NO_WATCH)
+        return module.replay_phase(*arguments)
+
+    def rate(self, module, n, watch_array) -> float:
+        """Updates per CPU second of one phase of ``n`` replays with ``module``'s kernels.
+
+        :param module: a kernels module (the current one or a baseline's).
+        :param n: trajectories to replay.
+        :param watch_array: the value watch (the current kernels only).
+        """
+        self.theta.fill(0.0)
         start = time.process_time()
-        updates = module.replay_phase(*arguments)[0]
+        if bundled(module):
+            updates = self._bundled_call(module, n, watch_array)[0]
+        else:
+            updates = self._positional_call(module, n)[0]
         return updates / (time.process_time() - start)
 
 
@@ -223,56 +302,15 @@ def numpy_updates_per_second(coder, buffer, sigma_on, zeta, n_updates) -> float:
 
 
 @nb.njit
-def _sarsa_lambda_episode(theta, trace, states, coder_args, n_steps, rng, watch):
-    inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns, columns_are_actions = coder_args
-    n_tilings = offsets.shape[0]
+def _sarsa_lambda_episode(weights, trace, layout, rule, states, n_steps, rng, scratch, watch):
+    """``n_steps`` Sarsa(lambda) steps along ``states`` (reward -1, never terminal) through the per-step kernels."""
+    n_tilings = layout[1].shape[0]
     slots = np.zeros(n_tilings, np.int64)
     next_slots = np.zeros(n_tilings, np.int64)
-    q = np.zeros(action_columns.shape[1])
-    action = kernels.select_action(
-        theta,
-        states[0],
-        inv_widths,
-        offsets,
-        wrap_tiles,
-        slot_mask,
-        stride,
-        action_columns,
-        columns_are_actions,
-        EPSILON,
-        rng,
-        slots,
-        q,
-    )
+    action = kernels.select_action(weights[0], states[0], layout, EPSILON, rng, slots, scratch[0])
     for k in range(n_steps):
-        action, _, _ = kernels.sarsa_lambda_step(
-            theta,
-            trace[0],
-            trace[1],
-            trace[2],
-            trace[3],
-            slots,
-            action,
-            -1.0,
-            False,
-            states[k + 1],
-            next_slots,
-            q,
-            inv_widths,
-            offsets,
-            wrap_tiles,
-            slot_mask,
-            stride,
-            action_columns,
-            columns_are_actions,
-            ALPHA / n_tilings,
-            GAMMA,
-            GAMMA * 0.92,
-            0.01,
-            EPSILON,
-            rng,
-            watch,
-        )
+        transition = (slots, action, -1.0, False, states[k + 1], next_slots)
+        action, _, _ = kernels.sarsa_lambda_step(weights, trace, layout, rule, transition, rng, scratch, watch)
         slots, next_slots = next_slots, slots
 
 
@@ -282,20 +320,64 @@ def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, floa
     rng = np.random.default_rng(0)
     states = np.cumsum(rng.normal(0.0, 1.0 / 3.0, (n_steps + 1, coder.n_dims)) * coder.tile_widths, axis=0)
     capacity = coder.n_tilings * 120
+    make = kernels.make
+    rule = make(
+        kernels.UpdateRule,
+        target_kind=kernels.TARGET_SARSA,
+        sigma_kind=kernels.SIGMA_NONE,
+        residual_zeta=0.0,
+        residual_next_action=False,
+        step_size=ALPHA / coder.n_tilings,
+        gamma=GAMMA,
+        epsilon=EPSILON,
+    )
+    scratch = (np.zeros(coder.n_actions), np.zeros(coder.n_actions))
 
     def run(steps, watch):
-        theta = np.zeros(coder.n_weights)
-        trace = (
-            np.zeros(capacity, np.int64),
-            np.zeros(capacity),
-            np.full(coder.n_weights, -1, np.int32),
-            np.zeros(1, np.int64),
+        weights = make(
+            kernels.Weights, theta=np.zeros(coder.n_weights), initial_low=0.0, initial_span=0.0, initial_seed=0
+        )
+        trace = make(
+            kernels.Trace,
+            index=np.zeros(capacity, np.int64),
+            value=np.zeros(capacity),
+            position=np.full(coder.n_weights, -1, np.int32),
+            length=np.zeros(1, np.int64),
+            decay=GAMMA * 0.92,
+            cutoff=0.01,
         )
         start = time.process_time()
-        _sarsa_lambda_episode(theta, trace, states, coder.kernel_arguments, steps, kernels.new_rng_state(0), watch)
+        _sarsa_lambda_episode(
+            tuple(weights),
+            tuple(trace),
+            tuple(coder.layout),
+            tuple(rule),
+            states,
+            steps,
+            kernels.new_rng_state(0),
+            scratch,
+            watch,
+        )
         return steps / (time.process_time() - start)
 
     return _alternate(run, n_steps, kernels.new_watch(-1e6, 1e6), rounds)
+
+
+def call_overhead_us(coder, calls=20_000) -> dict[str, float]:
+    """Microseconds per call of ``kernels.select_action`` from Python with its layout as a plain tuple (what the
+    learn loop passes) and as the named TileLayout (what the phase kernels take): the cost of numba typing a named
+    tuple's fields in Python at every call, which is why the per-step kernels take plain tuples."""
+    obs = np.zeros(coder.n_dims)
+    slots, q = np.zeros(coder.n_tilings, np.int64), np.zeros(coder.n_actions)
+    theta, rng = np.zeros(coder.n_weights), kernels.new_rng_state(0)
+    figures = {}
+    for name, layout in (("plain tuple", tuple(coder.layout)), ("named tuple", coder.layout)):
+        kernels.select_action(theta, obs, layout, EPSILON, rng, slots, q)
+        start = time.perf_counter()
+        for _ in range(calls):
+            kernels.select_action(theta, obs, layout, EPSILON, rng, slots, q)
+        figures[name] = (time.perf_counter() - start) / calls * 1e6
+    return figures
 
 
 def learn_steps_per_second(env_id, policy_kwargs, n_steps) -> float:
@@ -320,7 +402,7 @@ def main() -> None:
     parser.add_argument(
         "--baseline",
         metavar="CHECKOUT",
-        help="another checkout (or its sb3_er/common/kernels.py) to time in the same process",
+        help="another checkout (or its sb3_er/common/kernels.py or kernels/ package) to time in the same process",
     )
     args = parser.parse_args()
     scale = 0.1 if args.quick else 1.0
@@ -349,6 +431,10 @@ def main() -> None:
     walker = TileCoder([0.1, 0.1, 0.11, 0.21], [15], n_tilings=16)
     rate, cost = sarsa_lambda_steps_per_second(walker, int(1_000_000 * scale))
     print(f"\nSarsa(lambda) kernel, walker setup: {rate:,.0f} steps/s; watch cost {cost - 1:+.1%}")
+    overhead = call_overhead_us(walker, int(20_000 * max(scale, 0.2)))
+    print(
+        "select_action called from Python: " + ", ".join(f"{us:.2f} us with a {kind}" for kind, us in overhead.items())
+    )
     for env_id, policy_kwargs in (
         ("MountainCar-v0", dict(n_tilings=8, tiles_per_dimension=8)),
         ("CartPole-v1", dict(n_tilings=8, tile_widths=[0.5, 0.5, 0.05, 0.5])),

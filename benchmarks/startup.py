@@ -27,6 +27,7 @@ Run on a quiet machine: the script prints the load average before and after.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import statistics
@@ -90,7 +91,7 @@ def phases(repeats: int) -> None:
         stdout, _ = run_python(PHASED)
         record = json.loads(stdout.strip().splitlines()[-1])
         marks = record["marks"]
-        for (_, t0, _), (name, t1, rss) in zip(marks, marks[1:], strict=True):
+        for (_, t0, _), (name, t1, rss) in itertools.pairwise(marks):
             rows.setdefault(name, []).append((t1 - t0, rss / 1024))
         fills.append(record["fill_s"])
         sizes = record["n_weights"], record["weights_mib"]

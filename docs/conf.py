@@ -20,6 +20,7 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinxarg.ext",
     "sb3er_docs",
+    "sb3er_benchmarks",
 ]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
@@ -32,9 +33,13 @@ suppress_warnings = ["myst.header"]
 
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
-autodoc_class_signature = "separated"
+# A class shows its constructor signature in its heading (SB3's pages do too): every parameter with its default.
+autodoc_class_signature = "mixed"
 autodoc_default_options = {"show-inheritance": True}
 
 html_theme = "sphinx_rtd_theme"
 html_title = f"sb3-er {release}"
 html_theme_options = {"navigation_depth": 3}
+# Wide tables wrap their cells instead of hiding columns (see _static/sb3er.css).
+html_static_path = ["_static"]
+html_css_files = ["sb3er.css"]

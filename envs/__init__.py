@@ -11,9 +11,32 @@ The entry points are strings, so registering imports no environment module (and 
 
 Every environment ends its own episodes at its time limit and reports it as ``truncated``, so none is registered with
 ``max_episode_steps``; change a limit through the environment's keyword arguments in ``gymnasium.make``.
+
+Importing the package also names it among the modules a forkserver imports before it starts a subprocess
+(:func:`preload_in_subprocesses`), so that the workers of a ``SubprocVecEnv`` started afterwards (its default start
+method on Linux and macOS) know the ids too.
 """
 
+import multiprocessing
+
 from gymnasium.envs.registration import register, registry
+
+
+def preload_in_subprocesses(module: str) -> None:
+    """Add ``module`` to the modules the forkserver imports before it starts subprocesses
+    (``multiprocessing.set_forkserver_preload``; the main script, ``__main__``, stays first), so that a module whose
+    import registers Gymnasium ids registers them in ``SubprocVecEnv`` workers too. Takes effect for a forkserver
+    that starts afterwards; nothing where there is no forkserver.
+
+    :param module: an importable module name.
+    """
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return
+    from multiprocessing import forkserver
+
+    preloaded = list(getattr(forkserver._forkserver, "_preload_modules", None) or ["__main__"])
+    if module not in preloaded:
+        multiprocessing.set_forkserver_preload([*preloaded, module])
 
 
 def discrete_action_index(action, n_actions: int) -> int:
@@ -42,3 +65,5 @@ ENV_IDS = {
 for _env_id, _entry_point in ENV_IDS.items():
     if _env_id not in registry:
         register(id=_env_id, entry_point=_entry_point)
+
+preload_in_subprocesses(__name__)

@@ -47,7 +47,8 @@ REPRODUCE_DESCRIPTION = (
 ZOO_DESCRIPTIONS = {
     "train": "rl-zoo training (rl_zoo3 train) with the thesis's hyperparameters of zoo_configs/<algo>.yml, the env "
     "package sb3_er_envs and TensorBoard logs under <log folder>/tensorboard filled in",
-    "enjoy": "rl-zoo enjoy (rl_zoo3 enjoy) of a trained agent, e.g. -f FOLDER --no-render",
+    "enjoy": "rl-zoo enjoy (rl_zoo3 enjoy) of an agent trained by sb3-er train: the latest run in the folder train "
+    "writes (-f, default logs, as train's), e.g. --no-render -n 5000; nothing is downloaded",
     "optimize": "rl-zoo's optuna hyperparameter search (rl_zoo3 train --optimize-hyperparameters) with sb3-er's "
     "search spaces, e.g. --n-trials N --n-timesteps T",
 }
@@ -390,7 +391,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         else:
             from sb3_er import zoo
 
-            zoo.COMMANDS[command](rest)
+            zoo.run_command(command, rest)
     except ModuleNotFoundError as error:
         extra = EXTRAS.get((error.name or "").partition(".")[0])
         if extra is None:

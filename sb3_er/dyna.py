@@ -1,9 +1,9 @@
 """Dyna: direct RL plus planning on a learned model (Sutton 1991; thesis 3.4 and Alg. 3-5), on tile-coded Q."""
 
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import BufferedTileQAlgorithm, stored_transitions
@@ -188,7 +188,21 @@ class Dyna(BufferedTileQAlgorithm):
         model_radius: float = 1.0,
         model_refit_every: int = 500,
         buffer_size: int = 1_000_000,
-        **kwargs,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_lambda: float | None = None,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
     ):
         self.planning_steps = planning_steps
         self.target = target
@@ -198,7 +212,26 @@ class Dyna(BufferedTileQAlgorithm):
         self.model_refit_every = model_refit_every
         self.planning_updates = 0
         self.model_fits = 0
-        super().__init__(policy, env, buffer_size=buffer_size, **kwargs)
+        super().__init__(
+            policy,
+            env,
+            buffer_size=buffer_size,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_lambda=trace_lambda,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
     def _check_hyperparameters(self) -> None:
         super()._check_hyperparameters()
@@ -282,9 +315,7 @@ class Dyna(BufferedTileQAlgorithm):
         predicted = self.dynamics_model.predict(data.observations[rows], actions)
         next_observations, rewards, continuation, covered = predicted
         next_slots = np.zeros((queries, coder.n_tilings), dtype=np.int64)
-        kernels.batch_state_slots(
-            next_observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask, next_slots
-        )
+        kernels.batch_state_slots(next_observations, coder.layout, next_slots)
         self._plan_slots = np.ascontiguousarray(data.slots[rows])
         self._plan_next_slots = next_slots
         self._plan_actions = np.ascontiguousarray(actions, dtype=np.int64)
@@ -294,22 +325,16 @@ class Dyna(BufferedTileQAlgorithm):
         self._coverage_sums += (covered.sum(), queries)
         return self.dynamics_model
 
-    def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
-        self._store_transition(obs, action, reward, next_obs, terminated, done, info)
+    def _after_transition(self, env, slots, obs, action, reward, next_obs, terminated, done, info) -> None:
+        self._store_transition(env, slots, obs, action, reward, next_obs, terminated, done, info)
         self._added_since_fit += 1
         if self.planning_steps > 0 and self._plan_position + self.planning_steps > self._plan_actions.shape[0]:
             self.fit_model()
         start = self._plan_position
         count = min(self.planning_steps, self._plan_actions.shape[0] - start)
-        coder = self.policy.tile_coder
-        delta, updates, sum_abs_delta, status = kernels.dyna_step(
-            self.policy.theta_array,
-            self._slots,
-            action,
-            reward,
-            terminated,
-            next_obs,
-            self._next_slots,
+        # once per environment step: plain tuples (kernels.bundles)
+        transition = (slots, action, reward, terminated, next_obs, self._env_next_slots[env])
+        plan = (
             self._plan_slots,
             self._plan_actions,
             self._plan_rewards,
@@ -317,24 +342,23 @@ class Dyna(BufferedTileQAlgorithm):
             self._plan_next_slots,
             start,
             count,
-            *coder.kernel_arguments,
-            TARGETS[self.target],
-            self.current_learning_rate / coder.n_tilings,
-            self.gamma,
-            self.exploration_rate,
+        )
+        delta, updates, sum_abs_delta, status = kernels.dyna_step(
+            tuple(self._weights()),
+            self._plain_layout,
+            tuple(self._update_rule(target_kind=TARGETS[self.target])),
+            transition,
+            plan,
             self.action_rng,
-            self._q_scratch,
+            tuple(self._scratch),
             self._watch_array,
         )
         self._plan_position = start + count
         self.planning_updates += updates
-        if status == kernels.STATUS_BAD_OBSERVATION:
-            raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
-        if status == kernels.STATUS_DIVERGED:
-            where = "the direct update" if updates == 0 else f"planning update {updates}"
-            self._raise_divergence(delta, where)
-        if status == kernels.STATUS_OUT_OF_BOUNDS:
-            self._value_out_of_bounds("the direct or a planning update")
+        where = "the direct update" if updates == 0 else f"planning update {updates}"
+        self._check_status(
+            status, where if status == kernels.STATUS_DIVERGED else "the direct or a planning update", delta, next_obs
+        )
         self._td_error_sum += abs(delta) + sum_abs_delta
         self._td_error_count += 1 + updates
 

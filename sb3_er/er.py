@@ -3,12 +3,12 @@
 from typing import Any, Literal
 
 import numpy as np
-from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
 from sb3_er.common.base_class import TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryBufferIO, TrajectoryReplayBuffer
-from sb3_er.common.checks import check_choice, check_integer, check_number
+from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
 from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.policies import TileQPolicy
 
@@ -32,8 +32,37 @@ SIGMAS = {
     "average_worst": kernels.SIGMA_AVERAGE_WORST,
     "average_best": kernels.SIGMA_AVERAGE_BEST,
 }
-#: The value watch's entries of ER-sigma's target shift (kernels.watch_shift)
-SHIFT_ENTRIES = [kernels.WATCH_SHIFT_SUM, kernels.WATCH_SHIFT_COUNT, kernels.WATCH_RAISED, kernels.WATCH_LOWERED]
+#: The replay stabilizers a preset fills, with the replay volume, unless given explicitly. "thesis": the thesis's
+#: algorithms exactly (Alg. 7-14: 100 trajectories per phase, no stabilizer). "stable": chosen by measurement over the
+#: whole sample-efficiency suite (benchmarks/sample_efficiency.py); the same on every task.
+PRESETS: dict[str, dict[str, Any]] = {
+    "thesis": dict(n_replays=100, replay_ratio=None, truncate_targets=False, target_copy=False, step_size_bound=False),
+    "stable": dict(n_replays=100, replay_ratio=None, truncate_targets=True, target_copy=True, step_size_bound=False),
+}
+#: What a preset resolves.
+STABILIZERS = ("n_replays", "replay_ratio", "truncate_targets", "target_copy", "step_size_bound")
+REPLAY_VOLUME = ("n_replays", "replays_per_stored_trajectory", "replay_ratio")
+
+
+def resolve_preset(preset: str, given: dict[str, Any]) -> dict[str, Any]:
+    """The stabilizers and replay volume of ``preset`` (:data:`PRESETS`), with every argument given explicitly (not
+    None) winning. A replay volume given explicitly (``n_replays``, ``replays_per_stored_trajectory`` or
+    ``replay_ratio``) replaces the preset's volume as a whole.
+
+    :param preset: "thesis" or "stable".
+    :param given: the arguments as given, None where not given (the names of :data:`STABILIZERS` and
+        ``replays_per_stored_trajectory``).
+    """
+    check_choice("preset", preset, PRESETS)
+    resolved = dict(PRESETS[preset])
+    if any(given.get(name) is not None for name in REPLAY_VOLUME):
+        resolved.update(n_replays=PRESETS["thesis"]["n_replays"], replay_ratio=None)
+    resolved.update({name: given[name] for name in STABILIZERS if given.get(name) is not None})
+    return resolved
+
+
+#: "As many trajectories as it takes": a phase with a budget of updates (the replay ratio) ends by that budget.
+UNLIMITED = 2**62
 REPLAY_TRIGGERS = ("episode", "segment")
 REPLAY_UNITS = ("episode", "segment")
 RESIDUAL_ACTIONS = ("taken", "next")
@@ -62,7 +91,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     :param replay_unit: what a stored trajectory is: "episode" (default, the thesis's Alg. 7-8) or "segment" (closed
         also at each ``info["segment_end"]``: the walker's footstep-to-footstep stretches, our earlier reading).
     :param replay_every: episodes between replay phases for the "episode" trigger (default 1).
-    :param n_replays: trajectories replayed per phase (default 100, the walker's and LEO's K).
+    :param n_replays: trajectories replayed per phase; None (default): the preset's (100, the walker's and LEO's K).
     :param replays_per_stored_trajectory: if given, replay round(x * trajectories stored) per phase instead (the
         thesis's 10 for the pendulum and the grid world); default None.
     :param replay_order: "reversed" (default, the thesis's), "forward" or "uniform" samples (Appendix A), or
@@ -92,6 +121,24 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         online learning.
     :param replay_buffer_kwargs: keyword arguments of the TrajectoryReplayBuffer, e.g. ``dict(prune="coverage",
         prune_threshold=0.9)`` for the pruned database of thesis 3.5.3; default None.
+    :param preset: fills every stabilizer and the replay volume not given explicitly (:data:`PRESETS`): "thesis"
+        (default), the thesis's algorithms exactly; "stable", the stabilizers chosen by measurement on the
+        sample-efficiency benchmark. Explicit arguments win; the resolved values are in ``stabilizers``.
+    :param truncate_targets: truncate every bootstrapped value to the possible returns (the value watch's bounds;
+        Chen, Clarke and Maguluri 2023, "Target network and truncation overcome the deadly triad in Q-learning");
+        None (default): the preset's. The watch still sees each target before truncation.
+    :param target_copy: bootstrap from a copy of the weights taken at the start of each replay phase (their target
+        network); None (default): the preset's. With truncation, linear Q-learning's iterates stay bounded (their
+        theorem); the copy also stops a phase's updates from chasing their own moving targets.
+    :param step_size_bound: bound the step by Dabney and Barto's (2012) alpha-bound, min(alpha / N, 1 /
+        |(gamma phi' - phi)^T e|) over the run, so that no update carries its own TD error past zero; None (default):
+        the preset's. With binary tiles and alpha / N per weight it binds in replay only for alpha > 1 / (1 - gamma
+        o / N) (o tiles shared by s and s'), so at the thesis's alpha only with traces (online_lambda) and hash
+        collisions.
+    :param replay_ratio: replayed updates per new stored transition (D'Oro et al., ICLR 2023): each phase replays
+        whole trajectories until it has made this many updates per transition stored since the last phase, instead of
+        ``n_replays`` trajectories; None (default): the preset's. The thesis's protocols make about 10^4 updates per
+        new transition.
     """
 
     _trace_lambda_parameter = "online_lambda"
@@ -104,7 +151,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         replay_trigger: Literal["episode", "segment"] = "episode",
         replay_unit: Literal["episode", "segment"] = "episode",
         replay_every: int = 1,
-        n_replays: int = 100,
+        n_replays: int | None = None,
         replays_per_stored_trajectory: float | None = None,
         replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
         target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
@@ -117,7 +164,24 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         max_predecessors: int = 4,
         prioritized_updates: int | None = None,
         replay_buffer_kwargs: dict[str, Any] | None = None,
-        **kwargs,
+        preset: Literal["thesis", "stable"] = "thesis",
+        truncate_targets: bool | None = None,
+        target_copy: bool | None = None,
+        step_size_bound: bool | None = None,
+        replay_ratio: float | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
     ):
         self.buffer_size = buffer_size
         self.replay_trigger = replay_trigger
@@ -135,11 +199,36 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self.max_predecessors = max_predecessors
         self.prioritized_updates = prioritized_updates
         self.replay_buffer_kwargs = replay_buffer_kwargs
+        # a model being loaded (SB3's load builds it with _init_setup_model=False, then restores the file's values)
+        # starts from the thesis's preset: a file saved before presets existed keeps the thesis's algorithm
+        self.preset = preset if _init_setup_model else "thesis"
+        self.truncate_targets = truncate_targets
+        self.target_copy = target_copy
+        self.step_size_bound = step_size_bound
+        self.replay_ratio = replay_ratio
+        self.stabilizers: dict[str, Any] = {}
         self.priority_evaluations = 0
         self.replay_updates = 0
         self.replay_phases = 0
         self.replay_buffer: TrajectoryReplayBuffer | None = None
-        super().__init__(policy, env, trace_lambda=online_lambda, **kwargs)
+        super().__init__(
+            policy,
+            env,
+            trace_lambda=online_lambda,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
     @property
     def online_lambda(self) -> float | None:
@@ -155,8 +244,14 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         check_choice("residual_action", self.residual_action, RESIDUAL_ACTIONS)
         check_integer("buffer_size", self.buffer_size, minimum=1)
         check_integer("replay_every", self.replay_every, minimum=1, unit=" episode")
-        check_integer("n_replays", self.n_replays, minimum=0)
+        check_integer("n_replays", self.n_replays, minimum=0, optional=True)
         check_number("replays_per_stored_trajectory", self.replays_per_stored_trajectory, 0.0, optional=True)
+        check_number("replay_ratio (replayed updates per new sample)", self.replay_ratio, 0.0, optional=True)
+        if self.replay_ratio is not None and self.replays_per_stored_trajectory is not None:
+            raise ValueError("give either replay_ratio or replays_per_stored_trajectory: both set the replay volume")
+        for name in ("truncate_targets", "target_copy", "step_size_bound"):
+            check_bool(name, getattr(self, name), optional=True)
+        check_choice("preset", self.preset, PRESETS)
         check_number("residual_zeta (Eq. 5.9)", self.residual_zeta, 0.0, 1.0, optional=True)
         if self.residual_action == "next" and self.target == "expected_sarsa":
             raise ValueError("residual_action=\"next\" needs a single a' at s': use the sarsa or q_learning target")
@@ -167,26 +262,57 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         TrajectoryReplayBuffer.check_kwargs(self.replay_buffer_kwargs)
 
     def _setup_model(self) -> None:
+        self._check_hyperparameters()
+        given = {name: getattr(self, name) for name in (*STABILIZERS, "replays_per_stored_trajectory")}
+        self.stabilizers = resolve_preset(self.preset, given)
         super()._setup_model()
         self.replay_buffer = TrajectoryReplayBuffer(
-            self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {})
+            self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {}), n_envs=self.n_envs or 1
         )
-        self._w_scratch = np.zeros(self.policy.tile_coder.n_actions, dtype=np.float64)
-        self._priority_workspace: dict[str, np.ndarray] | None = None
+        self._priority_workspace: kernels.PriorityQueue | None = None
+        self._setup_target_copy()
+        self._new_samples = 0  # transitions stored since the last replay phase (the replay ratio's denominator)
+        self._ratio_carry = 0.0
+
+    def _setup_target_copy(self) -> None:
+        """The target copy of theta that bootstrapping reads (``target_copy``), taken now; None without."""
+        self._target_copy = kernels.TargetCopy(self.policy.theta_array) if self.stabilizers["target_copy"] else None
+
+    def set_parameters(self, load_path_or_dict, exact_match: bool = True, device="auto") -> None:
+        """SB3's ``set_parameters`` (see TileQAlgorithm's); the target copy is taken again from the new weights.
+
+        :param load_path_or_dict: a zip file written by ``save``, or a dict of parameters by object name.
+        :param exact_match: require every object's parameters to be given (default True).
+        :param device: torch device to load onto (default "auto").
+        """
+        super().set_parameters(load_path_or_dict, exact_match, device)
+        self._setup_target_copy()
+
+    def _stabilizer_options(self) -> dict[str, Any]:
+        """The UpdateRule fields of the resolved stabilizers: truncation to the value watch's bounds of the possible
+        returns (Chen, Clarke and Maguluri 2023) and the step-size bound (Dabney and Barto 2012)."""
+        options = dict(truncate=self.stabilizers["truncate_targets"], step_bound=self.stabilizers["step_size_bound"])
+        if options["truncate"]:
+            options["value_low"], options["value_high"] = self._watch.bounds
+        return options
 
     def _excluded_save_params(self) -> list[str]:
-        return super()._excluded_save_params() + ["_w_scratch", "_priority_workspace"]
+        return super()._excluded_save_params() + ["_priority_workspace", "_new_samples", "_ratio_carry"]
 
     def _seed_generators(self, seed: int | None) -> None:
         super()._seed_generators(seed)
         self.seed_replay(seed)
 
     def _end_episode_at_reset(self) -> None:
-        """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last
-        real s_{t+1} (replay bootstraps there), never joined to the next episode; no replay is triggered."""
+        """The episodes in progress were cut off by an env reset: their trajectories are closed as truncated at their
+        last real s_{t+1} (replay bootstraps there), never joined to the next episodes; no replay is triggered."""
         super()._end_episode_at_reset()
         if self.replay_buffer is not None:
             self.replay_buffer.truncate_open_trajectory()
+
+    def _on_n_envs_changed(self) -> None:
+        if self.replay_buffer is not None:
+            self.replay_buffer.set_n_envs(self.n_envs)
 
     def seed_replay(self, seed: int | None) -> None:
         """Reseed the generator that picks trajectories, so models given the same buffer replay the same ones.
@@ -195,23 +321,41 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         """
         self.replay_rng = kernels.new_rng_state(seed, kernels.RNG_STREAM_REPLAY)
 
-    def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
-        self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
+    def _after_transition(self, env, slots, obs, action, reward, next_obs, terminated, done, info) -> None:
+        """Store the transition in env ``env``'s open trajectory, closing it at an episode's end (and at a segment's
+        end with ``replay_unit="segment"``), then replay at a trigger (Alg. 7 lines 10-13)."""
         segment_end = bool(info.get("segment_end", False))
+        closes = done or (segment_end and self.replay_unit == "segment")
+        self.replay_buffer.add(obs, slots, action, reward, next_obs, env, end=terminated if closes else None)
+        self._new_samples += 1
         if not (done or segment_end):
             return
-        if done or self.replay_unit == "segment":
-            self.replay_buffer.close_trajectory(next_obs, terminated)
         episode_trigger = done and (self._episode_num + 1) % self.replay_every == 0
         if self.replay_trigger == "segment" or episode_trigger:
-            self.replay(self._replays_per_phase())
+            self._replay_at_trigger()
 
     def _replays_per_phase(self) -> int:
         if self.replays_per_stored_trajectory is not None:
             return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_stored_trajectories))
-        return self.n_replays
+        return self.stabilizers["n_replays"]
 
-    def replay(self, n_trajectories: int) -> dict[str, float]:
+    def _replay_at_trigger(self) -> None:
+        """One replay phase at a trigger: ``n_replays`` (or ``replays_per_stored_trajectory`` times the stored)
+        trajectories, or with ``replay_ratio`` whole trajectories until the phase has made ratio x (the transitions
+        stored since the last phase) updates, the shortfall or excess carried to the next phase."""
+        ratio = self.stabilizers["replay_ratio"]
+        if ratio is None:
+            self.replay(self._replays_per_phase())
+            return
+        budget = ratio * self._new_samples + self._ratio_carry
+        self._new_samples = 0
+        if budget < 1.0:
+            self._ratio_carry = max(budget, 0.0)
+            return
+        updates = self.replay(UNLIMITED, max_updates=int(budget))["updates"]
+        self._ratio_carry = budget - updates if updates else 0.0
+
+    def replay(self, n_trajectories: int, max_updates: int | None = None) -> dict[str, float]:
         """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean
         |delta|, and for ER-sigma the phase's mean target shift T_sigma - T and the shares of targets it raised and
         lowered (``sigma_shift``, ``sigma_raised``, ``sigma_lowered``; with the value watch on). Prioritized sweeping
@@ -220,141 +364,104 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
         :param n_trajectories: trajectories to replay in this phase (drawn uniformly from those stored, the open one
             included).
+        :param max_updates: begin no trajectory once the phase has made this many updates (default None: no limit).
         """
         buffer = self.replay_buffer
         if buffer.n_stored_trajectories == 0 or n_trajectories <= 0:
             return {"updates": 0, "td_error": 0.0}
-        self._observe_stored_rewards()
-        coder = self.policy.tile_coder
-        watch = self._watch_array
-        updates_before = watch[kernels.WATCH_UPDATES] if watch.shape[0] else 0.0
-        period_shift = watch[SHIFT_ENTRIES].copy() if watch.shape[0] else None
-        if period_shift is not None:
-            watch[SHIFT_ENTRIES] = 0.0  # the phase's own shift figures, added to the period's after it
-        update_arguments = (
-            TARGETS[self.target],
-            SIGMAS[self.sigma],
-            0.0 if self.residual_zeta is None else float(self.residual_zeta),
-            self.residual_action == "next",
-            self.current_learning_rate / coder.n_tilings,
-            self.gamma,
-            self.exploration_rate,
+        watch = self._watch
+        watch.begin_phase(buffer)
+        if self._target_copy is not None:  # the copy bootstrapping reads: taken anew at each phase (Chen et al.)
+            kernels.refresh_target(self._weights())
+        rule = self._update_rule(
+            target_kind=TARGETS[self.target],
+            sigma_kind=SIGMAS[self.sigma],
+            residual_zeta=0.0 if self.residual_zeta is None else self.residual_zeta,
+            residual_next_action=self.residual_action == "next",
         )
+        weights, data, layout = self._weights(), buffer.replay_data(), self.policy.tile_coder.layout
         if self.replay_order == "prioritized":
             n_updates = self.prioritized_updates
             if n_updates is None:
                 n_updates = round(n_trajectories * buffer.n_transitions / buffer.n_stored_trajectories)
+            sweep = kernels.make(
+                kernels.Sweep,
+                n_updates=n_updates,
+                threshold=self.priority_threshold,
+                predecessors=PREDECESSORS[self.predecessors],
+                max_predecessors=self.max_predecessors,
+            )
             updates, sum_abs_delta, last_delta, status, evaluations = kernels.prioritized_phase(
-                self.policy.theta_array,
-                buffer.visits,
-                *buffer.replay_arguments(),
-                coder.stride,
-                coder.action_columns,
-                coder.columns_are_actions,
-                int(n_updates),
-                float(self.priority_threshold),
-                PREDECESSORS[self.predecessors],
-                int(self.max_predecessors),
-                *update_arguments,
-                self.action_rng,
-                self._q_scratch,
-                self._w_scratch,
-                *self.policy.initial_arguments,
-                *self._priority_arrays(),
-                self._watch_array,
+                weights, data, layout, rule, sweep, self.action_rng, self._scratch, self._priority_queue(), watch.array
             )
             self.priority_evaluations += evaluations
         else:
+            replay = kernels.make(
+                kernels.Replay,
+                n_trajectories=n_trajectories,
+                max_updates=-1 if max_updates is None else max_updates,
+                order=REPLAY_ORDERS[self.replay_order],
+                picks_rng=self.replay_rng,
+            )
             updates, sum_abs_delta, last_delta, status = kernels.replay_phase(
-                self.policy.theta_array,
-                buffer.visits,
-                *buffer.replay_arguments(),
-                coder.stride,
-                coder.action_columns,
-                coder.columns_are_actions,
-                int(n_trajectories),
-                REPLAY_ORDERS[self.replay_order],
-                *update_arguments,
-                self.replay_rng,
-                self.action_rng,
-                self._q_scratch,
-                self._w_scratch,
-                *self.policy.initial_arguments,
-                self._watch_array,
+                weights, data, layout, rule, replay, self.action_rng, self._scratch, watch.array
             )
         self.replay_updates += updates
         self.replay_phases += 1
-        if status == kernels.STATUS_DIVERGED:
-            self._raise_divergence(last_delta, f"replayed update {updates} of a replay phase")
+        shift, first = watch.end_phase(status == kernels.STATUS_OUT_OF_BOUNDS)
+        self._check_status(
+            status, f"replayed update {first if first else updates} of replay phase {self.replay_phases}", last_delta
+        )
         self._td_error_sum += sum_abs_delta
         self._td_error_count += updates
-        result = {"updates": updates, "td_error": sum_abs_delta / max(updates, 1)}
-        watch = self._watch_array
-        if period_shift is not None:
-            shift_sum, shifted, raised, lowered = watch[SHIFT_ENTRIES]
-            if shifted > 0:
-                result.update(
-                    sigma_shift=float(shift_sum / shifted),
-                    sigma_raised=float(raised / shifted),
-                    sigma_lowered=float(lowered / shifted),
-                )
-            watch[SHIFT_ENTRIES] += period_shift
-        if status == kernels.STATUS_OUT_OF_BOUNDS:
-            first = int(watch[kernels.WATCH_FIRST_UPDATE] - updates_before) + 1
-            self._value_out_of_bounds(f"replayed update {first} of replay phase {self.replay_phases}")
-        return result
+        return {"updates": updates, "td_error": sum_abs_delta / max(updates, 1), **shift}
 
-    def _priority_arrays(self) -> tuple[np.ndarray, ...]:
-        """The workspace of ``kernels.prioritized_phase``, allocated here (the kernel allocates nothing) and grown with
-        the buffer: heap_rows, heap_keys, heap_position, heap_size, index_start, index_rows, stamp, stamp_counter.
+    def _priority_queue(self) -> kernels.PriorityQueue:
+        """The workspace of ``kernels.prioritized_phase`` (a :class:`~sb3_er.common.kernels.bundles.PriorityQueue`),
+        allocated here (the kernel allocates nothing) and grown with the buffer.
 
         Arrays indexed by a buffer row have one entry per row of the ring; the heap and the tile index grow in steps
         of doubling with the stored transitions. Nothing of it is saved: the queue is rebuilt at every phase.
         """
         buffer = self.replay_buffer
         coder = self.policy.tile_coder
-        space = self._priority_workspace
-        if space is None or space["heap_position"].shape[0] != buffer.capacity:
-            space = {
-                "heap_rows": np.zeros(0, dtype=np.int64),
-                "heap_keys": np.zeros(0, dtype=np.float64),
-                "heap_position": np.full(buffer.capacity, -1, dtype=np.int64),
-                "heap_size": np.zeros(1, dtype=np.int64),
-                "index_start": np.zeros(0, dtype=np.int64),
-                "index_rows": np.zeros(0, dtype=np.int64),
-                "stamp": np.zeros(buffer.capacity, dtype=np.int64),
-                "stamp_counter": np.zeros(1, dtype=np.int64),
-            }
-            self._priority_workspace = space
-        n = buffer.n_transitions
-        if space["heap_rows"].shape[0] < n:
-            size = min(buffer.capacity, max(n, 2 * space["heap_rows"].shape[0]))
-            space["heap_rows"] = np.zeros(size, dtype=np.int64)
-            space["heap_keys"] = np.zeros(size, dtype=np.float64)
-        if self.predecessors == "tiles":
-            if space["index_start"].shape[0] != coder.slot_mask + 2:
-                space["index_start"] = np.zeros(coder.slot_mask + 2, dtype=np.int64)
-            if space["index_rows"].shape[0] < n * coder.n_tilings:
-                rows = min(buffer.capacity, max(n, 2 * space["index_rows"].shape[0] // coder.n_tilings))
-                space["index_rows"] = np.zeros(rows * coder.n_tilings, dtype=np.int64)
-        elif space["index_start"].shape[0] == 0:
-            space["index_start"] = np.zeros(1, dtype=np.int64)
-        return tuple(
-            space[name]
-            for name in (
-                "heap_rows",
-                "heap_keys",
-                "heap_position",
-                "heap_size",
-                "index_start",
-                "index_rows",
-                "stamp",
-                "stamp_counter",
+        queue = self._priority_workspace
+        if queue is None or queue.position.shape[0] != buffer.capacity:
+            queue = kernels.PriorityQueue(
+                rows=np.zeros(0, dtype=np.int64),
+                keys=np.zeros(0, dtype=np.float64),
+                position=np.full(buffer.capacity, -1, dtype=np.int64),
+                size=np.zeros(1, dtype=np.int64),
+                index_start=np.zeros(0, dtype=np.int64),
+                index_rows=np.zeros(0, dtype=np.int64),
+                stamp=np.zeros(buffer.capacity, dtype=np.int64),
+                stamp_counter=np.zeros(1, dtype=np.int64),
             )
-        )
+        n = buffer.n_transitions
+        if queue.rows.shape[0] < n:
+            size = min(buffer.capacity, max(n, 2 * queue.rows.shape[0]))
+            queue = queue._replace(rows=np.zeros(size, dtype=np.int64), keys=np.zeros(size, dtype=np.float64))
+        if self.predecessors == "tiles":
+            if queue.index_start.shape[0] != coder.slot_mask + 2:
+                queue = queue._replace(index_start=np.zeros(coder.slot_mask + 2, dtype=np.int64))
+            if queue.index_rows.shape[0] < n * coder.n_tilings:
+                rows = min(buffer.capacity, max(n, 2 * queue.index_rows.shape[0] // coder.n_tilings))
+                queue = queue._replace(index_rows=np.zeros(rows * coder.n_tilings, dtype=np.int64))
+        elif queue.index_start.shape[0] == 0:
+            queue = queue._replace(index_start=np.zeros(1, dtype=np.int64))
+        self._priority_workspace = queue
+        return queue
 
     def _record_train_metrics(self) -> None:
+        watch = self._watch.array if self._watch is not None else kernels.NO_WATCH
+        if self.stabilizers["truncate_targets"] and watch.shape[0] and watch[kernels.WATCH_PERIOD_UPDATES] > 0:
+            truncated = watch[kernels.WATCH_TRUNCATED] / watch[kernels.WATCH_PERIOD_UPDATES]
+            self.logger.record("train/truncated_share", float(truncated))
+        if self.stabilizers["step_size_bound"]:
+            bound = float(self._step_cap[0]) * self.policy.tile_coder.n_tilings
+            self.logger.record("train/effective_learning_rate", min(self.current_learning_rate, bound))
         super()._record_train_metrics()
+        self.logger.record("train/replay_ratio", self.replay_updates / max(self.num_timesteps, 1))
         self.logger.record("train/replay_updates", self.replay_updates)
         self.logger.record("train/trajectories", self.replay_buffer.n_trajectories)
         if self.replay_order == "prioritized":
@@ -376,8 +483,85 @@ class ERSigma(ER):
         choice: halfway between the average and the worst case), "worst", "average", "best" or "average_best".
     """
 
-    def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", **kwargs):
-        super().__init__(policy, env, sigma=sigma, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
+        sigma: str = "average_worst",
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int | None = None,
+        replays_per_stored_trajectory: float | None = None,
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        residual_zeta: float | None = None,
+        residual_action: Literal["taken", "next"] = "taken",
+        online_lambda: float | None = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        preset: Literal["thesis", "stable"] = "thesis",
+        truncate_targets: bool | None = None,
+        target_copy: bool | None = None,
+        step_size_bound: bool | None = None,
+        replay_ratio: float | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            sigma=sigma,
+            buffer_size=buffer_size,
+            replay_trigger=replay_trigger,
+            replay_unit=replay_unit,
+            replay_every=replay_every,
+            n_replays=n_replays,
+            replays_per_stored_trajectory=replays_per_stored_trajectory,
+            replay_order=replay_order,
+            target=target,
+            residual_zeta=residual_zeta,
+            residual_action=residual_action,
+            online_lambda=online_lambda,
+            priority_threshold=priority_threshold,
+            predecessors=predecessors,
+            max_predecessors=max_predecessors,
+            prioritized_updates=prioritized_updates,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            preset=preset,
+            truncate_targets=truncate_targets,
+            target_copy=target_copy,
+            step_size_bound=step_size_bound,
+            replay_ratio=replay_ratio,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
 
 @inherit_parameters
@@ -391,8 +575,85 @@ class ResidualER(ER):
         ER, values between Baird's residual algorithm.
     """
 
-    def __init__(self, policy="TileQ", env=None, residual_zeta: float = 1.0, **kwargs):
-        super().__init__(policy, env, residual_zeta=residual_zeta, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
+        residual_zeta: float = 1.0,
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int | None = None,
+        replays_per_stored_trajectory: float | None = None,
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        sigma: str | None = None,
+        residual_action: Literal["taken", "next"] = "taken",
+        online_lambda: float | None = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        preset: Literal["thesis", "stable"] = "thesis",
+        truncate_targets: bool | None = None,
+        target_copy: bool | None = None,
+        step_size_bound: bool | None = None,
+        replay_ratio: float | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            residual_zeta=residual_zeta,
+            buffer_size=buffer_size,
+            replay_trigger=replay_trigger,
+            replay_unit=replay_unit,
+            replay_every=replay_every,
+            n_replays=n_replays,
+            replays_per_stored_trajectory=replays_per_stored_trajectory,
+            replay_order=replay_order,
+            target=target,
+            sigma=sigma,
+            residual_action=residual_action,
+            online_lambda=online_lambda,
+            priority_threshold=priority_threshold,
+            predecessors=predecessors,
+            max_predecessors=max_predecessors,
+            prioritized_updates=prioritized_updates,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            preset=preset,
+            truncate_targets=truncate_targets,
+            target_copy=target_copy,
+            step_size_bound=step_size_bound,
+            replay_ratio=replay_ratio,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
 
 
 @inherit_parameters
@@ -405,5 +666,82 @@ class ResidualERSigma(ER):
     :param residual_zeta: zeta of Eq. 5.9 in [0, 1]: 1 (default) is the thesis's residual gradient (Alg. 14).
     """
 
-    def __init__(self, policy="TileQ", env=None, sigma: str = "average_worst", residual_zeta: float = 1.0, **kwargs):
-        super().__init__(policy, env, sigma=sigma, residual_zeta=residual_zeta, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[TileQPolicy] = "TileQ",
+        env: GymEnv | str | None = None,
+        sigma: str = "average_worst",
+        residual_zeta: float = 1.0,
+        buffer_size: int = 1_000_000,
+        replay_trigger: Literal["episode", "segment"] = "episode",
+        replay_unit: Literal["episode", "segment"] = "episode",
+        replay_every: int = 1,
+        n_replays: int | None = None,
+        replays_per_stored_trajectory: float | None = None,
+        replay_order: Literal["reversed", "forward", "uniform", "prioritized"] = "reversed",
+        target: Literal["sarsa", "q_learning", "expected_sarsa"] = "sarsa",
+        residual_action: Literal["taken", "next"] = "taken",
+        online_lambda: float | None = None,
+        priority_threshold: float = 0.0,
+        predecessors: Literal["tiles", "trajectory"] = "tiles",
+        max_predecessors: int = 4,
+        prioritized_updates: int | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        preset: Literal["thesis", "stable"] = "thesis",
+        truncate_targets: bool | None = None,
+        target_copy: bool | None = None,
+        step_size_bound: bool | None = None,
+        replay_ratio: float | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
+    ):
+        super().__init__(
+            policy,
+            env,
+            sigma=sigma,
+            residual_zeta=residual_zeta,
+            buffer_size=buffer_size,
+            replay_trigger=replay_trigger,
+            replay_unit=replay_unit,
+            replay_every=replay_every,
+            n_replays=n_replays,
+            replays_per_stored_trajectory=replays_per_stored_trajectory,
+            replay_order=replay_order,
+            target=target,
+            residual_action=residual_action,
+            online_lambda=online_lambda,
+            priority_threshold=priority_threshold,
+            predecessors=predecessors,
+            max_predecessors=max_predecessors,
+            prioritized_updates=prioritized_updates,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            preset=preset,
+            truncate_targets=truncate_targets,
+            target_copy=target_copy,
+            step_size_bound=step_size_bound,
+            replay_ratio=replay_ratio,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )

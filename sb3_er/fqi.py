@@ -1,8 +1,10 @@
 """Fitted Q-iteration with a linear projection on the tile features (Ernst et al. 2005; thesis 3.3.1, Alg. 6)."""
 
+from typing import Any
+
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, cg
-from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary
@@ -65,13 +67,47 @@ class FQI(FittedTileQAlgorithm):
         solver_tolerance: float = 1e-6,
         warm_start: bool = True,
         buffer_size: int = 1_000_000,
-        **kwargs,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_lambda: float | None = None,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
     ):
         self.solver_iterations = solver_iterations
         self.solver_tolerance = solver_tolerance
         self.warm_start = warm_start
         super().__init__(
-            policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge, buffer_size=buffer_size, **kwargs
+            policy,
+            env,
+            fit_every=fit_every,
+            n_iterations=n_iterations,
+            ridge=ridge,
+            buffer_size=buffer_size,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_lambda=trace_lambda,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
         )
 
     def _check_hyperparameters(self) -> None:
@@ -104,9 +140,7 @@ class FQI(FittedTileQAlgorithm):
                 theta,
                 data.next_slots,
                 data.terminal,
-                coder.stride,
-                coder.action_columns,
-                coder.columns_are_actions,
+                coder.layout,
                 self._q_scratch,
                 next_values,
                 next_actions,

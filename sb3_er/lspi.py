@@ -1,9 +1,11 @@
 """Least-squares policy iteration on the tile features (Lagoudakis and Parr 2003; thesis 3.3.2)."""
 
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
-from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
 from sb3_er.common.batch import FittedTileQAlgorithm, TileFeatures, Transitions, features_summary, weight_indices
@@ -59,12 +61,46 @@ class LSPI(FittedTileQAlgorithm):
         ridge: float = 1.0,
         max_features: int = DEFAULT_MAX_FEATURES,
         buffer_size: int = 1_000_000,
-        **kwargs,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        learning_rate: float | Schedule = 0.2,
+        gamma: float = 0.99,
+        exploration_rate: float = 0.05,
+        trace_lambda: float | None = None,
+        trace_cutoff: float = 0.01,
+        value_watch: bool = True,
+        value_bound_action: str = "warn",
+        policy_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: str = "cpu",
+        _init_setup_model: bool = True,
     ):
         self.max_features = max_features
         self.policy_iterations = 0
         super().__init__(
-            policy, env, fit_every=fit_every, n_iterations=n_iterations, ridge=ridge, buffer_size=buffer_size, **kwargs
+            policy,
+            env,
+            fit_every=fit_every,
+            n_iterations=n_iterations,
+            ridge=ridge,
+            buffer_size=buffer_size,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            exploration_rate=exploration_rate,
+            trace_lambda=trace_lambda,
+            trace_cutoff=trace_cutoff,
+            value_watch=value_watch,
+            value_bound_action=value_bound_action,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
         )
 
     def _check_hyperparameters(self) -> None:
@@ -99,9 +135,7 @@ class LSPI(FittedTileQAlgorithm):
             theta,
             data.next_slots,
             data.terminal,
-            coder.stride,
-            coder.action_columns,
-            coder.columns_are_actions,
+            coder.layout,
             self._q_scratch,
             next_values,
             policy,
@@ -125,9 +159,7 @@ class LSPI(FittedTileQAlgorithm):
                 theta,
                 data.next_slots,
                 data.terminal,
-                coder.stride,
-                coder.action_columns,
-                coder.columns_are_actions,
+                coder.layout,
                 self._q_scratch,
                 next_values,
                 new_policy,

@@ -254,23 +254,46 @@ def register_algorithms() -> None:
     hyperparams_opt.HYPERPARAMS_CONVERTER.update({name: _sampled_params_as_kwargs for name in ALL_ALGORITHM_NAMES})
 
 
+#: The log folder rl_zoo3's ``train`` writes to by default (its ``-f/--log-folder``), which ``sb3-er enjoy`` reads by
+#: default too (rl_zoo3's own ``enjoy`` reads ``rl-trained-agents`` and downloads missing models from a model hub).
+LOG_FOLDER = "logs"
+
+
 def _has_option(argv: Sequence[str], *names: str) -> bool:
     return any(arg == name or arg.startswith(name + "=") for arg in argv for name in names)
 
 
-def _with_defaults(argv: Sequence[str], training: bool) -> list[str]:
-    """rl_zoo3 arguments with our defaults: the env package, and for training the config file and TensorBoard folder."""
-    parser = argparse.ArgumentParser(add_help=False)
+def _known_arguments(argv: Sequence[str], command: str) -> argparse.Namespace:
+    """The options our defaults depend on (--algo, --env and the log folder), parsed as the command's own."""
+    parser = argparse.ArgumentParser(prog=f"sb3-er {command}", add_help=False)
     parser.add_argument("--algo", required=True, choices=ALL_ALGORITHM_NAMES)
-    parser.add_argument("-f", "--log-folder", "--folder", dest="folder", default="logs")
+    parser.add_argument("--env", default="CartPole-v1")  # rl_zoo3's default env
+    parser.add_argument("-f", "--log-folder", "--folder", dest="folder", default=LOG_FOLDER)
     known, _ = parser.parse_known_args(argv)
+    return known
+
+
+def _with_defaults(argv: Sequence[str], command: str) -> list[str]:
+    """rl_zoo3 arguments with our defaults: the env package; for training the config file and TensorBoard folder; for
+    enjoy the folder training writes (:data:`LOG_FOLDER`). ``-h`` passes through to rl_zoo3's own help."""
     arguments = list(argv)
-    if training and not _has_option(arguments, "-conf", "--conf-file"):
-        arguments += ["--conf-file", str(config_path(known.algo))]
     if not _has_option(arguments, "--gym-packages"):
         arguments += ["--gym-packages", ENV_PACKAGE]
+    if _has_option(arguments, "-h", "--help"):
+        return arguments
+    known = _known_arguments(argv, command)
+    training = command in ("train", "optimize")
+    if training and not _has_option(arguments, "-conf", "--conf-file"):
+        arguments += ["--conf-file", str(config_path(known.algo))]
     if training and not _has_option(arguments, "-tb", "--tensorboard-log"):
         arguments += ["--tensorboard-log", str(Path(known.folder) / "tensorboard")]
+    if not training:
+        # rl_zoo3's enjoy spells the folder -f/--folder only; train's --log-folder is accepted here as well
+        arguments = [
+            "--folder" if arg == "--log-folder" else arg.replace("--log-folder=", "--folder=", 1) for arg in arguments
+        ]
+        if not _has_option(arguments, "-f", "--folder"):
+            arguments += ["--folder", LOG_FOLDER]
     return arguments
 
 
@@ -304,13 +327,21 @@ def _check_env_kwargs(program: str, env_id: str | None, argv: Sequence[str]) -> 
                 raise SystemExit(f"{program}: error: {error}") from None
 
 
-def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str]) -> None:
-    register_algorithms()
+def _env_id(argv: Sequence[str]) -> str | None:
     parser = argparse.ArgumentParser(add_help=False)
     parser.add_argument("--env", default=None)
     known, _ = parser.parse_known_args(argv)
-    register_env_id(known.env)  # sb3_er/ and shimmy's dm_control/ ids, in this process, before rl_zoo3 makes it
-    _check_env_kwargs(program, known.env, argv)  # one message, before any env or run exists
+    return known.env
+
+
+def _run_zoo_script(
+    script: Callable[[], None], program: str, argv: Sequence[str], check_env_kwargs: bool = True
+) -> None:
+    register_algorithms()
+    env_id = _env_id(argv)
+    register_env_id(env_id)  # sb3_er/ and shimmy's dm_control/ ids, in this process, before rl_zoo3 makes it
+    if check_env_kwargs:
+        _check_env_kwargs(program, env_id, argv)  # one message, before any env or run exists
     saved = sys.argv
     sys.argv = [program, *argv]
     try:
@@ -324,13 +355,9 @@ def train(argv: Sequence[str]) -> None:
 
     :param argv: the arguments after ``train`` (rl_zoo3's train options).
     """
-    _train(argv, "sb3-er train")
-
-
-def _train(argv: Sequence[str], program: str) -> None:
     from rl_zoo3.train import train as zoo_train
 
-    _run_zoo_script(zoo_train, program, _with_defaults(argv, training=True))
+    _run_zoo_script(zoo_train, "sb3-er train", _with_defaults(argv, "train"))
 
 
 def optimize(argv: Sequence[str]) -> None:
@@ -339,22 +366,107 @@ def optimize(argv: Sequence[str]) -> None:
     :param argv: the arguments after ``optimize`` (rl_zoo3's train options with ``--optimize``).
     """
     arguments = list(argv)
-    if not _has_option(arguments, "-optimize", "--optimize-hyperparameters"):
+    if not _has_option(arguments, "-optimize", "--optimize-hyperparameters", "-h", "--help"):
         arguments.append("--optimize-hyperparameters")
-    _train(arguments, "sb3-er optimize")
+    from rl_zoo3.train import train as zoo_train
+
+    _run_zoo_script(zoo_train, "sb3-er optimize", _with_defaults(arguments, "optimize"))
+
+
+class ModelNotFoundError(FileNotFoundError):
+    """``sb3-er enjoy`` found no trained model where it looked."""
+
+
+def find_trained_model(argv: Sequence[str]) -> Path:
+    """The model file ``sb3-er enjoy`` (rl_zoo3's enjoy) loads for these arguments, found as rl_zoo3 finds it (the
+    latest run ``<folder>/<algo>/<env>_<N>`` unless ``--exp-id``, its ``<env>.zip`` unless ``--load-best`` or a
+    checkpoint is asked for), without rl_zoo3's fallback of downloading from a model hub.
+
+    Raises ModelNotFoundError saying where it looked and which ``sb3-er train`` command writes there.
+
+    :param argv: ``sb3-er enjoy``'s arguments with our defaults (:func:`_with_defaults`).
+    """
+    import io
+
+    from huggingface_sb3 import EnvironmentName
+    from rl_zoo3.utils import get_model_path
+
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--algo", required=True)
+    parser.add_argument("--env", default="CartPole-v1")
+    parser.add_argument("-f", "--folder", default=LOG_FOLDER)
+    parser.add_argument("--exp-id", type=int, default=0)
+    parser.add_argument("--load-best", action="store_true")
+    parser.add_argument("--load-checkpoint", type=int, default=None)
+    parser.add_argument("--load-last-checkpoint", action="store_true")
+    known, _ = parser.parse_known_args(argv)
+    env_name = EnvironmentName(known.env)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # rl_zoo3 prints "Loading latest experiment"; enjoy will too
+            _, model_path, _ = get_model_path(
+                known.exp_id,
+                known.folder,
+                known.algo,
+                env_name,
+                known.load_best,
+                known.load_checkpoint,
+                known.load_last_checkpoint,
+            )
+    except (AssertionError, ValueError) as error:
+        folder = Path(known.folder)
+        run = folder / known.algo / f"{env_name}_<N>"
+        wanted = (
+            f"{run}/best_model.zip (written by train's evaluation, --eval-freq)"
+            if known.load_best
+            else f"{run}/rl_model_<steps>_steps.zip (written with train's --save-freq)"
+            if known.load_checkpoint is not None or known.load_last_checkpoint
+            else f"{run}/{env_name}.zip"
+        )
+        reason = str(error)
+        folder_option = "" if known.folder == LOG_FOLDER else f" -f {known.folder}"
+        raise ModelNotFoundError(
+            f"no trained {known.algo} model for {known.env} in {folder}/ ({folder.resolve()}): "
+            f"{reason[:1].lower() + reason[1:]}. Enjoy loads {wanted}, the latest run N (or --exp-id N), which "
+            f"`sb3-er train --algo {known.algo} --env {known.env}{folder_option}` writes. For a model trained with "
+            f"-f FOLDER, give enjoy the same -f FOLDER (both commands default to -f {LOG_FOLDER})"
+        ) from error
+    return Path(model_path)
 
 
 def enjoy(argv: Sequence[str]) -> None:
-    """`sb3-er enjoy --algo ALGO --env ENV [-f FOLDER --no-render ...]`: rl_zoo3's enjoy for our trained agents.
+    """`sb3-er enjoy --algo ALGO --env ENV [-f FOLDER --no-render ...]`: rl_zoo3's enjoy of a model trained by
+    ``sb3-er train``: by default the latest run in ``logs/`` (:data:`LOG_FOLDER`), where ``sb3-er train`` writes. A
+    missing model is a ModelNotFoundError naming the place looked in and the train command that writes there; nothing
+    is downloaded.
 
     :param argv: the arguments after ``enjoy`` (rl_zoo3's enjoy options).
     """
     from rl_zoo3.enjoy import enjoy as zoo_enjoy
 
-    _run_zoo_script(zoo_enjoy, "sb3-er enjoy", _with_defaults(argv, training=False))
+    arguments = _with_defaults(argv, "enjoy")
+    if not _has_option(arguments, "-h", "--help"):
+        register_algorithms()
+        env_id = _env_id(arguments)
+        register_env_id(env_id)
+        _check_env_kwargs("sb3-er enjoy", env_id, arguments)  # the user's settings first, then where the model is
+        find_trained_model(arguments)
+    _run_zoo_script(zoo_enjoy, "sb3-er enjoy", arguments, check_env_kwargs=False)
 
 
 COMMANDS = {"train": train, "enjoy": enjoy, "optimize": optimize}
+
+
+def run_command(command: str, argv: Sequence[str]) -> None:
+    """Run `command` ("train", "enjoy" or "optimize") with `argv`; a model enjoy cannot find ends the program with the
+    message alone (no traceback).
+
+    :param command: one of :data:`COMMANDS`.
+    :param argv: the arguments after the command's name.
+    """
+    try:
+        COMMANDS[command](argv)
+    except ModelNotFoundError as error:
+        raise SystemExit(f"sb3-er {command}: error: {error}") from error
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -365,7 +477,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     arguments = list(sys.argv[1:] if argv is None else argv)
     if not arguments or arguments[0] not in COMMANDS:
         raise SystemExit(f"usage: python -m sb3_er.zoo {{{','.join(COMMANDS)}}} --algo ALGO --env ENV [options]")
-    COMMANDS[arguments[0]](arguments[1:])
+    run_command(arguments[0], arguments[1:])
 
 
 if __name__ == "__main__":

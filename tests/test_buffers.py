@@ -2,6 +2,7 @@
 
 import pickle
 
+import kernel_bundles as bundles
 import numpy as np
 import pytest
 
@@ -92,29 +93,7 @@ def test_pickle_after_wrap_around():
 def replay_once(buffer, order):
     coder = buffer.tile_coder
     theta = np.zeros(coder.n_weights)
-    kernels.replay_phase(
-        theta,
-        buffer.visits,
-        *buffer.replay_arguments(),
-        coder.stride,
-        coder.action_columns,
-        coder.columns_are_actions,
-        1,
-        order,
-        kernels.TARGET_SARSA,
-        kernels.SIGMA_NONE,
-        0.0,
-        False,
-        1.0,
-        1.0,
-        0.0,
-        kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0),
-        np.zeros(coder.n_actions),
-        np.zeros(coder.n_actions),
-        *kernels.ZERO_INITIAL,
-        kernels.NO_WATCH,
-    )
+    bundles.replay_phase(theta, buffer, bundles.rule(1.0, 1.0), order=order)
     return [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(5)]
 
 
@@ -137,29 +116,7 @@ def test_the_open_episode_is_replayed_and_bootstraps_from_its_latest_state():
     coder = buffer.tile_coder
     theta = np.zeros(coder.n_weights)
     theta[coder.feature_indices(np.array([3.0]), 0)] = 2.0
-    kernels.replay_phase(
-        theta,
-        buffer.visits,
-        *buffer.replay_arguments(),
-        coder.stride,
-        coder.action_columns,
-        coder.columns_are_actions,
-        1,
-        kernels.ORDER_REVERSED,
-        kernels.TARGET_SARSA,
-        kernels.SIGMA_NONE,
-        0.0,
-        False,
-        1.0,
-        1.0,
-        0.0,
-        kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0),
-        np.zeros(coder.n_actions),
-        np.zeros(coder.n_actions),
-        *kernels.ZERO_INITIAL,
-        kernels.NO_WATCH,
-    )
+    bundles.replay_phase(theta, buffer, bundles.rule(1.0, 1.0), order=kernels.ORDER_REVERSED)
     # alpha 1, gamma 1, reversed: Q(2) = 5 + Q(3) = 7, then Q(1) = 0 + 7, Q(0) = 7 (not terminal: s' = 3 bootstraps)
     assert [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(3)] == [7.0, 7.0, 7.0]
     buffer.close_trajectory(np.array([3.0]), terminated=False)

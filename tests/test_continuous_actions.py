@@ -16,8 +16,8 @@ from stable_baselines3.common.monitor import Monitor
 
 from sb3_er import ER, ERSigma, SarsaLambda, zoo
 from sb3_er.common.action_levels import box_action_levels
-from sb3_er.common.base_class import package_tilings
 from sb3_er.common.policies import TileQPolicy
+from sb3_er.common.tile_coding import package_tilings
 
 CONTINUOUS_IDS = ("Pendulum-v1", "MountainCarContinuous-v0")
 SMALL = {"memory_size": 2**16}
@@ -320,6 +320,8 @@ def test_the_value_watch_bounds_of_the_continuous_tasks_lie_within_the_possible_
     [
         (spaces.Box(-np.inf, np.inf, (1,), dtype=np.float32), {}, r"infinite bounds.*action_values"),
         (spaces.Box(-np.float32(3.4e38), np.float32(3.4e38), (1,), dtype=np.float32), {}, r"unbounded.*action_values"),
+        # MuJoCo's mjMAXVAL, dm_control's bound of an actuator without a control range (lqr's motors)
+        (spaces.Box(-1e10, 1e10, (2,), dtype=np.float64), {}, r"dimensions \[0, 1\].*unbounded.*action_values"),
         (spaces.Box(-1.0, 1.0, (4,), dtype=np.float32), {}, r"7\^4 = 2401 joint actions.*cap of 343.*action_bins"),
         (spaces.Box(-1.0, 1.0, (1,), dtype=np.float32), {"action_bins": 0}, "positive integers"),
         (spaces.Box(-1.0, 1.0, (2,), dtype=np.float32), {"action_bins": [3]}, "1 entries .* 2 dimensions"),

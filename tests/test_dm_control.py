@@ -18,6 +18,7 @@ if importlib.util.find_spec("shimmy") is None or importlib.util.find_spec("dm_co
 
 from sb3_er import ERSigma, SarsaLambda  # noqa: E402
 from sb3_er.common.dict_observations import (  # noqa: E402
+    DM_CONTROL_REWARD_BOUNDS,
     check_flat_dict,
     flatten_dict_observation,
     is_dm_control_id,
@@ -168,7 +169,8 @@ def test_sb3_er_train_on_a_dm_control_id(tmp_path):
     """rl-zoo makes a VecEnv; the zoo entry's env_wrapper flattens each env's Dict."""
     from sb3_er import zoo
 
-    assert zoo.load_hyperparameters("sarsa_lambda", IDS[1])["env_wrapper"] == "gymnasium.wrappers.FlattenObservation"
+    wrapper = "sb3_er.common.dict_observations.FlattenSuiteObservation"
+    assert zoo.load_hyperparameters("sarsa_lambda", IDS[1])["env_wrapper"] == wrapper
     zoo.train(
         [
             "--algo",
@@ -191,6 +193,28 @@ def test_sb3_er_train_on_a_dm_control_id(tmp_path):
     model = SarsaLambda.load(run / "dm_control-pendulum-swingup-v0.zip")
     assert model.num_timesteps == 1000
     np.testing.assert_allclose(model.policy.tile_coder.tile_widths, package_tilings()[IDS[1]]["tile_widths"])
+
+
+@pytest.mark.parametrize("algo", sorted(algorithm_classes()))
+def test_the_zoos_dm_control_entries_keep_the_suites_reward_bounds(algo):
+    """rl-zoo wraps each env with the entry's env_wrapper (rl_zoo3.utils.get_wrapper_class, as its ExperimentManager
+    does): the flattening wrapper declares the suite's rewards, [0, 1] a step, so the watch bounds the values by
+    [0, 1 / (1 - 0.99)] from the first step instead of the rewards seen so far."""
+    from rl_zoo3.utils import get_wrapper_class
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from sb3_er import zoo
+
+    register_dm_control_envs()
+    for env_id in IDS:
+        wrapper = get_wrapper_class(zoo.load_hyperparameters(algo, env_id))
+        env = wrapper(gym.make(env_id))
+        assert env.get_wrapper_attr("reward_bounds") == DM_CONTROL_REWARD_BOUNDS
+        assert env.observation_space.shape == tuple(package_tilings()[env_id]["observation_shape"])
+    vec = make_vec_env(IDS[0], n_envs=1, wrapper_class=wrapper)
+    model = algorithm_classes()[algo]("TileQ", vec, seed=0, policy_kwargs=dict(SMALL))
+    assert model._watch.source == "env" and model.value_bounds[0] == 0.0
+    assert model.value_bounds[1] == pytest.approx(100.0 if model.gamma == 0.99 else 1.0 / (1.0 - model.gamma))
 
 
 def _random_returns(env, episodes: int) -> list[float]:

@@ -81,6 +81,28 @@ def test_every_results_folder_is_shown_by_a_page(built):
                 ), f"{figure} is not on any page"
 
 
+#: How a results folder names the command that made it: an ``sb3-er`` command or a script of benchmarks/.
+COMMAND = re.compile(r"\bsb3-er (?:reproduce|train|enjoy|optimize) |\bpython (?:\S*/)?(benchmarks/[\w/]+\.py)")
+
+
+def test_results_folders_hold_data_and_name_the_command_that_made_them():
+    """Scripts live in benchmarks/ or the package, not beside their data; each folder's Markdown (its README.md,
+    READING.md, VERSIONS.md or generated summary) or its page's "Reproduce with" names the command, and every
+    benchmarks/ script named exists."""
+    measured = ROOT / "results" / "measured"
+    code = sorted(p.relative_to(ROOT).as_posix() for p in measured.rglob("*") if p.suffix in (".py", ".sh", ".ipynb"))
+    assert not code, f"scripts in the data folders (move them to benchmarks/ or sb3_er.experiments): {code}"
+    for folder in generator.result_dirs():
+        texts = [path.read_text(encoding="utf-8") for path in (measured / folder).glob("*.md")]
+        if folder in generator.THESIS_RESULTS:
+            texts.append(generator.THESIS_RESULTS[folder].command + " ")
+        commands = [match for text in texts for match in COMMAND.finditer(text)]
+        assert commands, f"results/measured/{folder} names no command that made it: give it a README.md saying which"
+        for match in commands:
+            if match.group(1):
+                assert (ROOT / match.group(1)).is_file(), f"results/measured/{folder} names {match.group(1)}, missing"
+
+
 @pytest.mark.slow
 def test_the_cli_reference_is_generated_from_the_parser_tree(built):
     text = page_text(built / "cli.html")
@@ -104,6 +126,28 @@ def test_algorithm_pages_list_every_parameter(built):
         assert section in text
     for name in accepted_parameters(ERSigma):
         assert re.search(rf"\b{name}\b", text), name
+
+
+@pytest.mark.slow
+def test_each_algorithm_page_shows_the_whole_signature(built):
+    """The class heading of every algorithm's page names each parameter with its default, as ``help()`` does."""
+    from sb3_er.zoo import algorithm_classes
+
+    for cls in algorithm_classes().values():
+        pages = [p for p in (built / "algorithms").glob("*.html") if f'id="sb3_er.{cls.__name__}"' in p.read_text()]
+        assert pages, f"no algorithm page documents sb3_er.{cls.__name__}"
+        source = pages[0].read_text(encoding="utf-8")
+        start = source.index(f'id="sb3_er.{cls.__name__}"')
+        heading = page_text_of(source[start : source.index("</dt>", start)])
+        for parameter in inspect.signature(cls).parameters.values():
+            shown = f"{parameter.name}={parameter.default!r}"
+            assert re.sub(r"\s+", "", shown) in re.sub(r"\s+", "", heading), f"{cls.__name__}'s heading lacks {shown}"
+
+
+def page_text_of(markup: str) -> str:
+    """The text of an HTML fragment, as :func:`page_text` reads a page."""
+    text = html.unescape(re.sub(r"<[^>]+>", "", markup))
+    return text.translate(str.maketrans("\u2018\u2019\u201c\u201d", "''\"\""))
 
 
 def inventory_objects(objects_inv: Path, roles: tuple[str, ...]) -> list[str]:
@@ -377,7 +421,13 @@ def test_every_measured_figure_in_the_prose_comes_from_a_committed_results_file(
     for path in [ROOT / "README.md", *hand_written_pages()]:
         name = path.relative_to(ROOT).as_posix()
         allowed = NOT_MEASURED.get(name, {})
-        text = path.read_text(encoding="utf-8")
+        # the README's "Which algorithm?" block is generated from the results files (its own test keeps it current)
+        text = re.sub(
+            re.escape(generator.WHICH_START) + ".*?" + re.escape(generator.WHICH_END),
+            "",
+            path.read_text(encoding="utf-8"),
+            flags=re.DOTALL,
+        )
         folders = named_folders(text)
         if path.parent == DOCS / "_notes" and path.stem.startswith("results_"):
             folders.add(path.stem.removeprefix("results_"))
@@ -460,3 +510,314 @@ def test_the_readme_table_holds_the_default_readings_only(tmp_path):
         (measured / name / "findings.json").write_text(json.dumps({"findings": [{"claim": name, "holds": True}]}))
     assert [row[0] for row in generator.verdict_rows(measured)] == ["table_6_1", "table_6_1_earlier_default", "extra"]
     assert [row[0] for row in generator.verdict_rows(measured, defaults_only=True)] == ["table_6_1"]
+
+
+# --- the "Can I use?" tables are made from what the code accepts ---
+
+
+def table_cells(markdown: str) -> dict[tuple[str, str], str]:
+    """{(row, column): cell} of the "Can I use?" tables in `markdown` (the spaces table's action and observation
+    columns; the envs table's single column is called "use")."""
+    cells, columns = {}, None
+    for line in markdown.splitlines():
+        if not line.startswith("|") or set(line) <= set("|-"):
+            columns = None if not line.startswith("|") else columns
+            continue
+        row = [cell.strip() for cell in line.strip("|").split("|")]
+        if columns is None:
+            columns = ["use"] if row[0] == "env" else row[1:]
+            continue
+        cells.update({(row[0], column): cell for column, cell in zip(columns, row[1:], strict=True)})
+    return cells
+
+
+def test_each_algorithm_page_shows_the_generated_can_i_use_table():
+    from sb3_er import zoo
+
+    for name, algorithm in zoo.algorithm_classes().items():
+        text = (DOCS / "algorithms" / f"{name}.md").read_text(encoding="utf-8")
+        section = text.split("## Can I use?", 1)[1].split("\n## ", 1)[0]
+        assert f"```{{can-i-use}} {algorithm.__name__}\n```" in section, f"{name}.md does not generate its table"
+        assert not re.search(r"^\|", section, flags=re.MULTILINE), f"{name}.md has a hand-written table beside it"
+    assert "```{can-i-use}\n```" in (DOCS / "guide" / "own_env.md").read_text(encoding="utf-8")
+
+
+# What a refusal's message must name, per cell: the space's kind, or the set-up refused.
+REFUSAL_NAMES = {
+    "image (a Box of shape H × W × C)": "image",
+    "several envs at once (a VecEnv with `n_envs` > 1)": "multiple envs",
+    "a VecEnv of Dict observations": "FlattenObservation",
+    "`VecNormalize(norm_obs=True)`, rl-zoo's `normalize: true`": "normalises observations",
+}
+
+
+@pytest.mark.parametrize(
+    "name", ["sarsa_lambda", "er", "er_sigma", "residual_er", "residual_er_sigma", "dyna", "fqi", "lspi"]
+)
+def test_the_can_i_use_table_says_what_each_algorithm_does(name):
+    """Every ✔️ of an algorithm's tables learns on an env of that kind and acts inside its action space; every ❌ is a
+    ValueError naming the space or set-up (never a crash deep inside)."""
+    import warnings
+
+    from sb3_er import zoo
+
+    algorithm = zoo.algorithm_classes()[name]
+    cells = table_cells(generator.can_i_use_table([algorithm.__name__]))
+    cases = generator.space_cases()
+    assert {(case.row, case.column) for case in cases} <= set(cells)
+    for case in cases:
+        cell, env = cells[case.row, case.column], case.make()
+        assert cell.startswith(("✔️", "❌")), cell
+        if cell.startswith("✔️"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                model = algorithm("TileQ", env, policy_kwargs=generator.PROBE_POLICY_KWARGS, seed=0).learn(30)
+            observations = model.get_env().reset()
+            actions, _ = model.predict(observations, deterministic=True)
+            assert len(actions) == model.get_env().num_envs
+            assert all(model.action_space.contains(action) for action in actions), (case.row, case.column, actions)
+        else:
+            expected = REFUSAL_NAMES.get(case.row, case.row)
+            with pytest.raises(ValueError, match=re.escape(expected)):
+                algorithm("TileQ", env, policy_kwargs=generator.PROBE_POLICY_KWARGS)
+        env.close()
+
+
+# --- the built site's links: no link to nowhere, no missing page, file or anchor ---
+
+
+def _links_and_ids(text: str) -> tuple[list[str], set[str]]:
+    """(the href and src values, the ids and names) of an HTML text."""
+    from html.parser import HTMLParser
+
+    class Collector(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.links, self.ids = [], set()
+
+        def handle_starttag(self, tag, attrs):
+            for name, value in attrs:
+                if name in ("href", "src") and value is not None and not (tag == "link" and name == "href"):
+                    self.links.append(value)
+                if name == "id" or (tag == "a" and name == "name"):
+                    self.ids.add(value)
+
+    collector = Collector()
+    collector.feed(text)
+    return collector.links, collector.ids
+
+
+def dead_links(site: Path) -> list[str]:
+    """Every link of the pages' text (the theme's navigation, which marks the current page with ``href="#"``, left
+    out) that goes nowhere: ``href="#"``, a local file that is missing, or an anchor its page lacks."""
+    from urllib.parse import unquote, urlsplit
+
+    ids: dict[Path, set[str]] = {}
+
+    def ids_of(page: Path) -> set[str]:
+        if page not in ids:
+            ids[page] = _links_and_ids(page.read_text(encoding="utf-8"))[1]
+        return ids[page]
+
+    problems = []
+    for page in sorted(site.rglob("*.html")):
+        text = page.read_text(encoding="utf-8")
+        body = text.split('<div itemprop="articleBody">', 1)[-1].split("<footer", 1)[0]
+        for link in _links_and_ids(body)[0]:
+            where = f"{page.relative_to(site)}: {link!r}"
+            parts = urlsplit(link)
+            if parts.scheme or link.startswith("//"):
+                continue  # an address on the web, not checked offline
+            if link in ("#", ""):
+                problems.append(f"{where} links to nothing")
+                continue
+            target = (page.parent / unquote(parts.path)).resolve() if parts.path else page
+            if target.is_dir():
+                target = target / "index.html"
+            if not target.is_file():
+                problems.append(f"{where}: {target} does not exist")
+            elif parts.fragment and target.suffix == ".html" and unquote(parts.fragment) not in ids_of(target):
+                problems.append(f"{where}: {target.name} has no anchor #{parts.fragment}")
+    return problems
+
+
+def test_the_link_check_finds_each_kind_of_dead_link(tmp_path):
+    nav = '<nav><a href="#">this page</a></nav>'
+    body = (
+        '<div itemprop="articleBody"><h1 id="top">T</h1><a href="#">self</a> <a href="b.html">b</a> '
+        '<a href="missing.html">m</a> <a href="b.html#there">anchor</a> <a href="b.html#nowhere">lost</a> '
+        '<a href="#top">top</a> <img src="_images/x.png"> <img src="_images/gone.png"> '
+        '<a href="https://example.org/">web</a></div><footer><a href="#">up</a></footer>'
+    )
+    (tmp_path / "a.html").write_text(nav + body)
+    (tmp_path / "b.html").write_text('<div itemprop="articleBody"><p id="there">b</p></div>')
+    (tmp_path / "_images").mkdir()
+    (tmp_path / "_images" / "x.png").write_bytes(b"")
+    problems = dead_links(tmp_path)
+    assert len(problems) == 4, problems
+    assert "'#' links to nothing" in problems[0] and "missing.html does not exist" in problems[1]
+    assert "no anchor #nowhere" in problems[2] and "gone.png does not exist" in problems[3]
+
+
+@pytest.mark.slow
+def test_the_built_site_has_no_dead_links(built):
+    # wide tables wrap instead of hiding their last columns (the theme keeps cells on one line)
+    assert "_static/sb3er.css" in (built / "results" / "table_6_2.html").read_text(encoding="utf-8")
+    assert "white-space: normal" in (built / "_static" / "sb3er.css").read_text(encoding="utf-8")
+    problems = dead_links(built)
+    assert not problems, f"{len(problems)} dead links, e.g.:\n" + "\n".join(problems[:20])
+
+
+# --- the results pages read as pages: titled sections, captioned figures in reading order, versions explained ---
+
+
+def test_a_code_line_says_what_its_version_is_without_commits():
+    line = "Code: sb3-er 0.1.0, code hash 2a9aefd586 (100 runs from commit a30c8a5 with uncommitted changes)."
+    shown = generator.code_version_line(line)
+    assert shown.startswith("Code: sb3-er 0.1.0, code hash `2a9aefd586` (100 runs).")
+    assert "a30c8a5" not in shown and "uncommitted" not in shown and "checksum of the package's source" in shown
+    older = (
+        "Code: sb3-er 0.1.0, commit bdfcc619bb (9 runs); sb3-er 0.1.0, commit b002fa0dbe (dirty) (3 runs). "
+        "**Mixed versions: the runs were made by different code.**"
+    )
+    shown = generator.code_version_line(older)
+    assert "two earlier code versions" in shown and "(9 and 3 runs)" in shown and "**Mixed versions" in shown
+    assert not HASH.findall(shown)
+    assert generator.code_version_line("Code: sb3-er 0.1.0, code 78f3f2a6a9 (1 runs; commit b964b46 (dirty)).") == (
+        f"Code: sb3-er 0.1.0, code hash `78f3f2a6a9` (1 run). {generator.CODE_VERSION_NOTE}"
+    )
+
+
+FIGURE = re.compile(r"```\{figure\} (\S+)\n:alt: [^\n]+\n\n([^\n]+)\n```")
+
+
+def test_every_results_page_has_titled_sections_and_captioned_figures_in_reading_order():
+    for name in generator.result_dirs():
+        page = generator.results_page(name)
+        headings = re.findall(r"^#+ (.+)$", page, flags=re.MULTILINE)
+        assert not [h for h in headings if re.search(r"\.(md|csv|txt)$", h)], f"{name}: a file name as a heading"
+        code_lines = [line for line in page.splitlines() if line.startswith("Code:")]
+        assert not [line for line in code_lines if "commit" in line], f"{name}: a summary's code line cites commits"
+        figures = FIGURE.findall(page)
+        shown = [p for p in (generator.MEASURED / name).rglob("*") if p.suffix in generator.FIGURE_SUFFIXES]
+        assert len(figures) == len([p for p in shown if "runs" not in p.relative_to(generator.MEASURED / name).parts])
+        for target, caption in figures:
+            words = caption.rsplit("(`", 1)[0]
+            assert len(words.split()) >= 5, f"{name}: {target} is captioned {caption!r}"
+        for folder in {Path(target).parent for target, _ in figures}:
+            order = [Path(target).stem for target, _ in figures if Path(target).parent == folder]
+            kinds = [
+                0
+                if stem == "learning_curves"
+                else 2
+                if stem.startswith("gait_")
+                else 3
+                if stem.startswith("walker_")
+                else 1
+                for stem in order
+            ]
+            assert kinds == sorted(kinds), f"{name}: figures out of reading order: {order}"
+
+
+def test_the_typical_runs_caption_names_the_runs_left_out_and_why():
+    """Table 6.2's seed-0 figure shows 3 of 5 algorithms: the caption names the other two, whose seed-0 records hold
+    a value that left the possible returns (read here from the records, not from the summary's code)."""
+    folder = generator.MEASURED / "table_6_2"
+    caption = generator.figure_caption(folder, folder / "typical_runs.png")
+    labels = {"sarsa_lambda": "Sarsa(λ)", "er": "vanilla-ER", "er_sigma": "ER-σ", "residual_er": "residual ER"}
+    labels["residual_er_sigma"] = "residual ER-σ"
+    left_out = [
+        algo for algo in labels if json.loads((folder / "runs" / algo / "seed_0.json").read_text())["value_excursion"]
+    ]
+    assert 0 < len(left_out) < len(labels)
+    not_shown = caption.split("not shown")[0]
+    for algo, label in labels.items():
+        named = re.search(rf"(?<![\w-]){re.escape(label)}(?![\w-])", not_shown) is not None
+        assert named == (algo in left_out), (algo, caption)
+    assert "left the possible returns" in caption
+
+
+def test_each_walker_animation_says_who_walks_after_how_long_and_how_far():
+    folder = generator.MEASURED / "table_6_2"
+    for algo, label in {"sarsa_lambda": "Sarsa(λ)", "er_sigma": "ER-σ"}.items():
+        caption = generator.figure_caption(folder, folder / f"walker_{algo}.gif")
+        rows = (folder / "runs" / algo / "seed_0.csv").read_text().splitlines()
+        last = dict(zip(rows[0].split(","), rows[-1].split(","), strict=True))
+        assert caption.startswith(f"{label} (seed 0) after {float(last['learning_time_s']):g} s of learning")
+        assert f"{float(last['distance']):.2f} m in 100 s" in caption
+
+
+def test_the_analyses_begin_with_a_sentence_and_link_elsewhere():
+    for path in sorted((DOCS / "_notes").glob("results_*.md")):
+        text = path.read_text(encoding="utf-8")
+        assert re.match(r"[A-Z*`\[-]", text), f"{path.name} starts mid-sentence: {text[:40]!r}"
+        own = path.stem.removeprefix("results_")
+        assert f"]({own}.md)" not in text, f"{path.name} links to its own page"
+
+
+# --- "Which algorithm?": generated from the committed benchmarks ---
+
+SUMMARY_CSV = (
+    "algorithm,metric,average,ci95,average_text,difference_with_sarsa_lambda,thesis_average,thesis_difference,seeds\n"
+    "Sarsa(λ),Rise time [s],1500.0,,1500,-,1500,-,20\n"
+    "Sarsa(λ),End performance,10.0,0.5,10.0 ± 0.50,-,11.7,-,20\n"
+    "Sarsa(λ),Falls,58.5,17.1,58.5 ± 17.1,-,74,-,20\n"
+    "Sarsa(λ),Runs whose values left the possible returns,0.0,,0 of 20,—,—,—,20\n"
+    "vanilla-ER,Rise time [s],3300.0,,3300,+120 %,3400,+127 %,20\n"
+    "vanilla-ER,End performance,8.9,0.4,8.90 ± 0.40,-11 %,11.7,+0 %,20\n"
+    "vanilla-ER,Falls,151,55.7,151 ± 55.7,+158 %,150,+103 %,20\n"
+    "vanilla-ER,Runs whose values left the possible returns,0.0,,0 of 20,—,—,—,20\n"
+    "ER-σ,Rise time [s],900.0,,900,-40 %,500,-67 %,7\n"
+    "ER-σ,End performance,12.0,0.2,12.0 ± 0.20,+20 %,11.5,-2 %,7\n"
+    "ER-σ,Falls,40,5,40.0 ± 5.00,-31 %,44,-41 %,7\n"
+    "ER-σ,Runs whose values left the possible returns,13.0,,13 of 20,—,—,—,7\n"
+)
+
+
+def test_which_algorithm_ranks_only_learners_with_enough_averaged_runs(tmp_path):
+    """Sarsa(λ) ends best of the ranked (10.0 ± 0.5); vanilla-ER's [8.5, 9.3] misses Sarsa(λ)'s [9.5, 10.5]; ER-σ
+    ends higher still but has 7 of 20 runs averaged (fewer than half), so it is not ranked, and the row says why."""
+    (tmp_path / "table_6_2").mkdir()
+    (tmp_path / "table_6_2" / "summary.csv").write_text(SUMMARY_CSV, encoding="utf-8")
+    (benchmark,), source = generator.which_algorithm_benchmarks(tmp_path)
+    assert "thesis's tables" in source
+    assert [score.algorithm for score in generator.picks(benchmark)] == ["sarsa_lambda"]
+    text = generator.which_algorithm(lambda folder, file: f"{folder}/{file}", tmp_path)
+    row = next(line for line in text.splitlines() if "simplest walker" in line)
+    assert "| Sarsa(λ) |" in row and "[summary](table_6_2/summary.md)" in row
+    assert "ER-σ (values left the possible returns in 13 of 20 runs)" in row
+    assert "soonest (rise time): Sarsa(λ), 1500 s" in row  # ER-σ's 900 s is not ranked
+    assert "In short: Sarsa(λ) is the pick, or one of the picks, on 1 of these 1 tasks" in text
+
+
+def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committed(tmp_path):
+    (tmp_path / "table_6_2").mkdir()
+    (tmp_path / "table_6_2" / "summary.csv").write_text(SUMMARY_CSV, encoding="utf-8")
+    (tmp_path / "sample_efficiency").mkdir()
+    summary = {
+        "benchmarks": [
+            {
+                "task": "balancing",
+                "metric": "steps to a return of 475",
+                "higher_is_better": False,
+                "files": ["summary.md", "cartpole.png"],
+                "scores": [
+                    {"algorithm": "sarsa_lambda", "mean": 30000, "ci95": 4000, "runs": 20, "text": "30,000"},
+                    {"algorithm": "er_sigma", "mean": 20000, "ci95": 3000, "runs": 20, "text": "20,000"},
+                    {"algorithm": "er", "mean": 25000, "ci95": 3000, "runs": 20, "text": "25,000"},
+                    {"algorithm": "residual_er", "mean": 1000, "runs": 20, "averaged": 4, "left_out": "diverged"},
+                ],
+            }
+        ]
+    }
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
+    (benchmark,), source = generator.which_algorithm_benchmarks(tmp_path)  # the thesis's table is not used
+    assert "sample-efficiency" in source and benchmark.folder == "sample_efficiency"
+    # lower is better: ER-σ's [17000, 23000] overlaps vanilla ER's [22000, 28000], not Sarsa(λ)'s [26000, 34000]
+    assert [score.algorithm for score in generator.picks(benchmark)] == ["er_sigma", "er"]
+    text = generator.which_algorithm(lambda folder, file: f"{folder}/{file}", tmp_path)
+    assert "| ER-σ or vanilla-ER |" in text and "residual ER (diverged)" in text
+    assert "[cartpole](sample_efficiency/cartpole.png)" in text
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps({"benchmarks": [{"task": "x"}]}))
+    with pytest.raises(generator.FindingsError, match="sample_efficiency/summary.json: benchmarks\\[0\\]"):
+        generator.which_algorithm_benchmarks(tmp_path)

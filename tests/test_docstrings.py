@@ -107,7 +107,7 @@ def test_every_constructor_parameter_is_documented(cls):
 def test_the_public_functions_are_found():
     assert {
         "sb3_er.common.tile_coding.default_tile_widths",
-        "sb3_er.common.kernels.replay_phase",
+        "sb3_er.common.kernels.replay.replay_phase",
         "sb3_er.common.policies.TileQPolicy.q_values",
         "sb3_er.common.base_class.TileQAlgorithm.learn",
         "sb3_er_envs.windy_cliff.WindyCliffEnv.reset",

@@ -4,6 +4,7 @@ Dyna-Q to Q* with an exact model, the SB3 verbs, save/load, errors and a short l
 import math
 
 import gymnasium as gym
+import kernel_bundles as bundles
 import numpy as np
 import pytest
 from chain_mdp import ChainEnv, chain_q_star, chain_step
@@ -47,14 +48,8 @@ def test_direct_and_planning_updates_by_hand(target):
 
     slots = lambda states: np.array([coder.slots(np.array([s])) for s in states])  # noqa: E731
     next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
-    delta, updates, _, status = kernels.dyna_step(
-        theta,
-        coder.slots(np.array([real[0]])),
-        real[1],
-        real[2],
-        False,
-        np.array([real[3]]),
-        next_slots,
+    transition = (coder.slots(np.array([real[0]])), real[1], real[2], False, np.array([real[3]]), next_slots)
+    plan = (
         slots([p[0] for p in planned]),
         np.array([p[1] for p in planned]),
         np.array([p[2] for p in planned]),
@@ -62,13 +57,15 @@ def test_direct_and_planning_updates_by_hand(target):
         slots([p[3] for p in planned]),
         0,
         3,
-        *coder.kernel_arguments,
-        target,
-        ALPHA / coder.n_tilings,
-        GAMMA,
-        0.0,
+    )
+    delta, updates, _, status = kernels.dyna_step(
+        tuple(bundles.weights(theta)),
+        tuple(coder.layout),
+        tuple(bundles.rule(ALPHA / coder.n_tilings, GAMMA, target=target)),
+        transition,
+        plan,
         kernels.new_rng_state(0),
-        np.zeros(coder.n_actions),
+        tuple(bundles.scratch(coder.n_actions)),
         kernels.NO_WATCH,
     )
     assert (updates, status) == (2, kernels.STATUS_OK)

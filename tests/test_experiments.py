@@ -123,7 +123,8 @@ def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
     names = {path.name for path in first.figures}
     assert {"typical_runs.png", "gait_sarsa_lambda.png", "gait_er_sigma.png", "walker_er_sigma.gif"} <= names
     gait = pd.read_csv(tmp_path / "runs" / "er_sigma" / "seed_0_gait.csv")  # the first seed's greedy gait, 10 s
-    assert list(gait.columns) == ["time", "stance_angle", "hip_angle", "swing_foot_height", "fell"]
+    assert list(gait.columns) == ["time", "stance_angle", "hip_angle", "swing_foot_height", "fell", "distance"]
+    assert gait["distance"].iloc[0] == 0.0 and gait["distance"].is_monotonic_increasing  # walked since the start
     assert gait["stance_angle"].iloc[0] == pytest.approx(0.1534) and len(gait) <= 51  # from Garcia's fixed point
     assert not (tmp_path / "runs" / "er_sigma" / "seed_1_gait.csv").exists()
     # The main job's claim: Sarsa(lambda) walks (10 m per 100 s; passive walking covers about 8 m) in some greedy

@@ -1,5 +1,6 @@
 """TileQ's initial_value: where Q starts, reproducibly, and how ER-sigma treats the initial values (Eq. 5.4)."""
 
+import kernel_bundles as bundles
 import numpy as np
 import pytest
 from conftest import LineWalkEnv
@@ -49,9 +50,9 @@ def test_the_draw_is_seeded_and_survives_save_and_load(tmp_path):
 
 def test_memory_fill_and_weight_mean_count_touched_weights_only():
     fresh = model((-1.0, 1.0))
-    assert kernels.weight_statistics(fresh.policy.theta_array, *fresh.policy.initial_arguments) == (0.0, 0.0)
+    assert kernels.weight_statistics(fresh.policy.weights) == (0.0, 0.0)
     fresh.learn(200)
-    mean_abs, fill = kernels.weight_statistics(fresh.policy.theta_array, *fresh.policy.initial_arguments)
+    mean_abs, fill = kernels.weight_statistics(fresh.policy.weights)
     touched = fresh.policy.theta_array != fresh.policy.initial_weights(np.arange(fresh.policy.theta_array.size))
     assert fill == pytest.approx(touched.mean()) and 0 < fill < 0.05
     assert mean_abs == pytest.approx(np.abs(fresh.policy.theta_array[touched]).mean())
@@ -72,7 +73,7 @@ def _sigma_case(initial):
     none), every other weight at its initial value. Returns Q(s, a) after one replayed update."""
     coder = tiny_coder()
     theta = np.zeros(coder.n_weights)
-    kernels.fill_initial_weights(theta, *initial)
+    kernels.fill_initial_weights(bundles.weights(theta, initial))
     f0 = coder.feature_indices(np.array([1.7]), 0)
     f1 = coder.feature_indices(np.array([1.7]), 1)
     f_sa = coder.feature_indices(np.array([0.2]), 1)

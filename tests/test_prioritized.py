@@ -18,11 +18,17 @@ from sb3_er.common.buffers import TrajectoryReplayBuffer
 
 
 def _heap(capacity):
-    return (
-        np.zeros(capacity, dtype=np.int64),
-        np.zeros(capacity),
-        np.full(capacity, -1, dtype=np.int64),
-        np.zeros(1, dtype=np.int64),
+    """A PriorityQueue with room for ``capacity`` rows and no predecessor index."""
+    no_index = np.zeros(0, dtype=np.int64)
+    return kernels.PriorityQueue(
+        rows=np.zeros(capacity, dtype=np.int64),
+        keys=np.zeros(capacity),
+        position=np.full(capacity, -1, dtype=np.int64),
+        size=np.zeros(1, dtype=np.int64),
+        index_start=no_index,
+        index_rows=no_index,
+        stamp=no_index,
+        stamp_counter=np.zeros(1, dtype=np.int64),
     )
 
 
@@ -34,16 +40,17 @@ priorities = st.sampled_from([0.0, 0.5, 1.0, 2.0, 3.5]) | st.floats(0.0, 100.0, 
 @given(st.lists(priorities, min_size=1, max_size=60))
 def test_heapify_then_pop_gives_heapqs_order(keys):
     """Floyd's construction and repeated pops give heapq's order on (-priority, row)."""
-    rows, values, position, size = _heap(len(keys))
+    queue = _heap(len(keys))
+    rows, values, position, size = queue.rows, queue.keys, queue.position, queue.size
     rows[:] = np.arange(len(keys))[::-1]  # rows in no particular order
     values[:] = [keys[row] for row in rows]
     size[0] = len(keys)
-    kernels.heap_heapify(rows, values, position, size)
+    kernels.heap_heapify(queue)
     reference = [(-key, row) for row, key in enumerate(keys)]
     heapq.heapify(reference)
     while reference:
         negative, row = heapq.heappop(reference)
-        assert kernels.heap_pop(rows, values, position, size) == (row, -negative)
+        assert kernels.heap_pop(queue) == (row, -negative)
     assert size[0] == 0 and np.all(position == -1)
 
 
@@ -62,22 +69,23 @@ operations = st.lists(
 def test_set_remove_pop_against_heapq(ops):
     """Queueing, re-prioritising (up and down), removing and popping in any order: every pop returns what heapq
     (with lazy deletion of outdated entries) pops, and heap_position always names each queued row's node."""
-    rows, values, position, size = _heap(20)
+    queue = _heap(20)
+    rows, values, position, size = queue.rows, queue.keys, queue.position, queue.size
     reference, current = [], {}
     for op, row, key in ops:
         if op == "set":
-            kernels.heap_set(rows, values, position, size, row, key)
+            kernels.heap_set(queue, row, key)
             current[row] = key
             heapq.heappush(reference, (-key, row))
         elif op == "remove":
-            kernels.heap_remove(rows, values, position, size, row)
+            kernels.heap_remove(queue, row)
             current.pop(row, None)
         elif current:
             while True:  # skip entries that were re-prioritised or removed since they were pushed
                 negative, expected = heapq.heappop(reference)
                 if current.get(expected) == -negative:
                     break
-            assert kernels.heap_pop(rows, values, position, size) == (expected, -negative)
+            assert kernels.heap_pop(queue) == (expected, -negative)
             del current[expected]
         assert size[0] == len(current)
         assert {int(rows[i]): float(values[i]) for i in range(size[0])} == current
@@ -176,43 +184,14 @@ def test_predecessor_index_by_hand():
     no s' and are not listed."""
     model = chain_model("prioritized")
     buffer = model.replay_buffer
-    arguments = buffer.replay_arguments()
-    (
-        slots,
-        _,
-        _,
-        transition_trajectory,
-        trajectory_start,
-        trajectory_length,
-        trajectory_terminated,
-        trajectory_next_slots,
-        _,
-        _,
-        first_row,
-        n_transitions,
-        open_trajectory,
-        open_length,
-        open_next_slots,
-    ) = arguments
+    data = buffer.replay_data()
     coder = model.policy.tile_coder
-    index_start = np.zeros(coder.slot_mask + 2, dtype=np.int64)
-    index_rows = np.zeros(n_transitions, dtype=np.int64)
-    kernels.build_predecessor_index(
-        slots,
-        transition_trajectory,
-        trajectory_start,
-        trajectory_length,
-        trajectory_terminated,
-        trajectory_next_slots,
-        first_row,
-        n_transitions,
-        open_trajectory,
-        0,
-        open_length,
-        open_next_slots,
-        index_start,
-        index_rows,
+    queue = _heap(0)._replace(
+        index_start=np.zeros(coder.slot_mask + 2, dtype=np.int64),
+        index_rows=np.zeros(data.n_transitions, dtype=np.int64),
     )
+    kernels.build_predecessor_index(data, queue)
+    index_start, index_rows = queue.index_start, queue.index_rows
     expected = {}
     row = 0
     for trajectory in buffer.trajectories():

@@ -110,33 +110,35 @@ def test_the_rule_keeps_a_printed_value_only_when_a_candidate_with_it_comes_with
     assert decide(table.assign(seeds=9), candidates).winner is None  # too few seeds decide nothing
 
 
-def test_tiling_screen_command_runs_the_chosen_jobs_in_order_and_refuses_unknown_names():
+def test_tiling_screen_command_runs_the_chosen_jobs_in_order_and_refuses_unknown_names(tmp_path):
     from sb3_er.experiments.screen import tiling_screen_command
 
     candidates = {"A-v0": {"a1": {}, "a2": {}}, "B-v0": {"b1": {}}}
     calls, summaries = [], []
+    screen = tmp_path / "screen"
     command = dict(
         description="test",
         candidates=candidates,
         run_one=lambda *job: calls.append(job),
-        summarize=lambda: summaries.append(1),
+        summarize=summaries.append,
+        out_dir=screen,
     )
     tiling_screen_command(**command, argv=["--seeds", "0", "1"])
     assert calls == [
-        ("A-v0", "a1", 0),
-        ("A-v0", "a1", 1),
-        ("A-v0", "a2", 0),
-        ("A-v0", "a2", 1),
-        ("B-v0", "b1", 0),
-        ("B-v0", "b1", 1),
+        ("A-v0", "a1", 0, screen),
+        ("A-v0", "a1", 1, screen),
+        ("A-v0", "a2", 0, screen),
+        ("A-v0", "a2", 1, screen),
+        ("B-v0", "b1", 0, screen),
+        ("B-v0", "b1", 1, screen),
     ]
     calls.clear()
     tiling_screen_command(**command, seeds_outermost=True, argv=["--seeds", "0", "1", "--candidates", "a2", "b1"])
-    assert calls == [("A-v0", "a2", 0), ("B-v0", "b1", 0), ("A-v0", "a2", 1), ("B-v0", "b1", 1)]
+    assert [job[:3] for job in calls] == [("A-v0", "a2", 0), ("B-v0", "b1", 0), ("A-v0", "a2", 1), ("B-v0", "b1", 1)]
     calls.clear()
-    tiling_screen_command(**command, argv=["--envs", "B-v0"])
-    assert calls == [("B-v0", "b1", 0)] and not summaries
+    tiling_screen_command(**command, argv=["--envs", "B-v0", "--out", str(tmp_path / "elsewhere")])
+    assert calls == [("B-v0", "b1", 0, tmp_path / "elsewhere")] and not summaries
     tiling_screen_command(**command, argv=["--summarize"])
-    assert summaries == [1] and calls == [("B-v0", "b1", 0)]
+    assert summaries == [screen] and len(calls) == 1
     with pytest.raises(SystemExit):  # a1 is A-v0's, not B-v0's: no silent empty screen
         tiling_screen_command(**command, argv=["--envs", "B-v0", "--candidates", "a1"])

@@ -1,5 +1,6 @@
 """Single updates of every rule against hand computation with dense feature vectors (thesis Alg. 2, 8, 10, 12, 14)."""
 
+import kernel_bundles as bundles
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -7,6 +8,7 @@ from hypothesis import strategies as st
 
 from sb3_er.common import kernels
 from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.kernels.tiles import visited_q_values
 from sb3_er.common.tile_coding import TileCoder
 
 N_TILINGS = 2
@@ -47,32 +49,10 @@ def run_replay(
     residual_next_action=False,
     initial=kernels.ZERO_INITIAL,
 ):
-    coder = buffer.tile_coder
-    q_scratch = np.zeros(coder.n_actions)
-    w_scratch = np.zeros(coder.n_actions)
-    return kernels.replay_phase(
-        theta,
-        buffer.visits,
-        *buffer.replay_arguments(),
-        coder.stride,
-        coder.action_columns,
-        coder.columns_are_actions,
-        1,
-        kernels.ORDER_REVERSED,
-        target,
-        sigma,
-        zeta,
-        residual_next_action,
-        ALPHA / coder.n_tilings,
-        GAMMA,
-        epsilon,
-        kernels.new_rng_state(0, 1),
-        kernels.new_rng_state(0, 0),
-        q_scratch,
-        w_scratch,
-        *initial,
-        kernels.NO_WATCH,
+    update_rule = bundles.rule(
+        ALPHA / buffer.tile_coder.n_tilings, GAMMA, epsilon, target, sigma, zeta, residual_next_action
     )
+    return bundles.replay_phase(theta, buffer, update_rule, initial=initial)
 
 
 @pytest.fixture
@@ -205,23 +185,15 @@ def test_residual_er_sigma_update_alg14(coder):
 
 def sarsa_lambda_step(coder, theta, trace, s, a, r, s_next, terminated, lam):
     next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
+    transition = (coder.slots(np.array([s])), a, float(r), terminated, np.array([s_next]), next_slots)
     return kernels.sarsa_lambda_step(
-        theta,
-        *trace,
-        coder.slots(np.array([s])),
-        a,
-        r,
-        terminated,
-        np.array([s_next]),
-        next_slots,
-        np.zeros(coder.n_actions),
-        *coder.kernel_arguments,
-        ALPHA / coder.n_tilings,
-        GAMMA,
-        GAMMA * lam,
-        1e-6,
-        0.0,
+        tuple(bundles.weights(theta)),
+        (*trace, GAMMA * lam, 1e-6),
+        tuple(coder.layout),
+        tuple(bundles.rule(ALPHA / coder.n_tilings, GAMMA)),
+        transition,
         kernels.new_rng_state(0),
+        tuple(bundles.scratch(coder.n_actions)),
         kernels.NO_WATCH,
     )
 
@@ -321,17 +293,7 @@ def test_visited_values_and_counts_match_a_dense_sum(tiled, written, seed):
     obs = rng.uniform(-3.0, 3.0, 2)
     slots = coder.slots(obs)
     out_q, out_w = np.full(coder.n_actions, np.nan), np.full(coder.n_actions, np.nan)
-    kernels.all_q_values_and_visit_counts(
-        theta,
-        visits,
-        slots,
-        coder.stride,
-        coder.action_columns,
-        coder.columns_are_actions,
-        out_q,
-        out_w,
-        *kernels.ZERO_INITIAL,
-    )
+    visited_q_values(theta, visits, slots, coder.layout, False, out_q, out_w)
     for a in range(coder.n_actions):
         features = coder.feature_indices(obs, a)
         assert out_w[a] == visits[features].sum()

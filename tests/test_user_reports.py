@@ -316,3 +316,13 @@ def test_hyperparameters_are_checked_when_a_model_is_loaded(tmp_path, overrides,
     ERSigma("TileQ", CounterEnv(), **SMALL).save(tmp_path / "model")
     with pytest.raises(ValueError, match=message):
         ERSigma.load(tmp_path / "model", env=CounterEnv(), **overrides)
+
+
+@pytest.mark.parametrize("name", zoo.ALL_ALGORITHM_NAMES)
+@pytest.mark.parametrize("policy", ["MlpPolicy", "CnnPolicy"])
+def test_an_sb3_policy_name_says_to_use_tileq(name, policy):
+    """SB3's habit of `DQN("MlpPolicy", env)` (and rl-zoo configs copied from SB3's) meets a message naming TileQ."""
+    algorithm = zoo.algorithm_classes()[name]
+    with pytest.raises(ValueError, match=rf'Policy {policy} unknown: .*"TileQ".*{algorithm.__name__}\("TileQ", env\)'):
+        algorithm(policy, CounterEnv(), **SMALL)
+    assert algorithm("TileQ", CounterEnv(), **SMALL).policy_class.__name__ == "TileQPolicy"

@@ -5,6 +5,7 @@ import math
 import warnings
 
 import gymnasium as gym
+import kernel_bundles as bundles
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -16,7 +17,7 @@ from sb3_er.common import kernels
 from sb3_er.common.base_class import ValueBoundWarning
 from sb3_er.common.buffers import TrajectoryReplayBuffer
 from sb3_er.common.tile_coding import TileCoder
-from sb3_er.common.value_bounds import RewardBounds, ValueBoundError, reward_changing_wrapper, widened
+from sb3_er.common.value_bounds import RewardBounds, ValueBoundError, margin, reward_changing_wrapper, widened
 from sb3_er_envs.leo.gym_env import LeoEnv
 from sb3_er_envs.pendulum import PendulumSwingupEnv
 from sb3_er_envs.simplest_walker import SimplestWalkerEnv
@@ -88,9 +89,26 @@ def test_bad_reward_bounds_are_refused(bad):
         RewardBounds.from_attribute(bad)
 
 
-def test_tolerance_is_five_percent_of_the_width():
-    low, high = widened((-50.0, 50.0))
-    assert low == pytest.approx(-55.0) and high == pytest.approx(55.0)
+@pytest.mark.parametrize(
+    "rewards, bounds, expected",
+    [
+        # MountainCar: -1 a step; the margin is 5 % of one reward, whatever the width of the returns
+        (RewardBounds(step=(-1.0, -1.0)), (-100.0, 0.0), 0.05),
+        (RewardBounds(step=(-1.0, -1.0)), (-math.inf, 0.0), 0.05),  # gamma 1: half-infinite, the same
+        # the walker's literal rewards: -1 a step, footsteps to +30, falls -50: the largest reward is the fall
+        (RewardBounds(step=(-1.0, 30.0), terminal=(-50.0, -50.0)), (-100.0, 3000.0), 2.5),
+        # dm_control's suite: rewards in [0, 1]
+        (RewardBounds(step=(0.0, 1.0), terminal=(0.0, 1.0)), (0.0, 100.0), 0.05),
+        # the pendulum swing-up: rewards <= 0, the largest cost 5 pi^2 + 0.1 * 25^2 + 0.36 = 112.21 (a width of
+        # 10,485 at gamma 0.99 would have let a Q of +87.6 pass)
+        (RewardBounds(step=(-112.21, 0.0)), (-11221.0, 0.0), 0.05 * 112.21),
+        (None, (0.0, 0.0), 0.0),  # nothing observed yet: rounding only
+    ],
+)
+def test_the_margin_is_five_percent_of_the_largest_reward(rewards, bounds, expected):
+    got = margin(rewards, bounds)
+    assert got == pytest.approx(expected, abs=1e-5)  # plus a rounding margin of 1e-9 of the bounds
+    assert widened(bounds, got) == pytest.approx((bounds[0] - got, bounds[1] + got))
 
 
 # --- every env's declared bounds hold for its reward code ------------------------------------------------------------
@@ -204,30 +222,16 @@ def test_kernel_figures_equal_a_numpy_recomputation(sigma):
     n_closed = buffer.n_trajectories
     # replay each closed trajectory once, oldest first: a uniform pick from one stored trajectory at a time
     for j in range(n_closed):
-        arguments = list(buffer.replay_arguments())
-        arguments[8], arguments[9] = (buffer.oldest_trajectory + j) % buffer.capacity, 1  # oldest, closed count
-        kernels.replay_phase(
+        data = buffer.replay_data()._replace(
+            oldest_trajectory=(buffer.oldest_trajectory + j) % buffer.capacity, n_closed_trajectories=1
+        )
+        bundles.replay_phase(
             theta,
-            buffer.visits,
-            *arguments,
-            coder.stride,
-            coder.action_columns,
-            coder.columns_are_actions,
-            1,
-            kernels.ORDER_REVERSED,
-            kernels.TARGET_SARSA,
-            sigma,
-            0.0,
-            False,
-            ALPHA / coder.n_tilings,
-            GAMMA,
-            0.0,
-            replay_rng,
-            kernels.new_rng_state(0, 0),
-            np.zeros(3),
-            np.zeros(3),
-            *kernels.ZERO_INITIAL,
-            watch,
+            buffer,
+            bundles.rule(ALPHA / coder.n_tilings, GAMMA, sigma=sigma),
+            watch=watch,
+            picks_rng=replay_rng,
+            data=data,
         )
     assert watch[kernels.WATCH_TARGET_MIN] == pytest.approx(expected_targets.min())
     assert watch[kernels.WATCH_TARGET_MAX] == pytest.approx(expected_targets.max())
@@ -252,26 +256,18 @@ def test_the_first_update_outside_is_the_one_flagged():
     coder = TileCoder([1.0], [1], n_tilings=1, memory_size=2**10)
     watch = kernels.new_watch(-10.0, 10.0)
     theta = np.zeros(coder.n_weights)
-    trace = (np.zeros(8, np.int64), np.zeros(8), np.full(coder.n_weights, -1, np.int32), np.zeros(1, np.int64))
+    trace = tuple(bundles.trace(coder.n_weights, 8, decay=0.0, cutoff=0.5))
     statuses = []
     for reward in (5.0, 9.0, 12.0, 20.0):
+        transition = (coder.slots(np.array([0.5])), 0, reward, True, np.array([3.5]), np.zeros(1, np.int64))
         _, _, status = kernels.sarsa_lambda_step(
-            theta,
-            *trace,
-            coder.slots(np.array([0.5])),
-            0,
-            reward,
-            True,
-            np.array([3.5]),
-            np.zeros(1, np.int64),
-            np.zeros(1),
-            *coder.kernel_arguments,
-            0.1,
-            GAMMA,
-            0.0,
-            0.5,
-            0.0,
+            tuple(bundles.weights(theta)),
+            trace,
+            tuple(coder.layout),
+            tuple(bundles.rule(0.1, GAMMA)),
+            transition,
             kernels.new_rng_state(0),
+            tuple(bundles.scratch(1)),
             watch,
         )
         statuses.append(status)
@@ -308,8 +304,10 @@ def test_er_sigma_on_the_wide_pendulum_tiles_warns_once():
     flagged = [w for w in caught if issubclass(w.category, ValueBoundWarning)]
     assert len(flagged) == 1
     message = str(flagged[0].message)
-    assert message.startswith("ERSigma: at step") and "above 0" in message and "reward_bounds" in message
-    assert model.value_excursion["value"] > 0.05 * 10_000 and model.value_excursion["high"] == 0.0
+    assert message.startswith("ERSigma: at step") and "above them" in message and "reward_bounds" in message
+    excursion = model.value_excursion
+    assert excursion["high"] == 0.0 and excursion["value"] > excursion["margin"] > 0.0
+    assert model.largest_excursion >= excursion["value"]
     assert model.values_out_of_range > 0
 
 
@@ -438,27 +436,31 @@ def test_the_first_excursion_survives_save_and_load(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "bounds, value, margin, share",
+    "rewards, value, where",
     [
-        ((-100.0, 0.0), 7.0, "5", "5 % of their width"),
-        ((-math.inf, 0.0), 0.44, "0.05", "5 % of the size of their finite end, at least 0.05"),
-        ((-math.inf, -40.0), -1.0, "2", "5 % of the size of their finite end, at least 0.05"),
-        ((-20_000.0, 3000.0), 4165.5, "1150", "5 % of their width"),  # no exponent: the quickstart's walker
+        (RewardBounds(step=(-1.0, -1.0)), 7.0, "7 above"),  # bounds [-100, 0], margin 0.05
+        (RewardBounds(step=(-1.0, 30.0), terminal=(-50.0, -50.0)), 4165.5, "1165.5 above"),  # no exponent
+        (RewardBounds(step=(-1.0, -1.0)), -103.0, "3 below"),
     ],
 )
-def test_the_warning_states_the_margin_it_applied(bounds, value, margin, share):
-    """The margin beyond which a value is flagged, as the message states it, is the one the kernels apply
-    (value_bounds.widened): 5 % of a finite width; 5 % of the finite end's size, at least 0.05, for a half-infinite
-    interval, whose width says nothing."""
+def test_the_warning_says_what_happened_how_far_what_to_check_and_where_to_read(rewards, value, where):
+    """The ValueBoundWarning states the excursion, the margin and its rule, that the policy may still be good and how
+    to check it (evaluate_policy), and the documentation page; without exponents."""
     model = SarsaLambda("TileQ", "CartPole-v1", seed=0)
-    model._watch.bounds = bounds
-    model._watch.array[kernels.WATCH_FIRST_VALUE] = value
+    watch = model._watch
+    watch.source, watch._declared = "env", rewards
+    watch._update_bounds()
+    watch.array[kernels.WATCH_FIRST_VALUE] = value
     with pytest.warns(ValueBoundWarning) as caught:
         model._value_out_of_bounds("a hand-made excursion")
     message = str(caught[0].message)
-    assert f"by more than {margin} ({share})" in message and "e+" not in message, message
-    low, high = widened(bounds)
-    assert float(margin) == pytest.approx(high - bounds[1] if value > bounds[1] else bounds[0] - low, rel=1e-6)
+    size = max(abs(end) for end in (*rewards.step, *(rewards.terminal or ())))
+    assert f"lies {where} them" in message, message
+    assert f"beyond the margin of {0.05 * size + 1e-9 * max(1.0, *map(abs, watch.bounds)):.6g}" in message
+    assert "5 % of the largest reward" in message
+    assert "policy may still be good" in message and "evaluate_policy" in message
+    assert "docs/value_watch.md" in message and "e+" not in message
+    assert model.value_excursion["margin"] == pytest.approx(watch.margin)
 
 
 @pytest.mark.parametrize("algo", [ER, ERSigma])

@@ -2,7 +2,7 @@
 and a SubprocVecEnv, under VecFrameStack and a reward-only VecNormalize (normalised observations are refused by name:
 tile widths are in raw units), stores the episode's true last observation at a time limit (info["terminal_observation"],
 not the next episode's first), seeds the env it was given, takes a Dict observation of one env and names the
-alternative for a VecEnv of them. Several envs at once are issue 36's (xfail)."""
+alternative for a VecEnv of them, and several envs at once."""
 
 import functools
 
@@ -126,18 +126,14 @@ def test_sb3_dict_and_tuple_observations(algo):
         model(algo, tuple_env)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=ValueError,
-    reason="issue 36: several envs (n_envs > 1) are refused ('does not support multiple envs'), where SB3's algorithms "
-    "step a VecEnv of N_ENVS = 3",
-)
 @pytest.mark.parametrize("vec_env_class", [DummyVecEnv, SubprocVecEnv], ids=["dummy", "subproc"])
 @pytest.mark.parametrize("algo", ALGOS)
 def test_sb3_several_envs(algo, vec_env_class):
     venv = vec_env_class([ENVS["box"]] * 3)
     try:
         agent = model(algo, venv, seed=0).learn(150)
-        assert agent.num_timesteps >= 150
+        assert agent.num_timesteps >= 150 and agent.n_envs == 3
+        actions, _ = agent.predict(venv.reset(), deterministic=True)
+        assert actions.shape == (3, 1)
     finally:
         venv.close()

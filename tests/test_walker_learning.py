@@ -95,7 +95,8 @@ def test_gait_trace_of_passive_walking_follows_the_env():
         _, _, _, _, info = reference.step(7)
         assert trace.stance_angle[k] == reference.state[0] and trace.hip_angle[k] == reference.state[1]
         assert trace.swing_foot_height[k] == info["swing_foot_height"]
-    assert trace.distance == pytest.approx(info["distance"])
+        assert trace.distances[k] == info["distance"]
+    assert trace.distances[0] == 0.0 and trace.distance == pytest.approx(info["distance"])
     assert trace.distance > 0.5  # two footsteps in 8 s
 
 

@@ -1,8 +1,11 @@
 """rl-zoo integration: registration, the thesis hyperparameters in zoo_configs, train -> enjoy, and an optuna study."""
 
 import importlib.resources
+import re
+import shlex
 import subprocess
 import sys
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -99,6 +102,79 @@ def test_train_then_enjoy_round_trip(tmp_path, capsys):
     capsys.readouterr()
     zoo.enjoy(["--algo", "er", "--env", "sb3_er/WindyCliff-v0", "-f", folder, "--no-render", "-n", "300"])
     assert "Mean reward" in capsys.readouterr().out
+
+
+GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "zoo.md"
+
+
+def guide_commands() -> list[str]:
+    """The command lines of the rl-zoo guide's first bash block, as written (comments kept)."""
+    block = re.search(r"```bash\n(.*?)```", GUIDE.read_text(encoding="utf-8"), flags=re.DOTALL).group(1)
+    return [line for line in block.splitlines() if line.strip()]
+
+
+def _command_line(line: str) -> list[str]:
+    """A guide line as a subprocess argument list: the `sb3-er` console script of this environment, comment dropped."""
+    arguments = shlex.split(line, comments=True)
+    script = Path(sys.executable).parent / arguments[0]
+    return [str(script) if script.is_file() else arguments[0], *arguments[1:]]
+
+
+@pytest.mark.slow
+def test_the_guides_train_then_enjoy_work_as_written(tmp_path):
+    """The guide's `sb3-er train` then `sb3-er enjoy`, run in a fresh folder as a user types them: train (with a small
+    -n added) writes where the guide's comment says, and enjoy finds that model with no -f and plays it."""
+    lines = guide_commands()
+    train_line = next(line for line in lines if line.startswith("sb3-er train"))
+    enjoy_line = next(line for line in lines if line.startswith("sb3-er enjoy"))
+    train = subprocess.run(
+        [*_command_line(train_line), "-n", "300"], cwd=tmp_path, capture_output=True, text=True, timeout=600
+    )
+    assert train.returncode == 0, train.stdout[-3000:] + train.stderr[-3000:]
+    written = train_line.partition("# ->")[2].strip()
+    assert (tmp_path / written / "sb3_er-SimplestWalker-v0.zip").is_file(), f"train did not write {written}"
+    tensorboard = next(line for line in lines if line.startswith("tensorboard")).split("--logdir")[1].split()[0]
+    assert any((tmp_path / tensorboard).rglob("events.out.tfevents.*")), f"no TensorBoard events in {tensorboard}"
+    enjoy = subprocess.run(_command_line(enjoy_line), cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert enjoy.returncode == 0, enjoy.stdout[-3000:] + enjoy.stderr[-3000:]
+    assert "Mean reward" in enjoy.stdout and "huggingface" not in enjoy.stdout.lower()
+
+
+def _no_download(*args, **kwargs):
+    raise AssertionError("sb3-er enjoy must not download from a model hub")
+
+
+@pytest.mark.parametrize("folder", [[], ["-f", "rl-trained-agents"], ["--folder", "elsewhere"]])
+def test_enjoy_without_a_model_says_where_it_looked_and_never_downloads(tmp_path, monkeypatch, folder):
+    import rl_zoo3.enjoy
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(rl_zoo3.enjoy, "download_from_hub", _no_download)
+    with pytest.raises(SystemExit) as stop:
+        zoo.run_command("enjoy", ["--algo", "er_sigma", "--env", "sb3_er/SimplestWalker-v0", "--no-render", *folder])
+    message = str(stop.value.code)
+    looked_in = folder[1] if folder else "logs"  # the default is the folder train writes
+    assert f"{looked_in}/er_sigma/sb3_er-SimplestWalker-v0_<N>/sb3_er-SimplestWalker-v0.zip" in message
+    assert str(tmp_path / looked_in) in message
+    train = "sb3-er train --algo er_sigma --env sb3_er/SimplestWalker-v0" + (f" -f {looked_in}" if folder else "")
+    assert f"`{train}`" in message
+    assert "TRUST_REMOTE_CODE" not in message and "hub" not in message
+
+
+def test_enjoy_finds_the_latest_run_train_wrote_and_help_passes_through(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    for run in (1, 2):
+        (tmp_path / "logs" / "er" / f"sb3_er-WindyCliff-v0_{run}").mkdir(parents=True)
+        (tmp_path / "logs" / "er" / f"sb3_er-WindyCliff-v0_{run}" / "sb3_er-WindyCliff-v0.zip").write_bytes(b"")
+    arguments = zoo._with_defaults(["--algo", "er", "--env", "sb3_er/WindyCliff-v0"], "enjoy")
+    assert arguments[-2:] == ["--folder", "logs"]
+    assert zoo.find_trained_model(arguments) == Path("logs/er/sb3_er-WindyCliff-v0_2/sb3_er-WindyCliff-v0.zip")
+    # train's spelling of the folder option is understood by enjoy too
+    assert "--folder" in zoo._with_defaults(["--algo", "er", "--log-folder", "x"], "enjoy")
+    for command in ("enjoy", "train"):  # `sb3-er enjoy -h` shows rl_zoo3's options, as the CLI's help promises
+        with pytest.raises(SystemExit) as stop:
+            zoo.run_command(command, ["-h"])
+        assert stop.value.code == 0 and f"usage: sb3-er {command}" in capsys.readouterr().out
 
 
 def test_optuna_study_with_two_trials(tmp_path):

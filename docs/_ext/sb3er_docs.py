@@ -21,6 +21,33 @@ reproductions write (:mod:`sb3_er.experiments.findings` says how each finding is
 A folder that reproduces a thesis table, appendix or analysis (THESIS_RESULTS) and has no findings file yet shows
 "not judged yet". ``python docs/_ext/sb3er_docs.py readme`` writes the same table into README.md between its
 ``<!-- verdicts -->`` markers; ``--check`` exits 1 when README.md is not up to date (a test runs it).
+
+The same command writes the README's "Which algorithm?" block (between its ``<!-- which-algorithm -->`` markers; the
+algorithms page shows it through the ``{which-algorithm}`` directive): for each benchmark, the kind of task, the learner
+to pick (the best end performance, and any learner whose 95 % interval overlaps it; a learner with fewer than 5, or
+fewer than half, of its runs averaged is not ranked) and the figures it rests on. It reads
+``results/measured/sample_efficiency/summary.json`` when that file is committed, and otherwise today's results: the
+thesis's tables (``summary.csv`` of table_6_1, table_6_2, table_6_3 and gridworld) and sb3-er's learners in the peers'
+comparisons (``peers/peers.json``, ``peers_continuous/peers.json``). The sample-efficiency summary is::
+
+    {
+      "benchmarks": [
+        {"task": "balancing a cart-pole (CartPole-v1)",   # the kind of task, in plain words
+         "metric": "final return",                         # what each score's mean measures
+         "higher_is_better": true,                         # optional, default true
+         "speed_label": "steps to a return of 475",        # optional: what speed measures (lower is sooner)
+         "files": ["summary.md", "cartpole.png"],          # optional: files of the folder to link, the main one first
+         "scores": [
+           {"algorithm": "sarsa_lambda",                   # the rl-zoo name
+            "mean": 480.2, "ci95": 12.1,                   # the metric over the averaged runs and its 95 % half-width
+            "runs": 20, "averaged": 20,                    # runs made and runs averaged (optional: all of them)
+            "text": "480 ± 12",                            # optional: the mean as the folder's table writes it
+            "speed": 20000, "speed_text": "20,000 steps",  # optional
+            "falls": 12.5, "falls_text": "12.5 ± 3.1",     # optional
+            "left_out": "values left the possible returns in 3 of 20 runs"}   # optional: why runs were not averaged
+         ]}
+      ]
+    }
 """
 
 from __future__ import annotations
@@ -30,6 +57,7 @@ import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 DOCS = Path(__file__).resolve().parents[1]
 ROOT = DOCS.parent
@@ -210,13 +238,24 @@ def verdict_table(link, measured: Path = MEASURED, defaults_only: bool = False) 
 
 
 def _title(name: str) -> str:
+    """A results folder's title (:func:`_own_title`), with the folder's name added when another folder has the same."""
+    title = _own_title(name)
+    if sum(_own_title(other) == title for other in result_dirs()) > 1:
+        title += f" ({name.replace('_', ' ')})"
+    return title
+
+
+def _own_title(name: str) -> str:
+    """A results folder's title: the thesis result it reproduces, else the first heading of what says what the runs
+    are (READING.md, README.md), else of its summary, else its name."""
     if name in THESIS_RESULTS:
         return THESIS_RESULTS[name].title
-    summary = MEASURED / name / "summary.md"
-    if summary.is_file():
-        match = re.match(r"#\s+(.+)", summary.read_text(encoding="utf-8"))
-        if match:
-            return match.group(1).strip()
+    for file in ("READING.md", "README.md", "summary.md"):
+        path = MEASURED / name / file
+        if path.is_file():
+            match = re.match(r"#\s+(.+)", path.read_text(encoding="utf-8"))
+            if match:
+                return match.group(1).strip()
     return name.replace("_", " ").capitalize()
 
 
@@ -249,6 +288,353 @@ def shown_results_files(measured: Path = MEASURED) -> list[Path]:
     return files
 
 
+#: Section titles of a folder's Markdown files that have no heading of their own.
+FILE_TITLES = {"READING.md": "The reading", "VERSIONS.md": "Code versions", "README.md": "About these runs"}
+
+
+def _split_heading(text: str) -> tuple[str | None, str]:
+    """(the first line's ``# `` heading, the rest) of a Markdown text; (None, text) when it starts otherwise."""
+    match = re.match(r"#\s+(.+)\n?", text)
+    return (match.group(1).strip(), text[match.end() :]) if match else (None, text)
+
+
+def _shift_headings(text: str, offset: int) -> str:
+    """Markdown `text` with every heading outside code fences `offset` levels deeper."""
+    lines, fenced = [], False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+        elif not fenced and re.match(r"#{1,6}\s", line):
+            line = "#" * offset + line
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def _top_level_split(text: str, separator: str = "; ") -> list[str]:
+    """`text` split at `separator` outside parentheses."""
+    parts, depth, current, index = [], 0, "", 0
+    while index < len(text):
+        if depth == 0 and text.startswith(separator, index):
+            parts.append(current)
+            current, index = "", index + len(separator)
+            continue
+        depth += {"(": 1, ")": -1}.get(text[index], 0)
+        current += text[index]
+        index += 1
+    return [*parts, current]
+
+
+CODE_VERSION_NOTE = (
+    "The code hash is a checksum of the package's source files: runs with the same hash were made by the same code. "
+    "Each run's record (`runs/<algorithm>/seed_<n>.json`) holds it, with the version of the repository the run was "
+    "made from."
+)
+RECORD_NOTE = (
+    "Each run's record (`runs/<algorithm>/seed_<n>.json`) names the version of the repository it was made from."
+)
+NUMBER_WORDS = {2: "two", 3: "three", 4: "four", 5: "five"}
+
+
+def code_version_line(line: str) -> str:
+    """A summary's ``Code: ...`` line (``sb3_er.experiments.records.code_versions_line``, or an older form) as a reader
+    can take it: each code version with its code hash and number of runs, the repository's commits left to the
+    run records, and a sentence saying what the hash is. A line it cannot read becomes that sentence alone."""
+    body = line.removeprefix("Code:").strip()
+    warning = ""
+    if "**" in body:
+        body, _, rest = body.partition("**")
+        warning = " **" + rest.strip()
+    hashed, earlier, unknown = [], [], []
+    for part in _top_level_split(body.strip().rstrip(".")):
+        part = part.strip()
+        runs = re.search(r"(\d+) runs?\b", part)
+        count = int(runs.group(1)) if runs else 0
+        match = re.match(r"(sb3-er \S+), (?:code hash |code )([0-9a-f]{6,})\b", part)
+        if match:
+            hashed.append(f"{match.group(1)}, code hash `{match.group(2)[:10]}` ({count} run{'s' * (count != 1)})")
+        elif re.match(r"sb3-er \S+, (?:commit|code of commit) ", part):
+            earlier.append(count)
+        elif part.startswith("unknown version"):
+            unknown.append(count)
+    versions = list(hashed)
+    if earlier:
+        counts = _listed([str(count) for count in earlier])
+        versions.append(
+            "an earlier code version, from before runs recorded a code hash"
+            if len(earlier) == 1
+            else f"{NUMBER_WORDS.get(len(earlier), len(earlier))} earlier code versions, from before runs recorded a "
+            f"code hash"
+        )
+        versions[-1] += f" ({counts} runs)"
+    if unknown:
+        versions.append(f"an unknown version ({sum(unknown)} runs without a record)")
+    if not versions:
+        return RECORD_NOTE
+    note = CODE_VERSION_NOTE if hashed else RECORD_NOTE
+    return f"Code: {'; '.join(versions)}.{warning} {note}"
+
+
+def _shown_markdown(path: Path, offset: int) -> str:
+    """A committed Markdown file's text as its page shows it: headings `offset` levels deeper, ``Code:`` lines
+    explained (:func:`code_version_line`)."""
+    lines = [
+        code_version_line(line) if line.startswith("Code: ") else line
+        for line in path.read_text(encoding="utf-8").splitlines()
+    ]
+    return _shift_headings("\n".join(lines), offset).strip() + "\n"
+
+
+def section_label(name: str, sub_folder: Path) -> str:
+    """The label of the section of results folder `name`'s sub-folder (its summary), e.g.
+    ``results-walker_screens-actions3``: a note links there with ``{ref}`3 actions <results-walker_screens-actions3>```.
+    """
+    return "-".join(["results", name, *sub_folder.parts])
+
+
+def _markdown_sections(folder: Path, paths: list[Path]) -> list[str]:
+    """The page's sections of the folder's other Markdown files (sub-folder summaries, READING.md, VERSIONS.md, ...):
+    each titled by its own first heading, else by what the file is."""
+    lines = []
+    for path in paths:
+        where = path.relative_to(folder).as_posix()
+        heading, body = _split_heading(path.read_text(encoding="utf-8"))
+        title = heading or FILE_TITLES.get(path.name, path.stem.replace("_", " ").capitalize())
+        if path.name == "summary.md":  # a sub-folder's summary: a label for links to it, `results-<dir>-<sub-folder>`
+            lines += [f"({section_label(folder.name, path.parent.relative_to(folder))})="]
+        lines += [f"## {title}", "", f"From `{where}`.", ""]
+        shown = "\n".join(
+            code_version_line(line) if line.startswith("Code: ") else line for line in body.strip().splitlines()
+        )
+        lines += [_shift_headings(shown, 1), ""]
+    return lines
+
+
+# --- figures: in reading order, each with a caption saying what it shows ---
+
+#: The order of a folder's figures: the learning curves first, then falls, typical runs, the folder's own figures,
+#: gaits and animations.
+FIGURE_ORDER = ("learning_curves", "cumulative_falls", "typical_runs", "", "gait_", "walker_")
+
+#: Captions of figures made once (by a benchmark or an analysis), by file name.
+FIGURE_CAPTIONS = {
+    "value_maps_after_goal.png": "Value maps V = max_a Q of the windy cliff right after the first goal, one panel per "
+    "algorithm and case, all learning from the same data and the same replays (thesis Figures 5.2-5.7).",
+    "value_maps_long_replay.png": "Value maps V = max_a Q of the windy cliff after long replay, one panel per "
+    "algorithm and case, all learning from the same data and the same replays (thesis Figures 5.2-5.7).",
+    "value_maps_pessimistic_after_goal.png": "Value maps with a pessimistic initial Q, right after the first goal "
+    "(thesis Figure 5.5).",
+    "value_maps_pessimistic_long_replay.png": "Value maps with a pessimistic initial Q, after long replay (thesis "
+    "Figure 5.5).",
+    "positive_cells.png": "Cells of the windy cliff with V > 0 against replay phases: mean and 95 % confidence "
+    "interval per case.",
+    "replay_orders.png": "Replay orders on the same Sarsa(λ) databases (thesis Figure A.1): performance against "
+    "replayed updates, mean and 95 % confidence interval over seeds.",
+    "sigma_scores.png": "ER-σ with each definition of σ (thesis Figure B.1): scores with their 95 % confidence "
+    "intervals.",
+    "curves.png": "Greedy return (of 1,000) against steps on each dm_control task, one line per run; dashed: random "
+    "torques.",
+    "figure_5_6.png": "Thesis Figure 5.6: one self-affecting sample (4 tilings; s' shares 3 tiles of s) replayed "
+    "alone: Q(s_k, a_k) against replays for each variant; dotted: the closed form.",
+    "limit_vs_shared_tiles.png": "The limit of Q(s_k, a_k) when one sample is replayed again and again, against the "
+    "tiles s_k shares with s_{k+1} (16 tilings), for each variant.",
+}
+
+
+def _figure_key(folder: Path, path: Path) -> tuple:
+    """Sort key of a figure: its sub-folder, then :data:`FIGURE_ORDER`, then the thesis's order of algorithms."""
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    stem = path.stem
+    kind = next(
+        (i for i, prefix in enumerate(FIGURE_ORDER) if prefix and (stem == prefix or stem.startswith(prefix))),
+        FIGURE_ORDER.index(""),
+    )
+    algo = stem.split("_", 1)[1] if kind >= FIGURE_ORDER.index("gait_") else ""
+    order = list(ALGORITHM_LABELS).index(algo) if algo in ALGORITHM_LABELS else len(ALGORITHM_LABELS)
+    return (path.parent.relative_to(folder).parts, kind, order, path.name)
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return {}
+
+
+def _figure_seed(directory: Path) -> int | None:
+    """The seed of a folder's one-seed figures (typical runs, gaits, animations): the first seed of its runs."""
+    seeds = [
+        int(match.group(1))
+        for p in directory.glob("runs/*/seed_*.csv")
+        if (match := re.fullmatch(r"seed_(\d+)", p.stem))
+    ]
+    return min(seeds) if seeds else None
+
+
+def _excluded_runs(directory: Path, seed: int) -> dict[str, str]:
+    """{algorithm: why} for each algorithm of `directory` whose run of `seed` is left out of the averages (and so of
+    the typical-runs figure), by the summary's own rule (:func:`sb3_er.experiments.summary.load_curves`)."""
+    from sb3_er.experiments.specs import EXPERIMENTS
+    from sb3_er.experiments.summary import load_curves
+
+    experiment = EXPERIMENTS.get(_read_json(directory / "settings.json").get("experiment", ""))
+    if experiment is None:
+        return {}
+    excluded = {}
+    for algo_dir in sorted(p for p in (directory / "runs").iterdir() if p.is_dir()):
+        if not (algo_dir / f"seed_{seed}.csv").is_file():
+            continue
+        curves = load_curves(experiment, directory, algo_dir.name, [seed])
+        if curves is None or seed in curves.seeds:
+            continue
+        if seed in curves.diverged_seeds:
+            excluded[algo_dir.name] = "the weights diverged"
+        elif seed in curves.out_of_bounds_seeds:
+            excluded[algo_dir.name] = "the values left the possible returns"
+        else:
+            excluded[algo_dir.name] = "it is left out of the averages"
+    return excluded
+
+
+def _listed(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
+def _typical_runs_caption(directory: Path) -> str:
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    seed = _figure_seed(directory)
+    if seed is None:
+        return "Typical runs: one seed's learning curve per algorithm."
+    caption = f"Typical runs: the learning curve of seed {seed} of each algorithm."
+    excluded = _excluded_runs(directory, seed)
+    if excluded:
+        one = len(excluded) == 1
+        names = _listed([ALGORITHM_LABELS.get(algo, algo) for algo in excluded])
+        why = "; ".join(
+            f"{_listed([ALGORITHM_LABELS.get(a, a) for a, w in excluded.items() if w == reason])}: {reason}"
+            for reason in dict.fromkeys(excluded.values())
+        )
+        caption += (
+            f" {names} {'is' if one else 'are'} not shown: {'its' if one else 'their'} seed-{seed} "
+            f"run{'' if one else 's'} {'is' if one else 'are'} left out of the averages, as the table leaves out "
+            f"every such run ({why})."
+        )
+    return caption
+
+
+def gif_caption(gif: Path) -> str:
+    """What a walker animation shows, from the run that made it: the algorithm, the seed, how long it learned, and how
+    far its greedy policy walked (in the animation's walk when the run's ``gait.csv`` records it, and in the run's
+    final evaluation).
+
+    :param gif: a results folder's ``walker_<algo>.gif`` (a copy of its first seed's
+        ``runs/<algo>/seed_<n>_walker.gif``).
+    """
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    algo = gif.stem.removeprefix("walker_")
+    label = ALGORITHM_LABELS.get(algo, algo)
+    data = gif.read_bytes()
+    sources = [p for p in sorted((gif.parent / "runs" / algo).glob("seed_*_walker.gif")) if p.read_bytes() == data]
+    if not sources:
+        return f"{label}'s greedy policy after learning, walking from Garcia's fixed point."
+    source = sources[0]
+    seed = source.name.removesuffix("_walker.gif").removeprefix("seed_")
+    run_csv, gait_csv = source.with_name(f"seed_{seed}.csv"), source.with_name(f"seed_{seed}_gait.csv")
+    import csv
+
+    with run_csv.open(encoding="utf-8", newline="") as handle:
+        last = list(csv.DictReader(handle))[-1]
+    with gait_csv.open(encoding="utf-8", newline="") as handle:
+        gait = list(csv.DictReader(handle))
+    record = _read_json(run_csv.with_suffix(".json"))
+    walk = float(gait[-1]["time"])
+    fell = gait[-1].get("fell") == "True"
+    caption = (
+        f"{label} (seed {seed}) after {float(last['learning_time_s']):g} s of learning: its greedy policy walking "
+        f"{walk:g} s from Garcia's fixed point"
+    )
+    if "distance" in gait[-1]:
+        caption += f", {float(gait[-1]['distance']):.2f} m"
+    caption += f", {'and falling' if fell else 'without a fall'}."
+    runs = record.get("config", {}).get("protocol", {}).get("eval_runs")
+    seconds = record.get("resolved", {}).get("env", {}).get("episode_seconds")
+    if "distance" in last and runs and seconds:
+        caption += (
+            f" In the run's last evaluation it walked {float(last['distance']):.2f} m in {seconds:g} s (the mean of "
+            f"{runs} greedy runs)."
+        )
+    return caption
+
+
+def figure_caption(folder: Path, path: Path) -> str:
+    """The caption of a figure of results folder `folder`: what it shows, by kind (learning curves, falls, typical
+    runs, gaits, animations) or by name (:data:`FIGURE_CAPTIONS`)."""
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    stem = path.stem
+    if path.name in FIGURE_CAPTIONS:
+        return FIGURE_CAPTIONS[path.name]
+    if stem == "learning_curves":
+        return (
+            "Learning curves: each algorithm's mean over its averaged runs (n in the legend), with the 95 % "
+            "confidence interval of the mean shaded."
+        )
+    if stem == "cumulative_falls":
+        return "Falls while learning, summed from the start: each algorithm's mean with its 95 % confidence interval."
+    if stem == "typical_runs":
+        return _typical_runs_caption(path.parent)
+    if stem.startswith("gait_"):
+        algo = stem.removeprefix("gait_")
+        seed = _figure_seed(path.parent)
+        return (
+            f"The gait of {ALGORITHM_LABELS.get(algo, algo)}'s greedy policy after learning"
+            + (f" (seed {seed})" if seed is not None else "")
+            + ": stance-leg angle, hip angle and swing-foot height as it walks from Garcia's fixed point (thesis "
+            "Figures 4.6 and 6.3)."
+        )
+    if stem.startswith("walker_") and path.suffix == ".gif":
+        return gif_caption(path)
+    if stem.endswith("_values"):
+        return (
+            f"{stem.removesuffix('_values').replace('_', ' ').capitalize()}: the largest Q(s_t, a_t) over the stored "
+            "transitions and σ's mean excess over Q against steps, each line one seed."
+        )
+    return stem.replace("_", " ").capitalize() + "."
+
+
+def _figure_sections(folder: Path) -> list[str]:
+    figures = sorted(
+        (p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES and "runs" not in p.relative_to(folder).parts),
+        key=lambda p: _figure_key(folder, p),
+    )
+    if not figures:
+        return []
+    lines = ["## Figures", ""]
+    current = None
+    for path in figures:
+        directory = path.parent.relative_to(folder)
+        if directory.parts and directory != current:
+            heading, _ = _split_heading(
+                (path.parent / "summary.md").read_text(encoding="utf-8")
+                if (path.parent / "summary.md").is_file()
+                else ""
+            )
+            lines += [f"### {heading or directory.as_posix()}", ""]
+        current = directory
+        where = path.relative_to(folder).as_posix()
+        lines += [
+            f"```{{figure}} {_relative(path)}",
+            f":alt: {figure_caption(folder, path).split(':')[0].split('.')[0]}",
+            "",
+            f"{figure_caption(folder, path)} (`{where}`)",
+            "```",
+            "",
+        ]
+    return lines
+
+
 def results_page(name: str) -> str:
     """The Markdown page of ``results/measured/<name>``."""
     folder = MEASURED / name
@@ -273,33 +659,30 @@ def results_page(name: str) -> str:
     markdown = _shown(folder, (".md",))
     summaries = [p for p in markdown if p == folder / "summary.md"]
     others = [p for p in markdown if p not in summaries]
-
-    def include(path: Path, heading: str) -> list[str]:
-        return [f"## {heading}", "", "```{include} " + _relative(path), ":heading-offset: 2", "```", ""]
-
     for path in summaries:
-        lines += include(path, "Summary")
+        lines += ["## Summary", "", _shown_markdown(path, 2), ""]
     if notes.is_file():
         lines += ["## Analysis", "", "```{include} " + _relative(notes), "```", ""]
-    for path in others:
-        lines += include(path, path.relative_to(folder).as_posix())
+    lines += _markdown_sections(folder, others)
     texts = _shown(folder, TEXT_SUFFIXES)
     for path in texts:
-        lines += [f"## {path.relative_to(folder).as_posix()}", "", "```{literalinclude} " + _relative(path), "```", ""]
+        where = path.relative_to(folder).as_posix()
+        title = "Printout" if len(texts) == 1 else f"Printout of {path.stem.replace('_', ' ')}"
+        lines += [f"## {title}", "", f"From `{where}`.", "", "```{literalinclude} " + _relative(path), "```", ""]
     for path in _csv_summaries(folder):
-        lines += [f"## {path.name}", "", csv_table(path), ""]
-    figures = sorted(
-        p for p in folder.rglob("*") if p.suffix in FIGURE_SUFFIXES and "runs" not in p.relative_to(folder).parts
-    )
-    if figures:
-        lines += ["## Figures", ""]
-        for path in figures:
-            where = path.relative_to(folder).as_posix()
-            lines += [f"`{where}`", "", f"![{where}]({_relative(path)})", ""]
+        lines += ["## Table of runs", "", f"From `{path.name}`.", "", csv_table(path), ""]
+    figures = _figure_sections(folder)
+    lines += figures
     if not (markdown or texts or figures or _csv_summaries(folder)):
         tables = sorted(p.relative_to(folder).as_posix() for p in folder.glob("*.csv"))
         lines += ["This folder holds run data only: " + ", ".join(f"`{t}`" for t in tables or ["runs/"]) + ".", ""]
-    return "\n".join(lines)
+    text = "\n".join(lines)
+    for note in (CODE_VERSION_NOTE, RECORD_NOTE):  # what a code hash and a record are: said once a page
+        first = text.find(note)
+        if first >= 0:
+            end = first + len(note)
+            text = text[:end] + text[end:].replace(" " + note, "")
+    return text
 
 
 def _figure(cell: str) -> str:
@@ -338,6 +721,10 @@ def results_index() -> str:
         "Each thesis finding, judged on the committed runs (from each folder's `findings.json`).",
         "",
         verdict_table(lambda name: f"{name}.md"),
+        "",
+        "## Every results folder",
+        "",
+        "One page per folder of `results/measured/`: the thesis's tables above, the readings, screens and benchmarks.",
         "",
         "```{toctree}",
         ":maxdepth: 1",
@@ -380,18 +767,616 @@ def readme_verdicts() -> str:
 
 
 def update_readme(check: bool = False) -> bool:
-    """Write the verdict block into README.md; with `check`, only say whether it is up to date."""
+    """Write the verdict block and the "Which algorithm?" block into README.md; with `check`, only say whether both
+    are up to date."""
     readme = ROOT / "README.md"
     text = readme.read_text(encoding="utf-8")
-    pattern = re.compile(re.escape(README_START) + r".*?" + re.escape(README_END), flags=re.DOTALL)
-    if not pattern.search(text):
-        raise SystemExit(f"{readme} has no verdict block ({README_START} ... {README_END})")
-    updated = pattern.sub(lambda _: readme_verdicts(), text)
+    updated = text
+    for start, end, block in (
+        (README_START, README_END, readme_verdicts),
+        (WHICH_START, WHICH_END, readme_which_algorithm),
+    ):
+        pattern = re.compile(re.escape(start) + r".*?" + re.escape(end), flags=re.DOTALL)
+        if not pattern.search(updated):
+            raise SystemExit(f"{readme} has no generated block {start} ... {end}")
+        updated = pattern.sub(lambda _, block=block: block(), updated)
     if check:
         return updated == text
     if updated != text:
         readme.write_text(updated, encoding="utf-8")
     return True
+
+
+# --- "Can I use?": the spaces and envs each algorithm accepts, found by building it (never written by hand) ---
+
+
+@dataclass(frozen=True)
+class SpaceCase:
+    """One cell of an algorithm page's "Can I use?" tables: an env (or VecEnv) of one kind of space, which the
+    algorithm is built on; the cell says ✔️ when the constructor accepts it and ❌ when it refuses it."""
+
+    row: str
+    column: str  # "action" or "observation" (the spaces table), or "use" (the envs table)
+    make: Any  # () -> a Gymnasium env or a VecEnv
+    #: shown after ✔️ when accepted
+    note: str = ""
+    #: shown after ❌ when refused
+    refused_note: str = ""
+
+
+class _ProbeEnv:
+    """A tiny env of the given spaces (random observations, reward 0, 10 steps an episode): what an algorithm is
+    built on to find whether it takes those spaces. Made a ``gymnasium.Env`` subclass when first used, so that this
+    module imports no more than the standard library."""
+
+    _cls = None
+
+    @classmethod
+    def make(cls, observation_space, action_space):
+        if cls._cls is None:
+            import gymnasium as gym
+
+            class ProbeEnv(gym.Env):
+                def __init__(self, observation_space, action_space):
+                    self.observation_space, self.action_space = observation_space, action_space
+                    self._steps = 0
+
+                def reset(self, *, seed=None, options=None):
+                    super().reset(seed=seed)
+                    self.observation_space.seed(seed)
+                    self._steps = 0
+                    return self.observation_space.sample(), {}
+
+                def step(self, action):
+                    self._steps += 1
+                    return self.observation_space.sample(), 0.0, False, self._steps >= 10, {}
+
+            cls._cls = ProbeEnv
+        return cls._cls(observation_space, action_space)
+
+
+SPACE_ROWS = ("Discrete", "MultiDiscrete", "Box", "MultiBinary", "Dict", "image (a Box of shape H × W × C)")
+
+
+def space_cases() -> list[SpaceCase]:
+    """The cells of the "Can I use?" tables, each with the env it is probed on: every Gymnasium space kind as the
+    action space (observing a flat Box) and as the observation space (acting in Discrete(2)), then the env set-ups
+    (one env, several, a Dict observation in a VecEnv, observation normalisation)."""
+    import numpy as np
+    from gymnasium import spaces
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    flat = spaces.Box(0.0, 1.0, (2,), np.float32)
+    dict_space = spaces.Dict({"position": spaces.Box(0.0, 1.0, (2,)), "velocity": spaces.Box(-1.0, 1.0, (1,))})
+    actions = {
+        "Discrete": spaces.Discrete(3),
+        "MultiDiscrete": spaces.MultiDiscrete([2, 3]),
+        "Box": spaces.Box(-1.0, 1.0, (1,), np.float32),
+        "MultiBinary": spaces.MultiBinary(2),
+        "Dict": spaces.Dict({"a": spaces.Discrete(2)}),
+    }
+    observations = {
+        "Discrete": spaces.Discrete(5),
+        "MultiDiscrete": spaces.MultiDiscrete([2, 3]),
+        "Box": flat,
+        "MultiBinary": spaces.MultiBinary(2),
+        "Dict": dict_space,
+        SPACE_ROWS[-1]: spaces.Box(0, 255, (8, 8, 3), np.uint8),
+    }
+    action_notes = {
+        "MultiDiscrete": "flattened into one index",
+        "Box": "discretised into levels: {doc}`Continuous actions </continuous_actions>`",
+    }
+    observation_notes = {
+        "Box": "flat; each dimension bounded or given a tile width",
+        "Dict": "of Box arrays, flattened for you: {doc}`dm_control </envs/dm_control>`",
+    }
+    cases = [
+        SpaceCase(row, "action", lambda space=space: _ProbeEnv.make(flat, space), action_notes.get(row, ""))
+        for row, space in actions.items()
+    ]
+    cases += [
+        SpaceCase(
+            row,
+            "observation",
+            lambda space=space: _ProbeEnv.make(space, spaces.Discrete(2)),
+            observation_notes.get(row, ""),
+            "extract low-dimensional features first" if row == SPACE_ROWS[-1] else "",
+        )
+        for row, space in observations.items()
+    ]
+
+    def vec_env(n_envs, observation_space=flat):
+        return DummyVecEnv([lambda: _ProbeEnv.make(observation_space, spaces.Discrete(2))] * n_envs)
+
+    cases += [
+        SpaceCase("one env, or a VecEnv of one env (`DummyVecEnv`, `SubprocVecEnv`)", "use", lambda: vec_env(1)),
+        SpaceCase("several envs at once (a VecEnv with `n_envs` > 1)", "use", lambda: vec_env(2), "", "one at a time"),
+        SpaceCase(
+            "a VecEnv of Dict observations",
+            "use",
+            lambda: vec_env(1, dict_space),
+            "",
+            "flatten each env: `make_vec_env(..., wrapper_class=gymnasium.wrappers.FlattenObservation)`",
+        ),
+        SpaceCase(
+            "`VecNormalize` of rewards only (`norm_obs=False`)",
+            "use",
+            lambda: VecNormalize(vec_env(1), norm_obs=False),
+        ),
+        SpaceCase(
+            "`VecNormalize(norm_obs=True)`, rl-zoo's `normalize: true`",
+            "use",
+            lambda: VecNormalize(vec_env(1)),
+            "",
+            "tile widths are in the raw observation units",
+        ),
+    ]
+    return cases
+
+
+#: Tile coding small enough that probing every algorithm on every case takes a moment.
+PROBE_POLICY_KWARGS = {"n_tilings": 2, "memory_size": 2**10}
+
+
+def accepts(algorithm: type, case: SpaceCase) -> bool:
+    """Whether `algorithm`'s constructor takes the env of `case` (its own checks of spaces and wrappers decide)."""
+    import warnings
+
+    env = case.make()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            algorithm("TileQ", env, policy_kwargs=dict(PROBE_POLICY_KWARGS))
+    except Exception:  # noqa: BLE001  (any refusal is a ❌; tests/test_docs.py checks it is a clear ValueError)
+        return False
+    finally:
+        env.close()
+    return True
+
+
+_SUPPORT: dict[str, dict[tuple[str, str], bool]] = {}
+
+
+def space_support(algorithm: type) -> dict[tuple[str, str], bool]:
+    """{(row, column): accepted} of every case of :func:`space_cases` for `algorithm` (computed once per process)."""
+    if algorithm.__name__ not in _SUPPORT:
+        _SUPPORT[algorithm.__name__] = {(case.row, case.column): accepts(algorithm, case) for case in space_cases()}
+    return _SUPPORT[algorithm.__name__]
+
+
+def _algorithm_classes() -> dict[str, type]:
+    from sb3_er.zoo import algorithm_classes
+
+    return {cls.__name__: cls for cls in algorithm_classes().values()}
+
+
+def can_i_use_table(algorithm_names: list[str] | None = None) -> str:
+    """The "Can I use?" tables in Markdown for the classes named (e.g. ``["ERSigma"]``; None: every algorithm, each
+    cell ✔️ only where all of them accept it, and naming those that do where they differ)."""
+    classes = _algorithm_classes()
+    chosen = [classes[name] for name in algorithm_names] if algorithm_names else list(classes.values())
+    cases = {(case.row, case.column): case for case in space_cases()}
+
+    def cell(row: str, column: str) -> str:
+        case = cases.get((row, column))
+        if case is None:
+            return "—"
+        accepted = [cls.__name__ for cls in chosen if space_support(cls)[row, column]]
+        if len(accepted) == len(chosen):
+            return "✔️" + (f" ({case.note})" if case.note else "")
+        if accepted:
+            return f"✔️ for {', '.join(f'`{name}`' for name in accepted)} only"
+        return "❌" + (f" ({case.refused_note})" if case.refused_note else "")
+
+    who = f"`{chosen[0].__name__}`" if len(chosen) == 1 else "each algorithm"
+    lines = [
+        f"Found when these pages were built, by building {who} on a small env of each kind: ✔️ the constructor takes "
+        "it, ❌ it refuses it with an error naming the problem.",
+        "",
+        "| space | action | observation |",
+        "|---|---|---|",
+    ]
+    lines += [f"| {row} | {cell(row, 'action')} | {cell(row, 'observation')} |" for row in SPACE_ROWS]
+    lines += ["", "| env | can I use it? |", "|---|---|"]
+    lines += [f"| {case.row} | {cell(case.row, 'use')} |" for case in cases.values() if case.column == "use"]
+    return "\n".join(lines) + "\n"
+
+
+def _can_i_use_directive():
+    """The ``{can-i-use}`` directive: ``{can-i-use} ERSigma`` renders :func:`can_i_use_table` (no argument: every
+    algorithm) at build time, so the tables say what the code accepts when the docs are built."""
+    from docutils import nodes
+    from docutils.parsers.rst import Directive
+    from docutils.statemachine import StringList
+
+    class CanIUse(Directive):
+        optional_arguments = 1
+        has_content = False
+
+        def run(self):
+            names = self.arguments[0].split(",") if self.arguments else None
+            container = nodes.container(classes=["can-i-use"])
+            self.state.nested_parse(StringList(can_i_use_table(names).splitlines()), self.content_offset, container)
+            return [container]
+
+    return CanIUse
+
+
+# --- "Which algorithm?": which learner to pick for which kind of task, from the committed benchmarks ---
+
+WHICH_START = "<!-- which-algorithm: generated by docs/_ext/sb3er_docs.py from results/measured -->"
+WHICH_END = "<!-- /which-algorithm -->"
+#: The sample-efficiency benchmark's summary: when it is committed, the section rests on it alone (format above).
+SAMPLE_EFFICIENCY = "sample_efficiency"
+
+
+@dataclass(frozen=True)
+class Score:
+    """One algorithm's result on one benchmark (see the module docstring for the JSON it is read from)."""
+
+    algorithm: str  # the rl-zoo name, e.g. "er_sigma"
+    mean: float | None  # the end performance (or the benchmark's metric), averaged over the averaged runs
+    ci95: float | None  # the half-width of its 95 % confidence interval
+    averaged: int  # runs averaged
+    runs: int  # runs made
+    text: str = ""  # the mean as the results file writes it, e.g. "10.0 ± 0.49"
+    speed: float | None = None  # how soon it learns (lower is sooner), None when it never did
+    speed_text: str = ""
+    falls: float | None = None  # falls while learning, where the task has them
+    falls_text: str = ""
+    left_out: str = ""  # why runs were not averaged, e.g. "values left the possible returns in 13 of 20 runs"
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    task: str  # the kind of task, in plain words
+    folder: str  # its results folder under results/measured
+    metric: str  # what `mean` measures
+    scores: tuple[Score, ...]
+    higher_is_better: bool = True
+    speed_label: str = "rise time"
+    files: tuple[str, ...] = ("summary.md",)  # the files of the folder it rests on: the first is the main one
+
+
+def _label(algorithm: str) -> str:
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    return {**ALGORITHM_LABELS, "dyna": "Dyna", "fqi": "FQI", "lspi": "LSPI"}.get(algorithm, algorithm)
+
+
+def _ranked(benchmark: Benchmark) -> list[Score]:
+    """The scores that can be ranked (at least 5 and at least half of their runs averaged), best first."""
+    from sb3_er.experiments.findings import MIN_AVERAGED_RUNS
+
+    ranked = [
+        score
+        for score in benchmark.scores
+        if score.mean is not None and score.averaged >= MIN_AVERAGED_RUNS and 2 * score.averaged >= score.runs
+    ]
+    return sorted(ranked, key=lambda score: -score.mean if benchmark.higher_is_better else score.mean)
+
+
+def picks(benchmark: Benchmark) -> list[Score]:
+    """The pick of a benchmark: the best ranked score, and every other whose 95 % interval overlaps the best's."""
+    ranked = _ranked(benchmark)
+    if not ranked:
+        return []
+    best = ranked[0]
+    low, high = best.mean - (best.ci95 or 0.0), best.mean + (best.ci95 or 0.0)
+    return [best] + [
+        score
+        for score in ranked[1:]
+        if score.mean - (score.ci95 or 0.0) <= high and score.mean + (score.ci95 or 0.0) >= low
+    ]
+
+
+def _read_sample_efficiency(path: Path) -> list[Benchmark]:
+    """The benchmarks of the sample-efficiency summary (the module docstring's format); FindingsError naming the file
+    and the entry for anything else."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise FindingsError(f"{path}: not JSON ({error})") from error
+    entries = data.get("benchmarks") if isinstance(data, dict) else None
+    if not isinstance(entries, list) or not entries:
+        raise FindingsError(f"{path}: expected an object with a non-empty list 'benchmarks'")
+    benchmarks = []
+    for index, entry in enumerate(entries):
+        where = f"{path}: benchmarks[{index}]"
+        if not isinstance(entry, dict) or not all(isinstance(entry.get(key), str) for key in ("task", "metric")):
+            raise FindingsError(f"{where} needs the strings 'task' and 'metric'")
+        if not isinstance(entry.get("scores"), list) or not entry["scores"]:
+            raise FindingsError(f"{where} needs a non-empty list 'scores'")
+        scores = []
+        for number, score in enumerate(entry["scores"]):
+            ok = (
+                isinstance(score, dict)
+                and isinstance(score.get("algorithm"), str)
+                and isinstance(score.get("mean"), (int, float, type(None)))
+                and isinstance(score.get("ci95", 0.0), (int, float, type(None)))
+                and isinstance(score.get("runs"), int)
+                and isinstance(score.get("averaged", score.get("runs")), int)
+            )
+            if not ok:
+                raise FindingsError(
+                    f"{where}.scores[{number}] needs 'algorithm' (a string), 'mean' (a number or null), 'runs' (an "
+                    "integer), and optionally 'ci95' (a number) and 'averaged' (an integer)"
+                )
+            scores.append(
+                Score(
+                    score["algorithm"],
+                    score["mean"],
+                    score.get("ci95"),
+                    score.get("averaged", score["runs"]),
+                    score["runs"],
+                    str(score.get("text", "")),
+                    score.get("speed"),
+                    str(score.get("speed_text", "")),
+                    score.get("falls"),
+                    str(score.get("falls_text", "")),
+                    str(score.get("left_out", "")),
+                )
+            )
+        files = tuple(entry.get("files", [])) or ("summary.json",)
+        benchmarks.append(
+            Benchmark(
+                entry["task"],
+                SAMPLE_EFFICIENCY,
+                entry["metric"],
+                tuple(scores),
+                bool(entry.get("higher_is_better", True)),
+                str(entry.get("speed_label", "steps to the target")),
+                files,
+            )
+        )
+    return benchmarks
+
+
+#: The thesis's tables as benchmarks: the kind of task each stands for.
+THESIS_TASKS = {
+    "table_6_2": "a walking robot in a simple simulation, where a fall ends the episode (the simplest walker)",
+    "table_6_3": "a simulated biped robot with many actions (LEO)",
+    "table_6_1": "swinging up a pendulum whose motor is too weak to lift it at once",
+    "gridworld": "a small grid world with a cliff (the windy cliff)",
+}
+#: The classic-control and continuous-action peers: the kind of task of each env.
+PEER_TASKS = {
+    "peers": {
+        "CartPole-v1": "balancing (Gymnasium's CartPole-v1)",
+        "MountainCar-v0": "a delayed reward that needs exploration (MountainCar-v0)",
+        "Acrobot-v1": "swinging up a two-link arm (Acrobot-v1)",
+    },
+    "peers_continuous": {
+        "Pendulum-v1": "continuous torques, discretised (Pendulum-v1)",
+        "MountainCarContinuous-v0": "a continuous force and a sparse reward (MountainCarContinuous-v0)",
+    },
+}
+
+
+def _thesis_benchmark(folder: str, task: str, measured: Path) -> Benchmark | None:
+    """A thesis table's benchmark from its ``summary.csv`` (the end performance, rise time, falls and the runs not
+    averaged of each algorithm)."""
+    import csv
+
+    from sb3_er.experiments.thesis import ALGORITHM_LABELS
+
+    path = measured / folder / "summary.csv"
+    if not path.is_file():
+        return None
+    with path.open(encoding="utf-8", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    by_label = {label: algo for algo, label in ALGORITHM_LABELS.items()}
+
+    def number(text: str) -> float | None:
+        return float(text) if text not in ("", None) else None
+
+    scores, unit = [], ""
+    for label in dict.fromkeys(row["algorithm"] for row in rows):
+        own = {row["metric"]: row for row in rows if row["algorithm"] == label}
+        end = own.get("End performance")
+        if end is None:
+            continue
+        rise = next(
+            (row for metric, row in own.items() if metric.startswith("Rise time") and "all runs" not in metric), None
+        )
+        unit = re.search(r"\[(.+)\]", rise["metric"]).group(1) if rise and "[" in rise["metric"] else unit
+        left = [
+            (metric, row["average_text"])
+            for metric, row in own.items()
+            if metric in ("Runs whose values left the possible returns", "Diverged runs") and number(row["average"])
+        ]
+        runs = max([int(end["seeds"] or 0)] + [int(text.split(" of ")[1]) for _, text in left if " of " in text])
+        falls = own.get("Falls")
+        scores.append(
+            Score(
+                by_label.get(label, label),
+                number(end["average"]),
+                number(end["ci95"]),
+                int(end["seeds"] or 0),
+                runs,
+                end["average_text"],
+                number(rise["average"]) if rise else None,
+                f"{rise['average_text']} {unit}" if rise else "",
+                number(falls["average"]) if falls else None,
+                falls["average_text"] if falls else "",
+                "; ".join(
+                    ("values left the possible returns" if metric.startswith("Runs") else "diverged")
+                    + f" in {text} runs"
+                    for metric, text in left
+                ),
+            )
+        )
+    return Benchmark(
+        task,
+        folder,
+        "end performance",
+        tuple(scores),
+        speed_label="rise time",
+        files=("summary.md", "learning_curves.png"),
+    )
+
+
+def _peer_benchmarks(folder: str, measured: Path) -> list[Benchmark]:
+    """sb3-er's learners on the classic-control (or continuous-action) envs of a peers folder (``peers.json``): the
+    mean final return over seeds with its 95 % interval, and the median steps to the target return."""
+    import numpy as np
+
+    from sb3_er.experiments.metrics import mean_confidence_interval
+    from sb3_er.experiments.summary import format_figure
+    from sb3_er.zoo import ALL_ALGORITHM_NAMES
+
+    path = measured / folder / "peers.json"
+    if not path.is_file():
+        return []
+    runs = json.loads(path.read_text(encoding="utf-8"))
+    benchmarks = []
+    for env, task in PEER_TASKS.get(folder, {}).items():
+        scores = []
+        for algo in ALL_ALGORITHM_NAMES:
+            own = [run for run in runs if run["env"] == env and run["method"] == algo]
+            if not own:
+                continue
+            mean, half = mean_confidence_interval(np.array([run["final_mean"] for run in own]))
+            mean, half = float(mean), float(half)
+            reached = [run["steps_to_target"] for run in own if run.get("steps_to_target") is not None]
+            target = own[0].get("target")
+            speed = float(np.median(reached)) if len(reached) * 2 > len(own) else None
+            scores.append(
+                Score(
+                    algo,
+                    mean,
+                    half,
+                    len(own),
+                    len(own),
+                    f"{format_figure(mean, half)} ± {format_figure(half, mean)}",
+                    speed,
+                    f"{format_figure(speed, whole=True)} steps ({len(reached)} of {len(own)} seeds)" if speed else "",
+                )
+            )
+        if scores:
+            benchmarks.append(
+                Benchmark(
+                    task,
+                    folder,
+                    "final return",
+                    tuple(scores),
+                    speed_label=f"median steps to a return of {target:g}" if target is not None else "steps",
+                    files=(next(p.name for p in (measured / folder).glob("*.md")), "peers.json"),
+                )
+            )
+    return benchmarks
+
+
+def which_algorithm_benchmarks(measured: Path = MEASURED) -> tuple[list[Benchmark], str]:
+    """(the benchmarks, a phrase naming their source): the sample-efficiency benchmark's summary when it is committed,
+    else the thesis's tables and the peers' classic-control and continuous-action runs."""
+    summary = measured / SAMPLE_EFFICIENCY / "summary.json"
+    if summary.is_file():
+        return _read_sample_efficiency(
+            summary
+        ), f"the sample-efficiency benchmark (`results/measured/{SAMPLE_EFFICIENCY}/`)"
+    benchmarks = [b for folder, task in THESIS_TASKS.items() if (b := _thesis_benchmark(folder, task, measured))]
+    for folder in PEER_TASKS:
+        benchmarks += _peer_benchmarks(folder, measured)
+    return benchmarks, "the thesis's tables and the classic-control and continuous-action comparisons with peers"
+
+
+def which_algorithm(link, measured: Path = MEASURED) -> str:
+    """The "Which algorithm?" section in Markdown; ``link(folder, file)`` gives the target of a results file's link
+    (None: no link)."""
+    benchmarks, source = which_algorithm_benchmarks(measured)
+    lines = [
+        f"Which learner to pick, by kind of task, as the committed benchmarks measured it ({source}). The pick is "
+        "the learner that ends best; a learner whose 95 % interval overlaps the pick's is named beside it. A learner "
+        "with fewer than 5 averaged runs, or fewer than half, is not ranked: its values left the possible returns, or "
+        "its weights diverged, in the other runs.",
+        "",
+        "| task | pick | what the runs show |",
+        "|---|---|---|",
+    ]
+    tally: dict[str, int] = {}
+    for benchmark in benchmarks:
+        chosen = picks(benchmark)
+        for score in chosen:
+            tally[score.algorithm] = tally.get(score.algorithm, 0) + 1
+        ranked = _ranked(benchmark)
+        shown = [f"{_label(score.algorithm)} {score.text}" for score in ranked]
+        facts = [f"{benchmark.metric}: {', '.join(shown)}" if shown else "no learner could be ranked"]
+        sooner = [score for score in ranked if score.speed is not None]
+        if sooner:
+            first = min(sooner, key=lambda score: score.speed)
+            facts.append(f"soonest ({benchmark.speed_label}): {_label(first.algorithm)}, {first.speed_text}")
+        with_falls = [score for score in ranked if score.falls is not None]
+        if with_falls:
+            fewest = min(with_falls, key=lambda score: score.falls)
+            facts.append(f"fewest falls: {_label(fewest.algorithm)}, {fewest.falls_text}")
+        unranked = [score for score in benchmark.scores if score not in ranked]
+        if unranked:
+            facts.append(
+                "not ranked: "
+                + ", ".join(
+                    f"{_label(score.algorithm)} ({score.left_out or f'{score.averaged} of {score.runs} runs averaged'})"
+                    for score in unranked
+                )
+            )
+        targets = [(file, link(benchmark.folder, file)) for file in benchmark.files]
+        sources = ", ".join(
+            f"[{_file_label(index, file)}]({target})" for index, (file, target) in enumerate(targets) if target
+        )
+        pick = " or ".join(_label(score.algorithm) for score in chosen) or "none"
+        lines.append(f"| {_cell(benchmark.task)} ({sources}) | {pick} | {_cell('; '.join(facts))} |")
+    if tally:
+        counts = sorted(tally.items(), key=lambda item: -item[1])
+        first = _label(counts[0][0])
+        others = ", ".join(f"{_label(algo)} on {n}" for algo, n in counts[1:])
+        lines += [
+            "",
+            f"In short: {first} is the pick, or one of the picks, on {counts[0][1]} of these {len(benchmarks)} tasks"
+            + (f", {others}" if others else "")
+            + f". On a new task, try {first} first, and the learner the table names for the task most like yours.",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def _file_label(index: int, file: str) -> str:
+    if index == 0:
+        return "summary"
+    return "runs" if file.endswith(".json") else Path(file).stem.replace("_", " ")
+
+
+def readme_which_algorithm() -> str:
+    """The README's "Which algorithm?" block, linking each benchmark to its committed files."""
+
+    def link(folder: str, file: str) -> str:
+        return f"results/measured/{folder}/{file}"
+
+    return f"{WHICH_START}\n{which_algorithm(link)}{WHICH_END}"
+
+
+def _docs_link(folder: str, file: str) -> str | None:
+    """Where a page under docs/<section>/ links to a results file: its results page (figures: their section)."""
+    if file.endswith(".json"):
+        return None
+    return f"../results/{folder}.md" + ("#figures" if Path(file).suffix in FIGURE_SUFFIXES else "")
+
+
+def _which_algorithm_directive():
+    """The ``{which-algorithm}`` directive: :func:`which_algorithm` with links to the results pages."""
+    from docutils import nodes
+    from docutils.parsers.rst import Directive
+    from docutils.statemachine import StringList
+
+    class WhichAlgorithm(Directive):
+        has_content = False
+
+        def run(self):
+            container = nodes.container(classes=["which-algorithm"])
+            text = which_algorithm(_docs_link)
+            self.state.nested_parse(StringList(text.splitlines()), self.content_offset, container)
+            return [container]
+
+    return WhichAlgorithm
 
 
 def _on_builder_inited(app) -> None:
@@ -425,6 +1410,8 @@ def setup(app):
 
     logging.getLogger("sphinx.sphinx.directives.other").addFilter(_drop_empty_glob_warnings)
     app.connect("builder-inited", _on_builder_inited)
+    app.add_directive("can-i-use", _can_i_use_directive())
+    app.add_directive("which-algorithm", _which_algorithm_directive())
     app.connect("autodoc-process-docstring", _plain_text_docstring)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
 
@@ -434,4 +1421,4 @@ if __name__ == "__main__":
     if arguments[:1] != ["readme"]:
         raise SystemExit("usage: python docs/_ext/sb3er_docs.py readme [--check]")
     if not update_readme(check="--check" in arguments):
-        raise SystemExit("README.md's verdict table is out of date: run python docs/_ext/sb3er_docs.py readme")
+        raise SystemExit("README.md's generated blocks are out of date: run python docs/_ext/sb3er_docs.py readme")

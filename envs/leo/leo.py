@@ -288,7 +288,9 @@ class Physics(mujoco.Physics):
         if counts.tolist() != before:
             names = [
                 name
-                for name, old, new in zip(mujoco_engine.mjtWarning.__members__, before, counts.tolist(), strict=True)
+                for name, old, new in zip(
+                    mujoco_engine.mjtWarning.__members__, before, counts.tolist(), strict=False
+                )  # the enum ends with its count, mjNWARNING
                 if new > old
             ]
             message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"

@@ -25,8 +25,10 @@ DEFAULT_ACTION_BINS = 7
 #: The most joint actions the default levels may make: LEO's 7^3 = 343, so the default covers Box spaces of up to 3
 #: dimensions. Beyond, the user chooses: ``action_bins`` (fewer levels per dimension) or ``action_values``.
 MAX_DEFAULT_JOINT_ACTIONS = DEFAULT_ACTION_BINS**3
-#: Bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
-PLACEHOLDER_BOUND = 1e30
+#: Bounds this large in magnitude are placeholders for "unbounded", not a range: MuJoCo's mjMAXVAL (1e10), which
+#: dm_control reports for an actuator without a control range (lqr's motors), and +-float32 max. Levels spaced between
+#: them would push with forces of order 1e10, and the simulation would blow up.
+PLACEHOLDER_BOUND = 1e10
 
 
 def box_action_levels(
@@ -70,7 +72,8 @@ def box_action_levels(
         bad = np.flatnonzero(~bounded).tolist()
         raise ValueError(
             f"Action dimensions {bad} of {action_space} are unbounded (bounds {low[bad].tolist()} to "
-            f"{high[bad].tolist()}; magnitudes of 1e30 or more count as unbounded): levels cannot be spaced between "
+            f"{high[bad].tolist()}; magnitudes of 1e10 or more, such as MuJoCo's 1e10 for an actuator without a "
+            "control range, count as unbounded): levels cannot be spaced between "
             "them. Give the levels: policy_kwargs=dict(action_values=[[...], ...]), one list per action dimension"
         )
     bins = _check_bins(action_bins, n_dims, low, high)

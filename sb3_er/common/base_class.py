@@ -1,6 +1,5 @@
 """Shared SB3 machinery of the tile-coded algorithms: spaces, the learn loop, online Sarsa(lambda), logging."""
 
-import inspect
 import io
 import math
 import pathlib
@@ -27,7 +26,7 @@ from sb3_er.common.dict_observations import (
     dict_vec_env_message,
     flatten_dict_observation,
     flattened_dict_space,
-    observation_keys,
+    vec_observation_keys,
 )
 from sb3_er.common.env_ids import register_env_id
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec, initial_value_seed_of
@@ -43,21 +42,11 @@ from sb3_er.common.serialization import (
     sb3_write_path,
     zip_without_entries,
 )
-from sb3_er.common.tile_coding import (
-    DEFAULT_CELL_BUDGET,
-    default_tile_widths,
-    default_tiles_per_dimension,
-    package_tilings,
-    varying_dimensions,
-)
+from sb3_er.common.tile_coding import resolve_tiling
 from sb3_er.common.value_bounds import (
-    TOLERANCE,
     VALUE_BOUND_ACTIONS,
-    RewardBounds,
     ValueBoundError,
     ValueWatch,
-    reward_changing_wrapper,
-    widened,
 )
 
 try:
@@ -66,18 +55,7 @@ except ImportError:  # SB3 before 2.4 builds schedules as closures: read at ever
     ConstantSchedule = FloatSchedule = None
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
-ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
-
 SelfTileQAlgorithm = TypeVar("SelfTileQAlgorithm", bound="TileQAlgorithm")
-
-
-def _to_builtin(value: Any) -> Any:
-    """Arrays and tuples (possibly nested) as lists of Python numbers, so settings pickle and print plainly."""
-    if isinstance(value, (np.ndarray, list, tuple)):
-        return [_to_builtin(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def _is_constant(schedule: Schedule) -> bool:
@@ -116,7 +94,7 @@ class TileQAlgorithm(BaseAlgorithm):
     Pendulum-v1, MountainCarContinuous-v0), else finite observation bounds split into tiles by the generic rule
     (``default_tile_widths``).
 
-    :param policy: "TileQ" (default) or a TileQPolicy subclass.
+    :param policy: "TileQ" or a TileQPolicy subclass.
     :param env: a Gymnasium env (or id) with a flat Box observation and a Discrete, MultiDiscrete or Box action space
         (a Box is discretised: see TileQPolicy's ``action_bins`` and ``action_values``). A single env with a Dict
         observation of Box arrays (dm_control's suite) is flattened with Gymnasium's ``FlattenObservation``. The
@@ -138,9 +116,10 @@ class TileQAlgorithm(BaseAlgorithm):
     :param value_bound_action: what a value beyond the bounds by more than 5 % of their width does: "warn" (once per
         run, a ValueBoundWarning naming the algorithm, the step, the value and the bound), "raise" (ValueBoundError)
         or "ignore" (only counted and logged). The first such value is kept in ``value_excursion``.
-    :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, default 16; ``tile_widths``; ``wrap_periods``;
-        ``memory_size``, default 2**22; ``action_values``; ``action_tile_widths``; ``initial_value``, default 0), plus
-        ``tiles_per_dimension`` for bounded observations; default None: the env's attributes and sb3-er's rules.
+    :param policy_kwargs: tile coding (see TileQPolicy: ``n_tilings``, 16 unless given; ``tile_widths``;
+        ``wrap_periods``; ``memory_size``, 2**22 unless given; ``action_values``; ``action_tile_widths``;
+        ``initial_value``, 0 unless given), plus ``tiles_per_dimension`` for bounded observations; None (default): the
+        env's attributes and sb3-er's rules.
     :param stats_window_size: episodes averaged in ``rollout/ep_rew_mean`` and ``rollout/ep_len_mean`` (SB3's, 100).
     :param tensorboard_log: folder of TensorBoard logs, or None for none (SB3's).
     :param verbose: 0 silent, 1 the tiling in use and SB3's training messages, 2 debug (SB3's).
@@ -183,7 +162,7 @@ class TileQAlgorithm(BaseAlgorithm):
                 tensorboard_log=tensorboard_log,
                 verbose=verbose,
                 device=device,
-                support_multi_env=False,
+                support_multi_env=True,
                 seed=seed,
             )
         except AssertionError as error:  # SB3's check of Box action bounds, the only assert of its __init__ on spaces
@@ -270,6 +249,17 @@ class TileQAlgorithm(BaseAlgorithm):
                 f"{observation_space.shape}. Extract low-dimensional features first."
             )
 
+    def _get_policy_from_name(self, policy_name: str) -> type[BasePolicy]:
+        """SB3's lookup of a policy by name; a name sb3-er lacks (SB3's "MlpPolicy", "CnnPolicy") is a ValueError
+        naming the policy to use."""
+        if policy_name not in self.policy_aliases:
+            raise ValueError(
+                f"Policy {policy_name} unknown: sb3-er's algorithms learn a tile-coded linear Q-function, whose policy "
+                f'is "TileQ" (SB3\'s network policies do not apply), e.g. {type(self).__name__}("TileQ", env); '
+                f"policy_kwargs set its tile coding (see TileQPolicy)"
+            )
+        return super()._get_policy_from_name(policy_name)
+
     def _env_attribute(self, name: str) -> Any:
         """An optional attribute of the (first) env, None when absent. Probed with ``has_attr``: a SubprocVecEnv's
         ``get_attr`` of a missing attribute kills its worker."""
@@ -278,102 +268,18 @@ class TileQAlgorithm(BaseAlgorithm):
         return self.env.get_attr(name)[0]
 
     def _resolve_policy_kwargs(self) -> dict[str, Any]:
-        """Explicit tile-coding settings, so that save/load rebuilds the same coder.
-
-        Each setting comes from the first of: ``policy_kwargs``; the env's attribute of that name; sb3-er's tiling for
-        the env's id (``package_tilings()``: only when neither ``policy_kwargs`` (``tile_widths`` or
-        ``tiles_per_dimension``) nor the env give tile widths, and the observation has the entry's shape); for tile
-        widths, the generic rule (``default_tile_widths``: ``tiles_per_dimension`` if given, else a cell budget per
-        tiling). At ``verbose >= 1`` the tiling in use is printed with where it came from.
-        """
-        kwargs = dict(self.policy_kwargs)
-        tiles_per_dimension = kwargs.pop("tiles_per_dimension", None)
-        origins = {name: "policy_kwargs" for name, value in kwargs.items() if value is not None}
-        for name in ENV_TILING_ATTRIBUTES:
-            if (
-                kwargs.get(name) is None
-                and not (name == "tile_widths" and tiles_per_dimension is not None)
-                and not (name == "action_values" and kwargs.get("action_bins") is not None)
-            ):
-                kwargs[name] = self._env_attribute(name)
-                if kwargs[name] is not None:
-                    origins[name] = f"the env's {name} attribute"
-        notes = []
-        if kwargs.get("tile_widths") is None and tiles_per_dimension is None:
-            spec = self._env_attribute("spec")
-            env_id = getattr(spec, "id", None)
-            entry = package_tilings().get(env_id) if isinstance(env_id, str) else None
-            shape = tuple(self.observation_space.shape)
-            if entry is not None and tuple(entry["observation_shape"]) != shape:
-                notes.append(
-                    f"sb3-er's tiling for {env_id} is for observations of shape "
-                    f"{tuple(entry['observation_shape'])}, not {shape}: not used"
-                )
-            elif entry is not None:
-                notes.extend(self._check_observation_keys(env_id, entry))
-                for name, value in entry.items():
-                    if name not in ("observation_shape", "observation_keys", "source") and kwargs.get(name) is None:
-                        kwargs[name] = value
-                        origins[name] = f"sb3-er's tiling for {env_id} ({entry['source']})"
-        if kwargs.get("tile_widths") is None:
-            if tiles_per_dimension is None:
-                tiles_per_dimension = default_tiles_per_dimension(varying_dimensions(self.observation_space))
-                origins["tile_widths"] = (
-                    f"the generic rule: {tiles_per_dimension} tiles per bounded dimension, "
-                    f"min(10, floor({DEFAULT_CELL_BUDGET} cells ^ (1/D))), at least 2"
-                )
-            else:
-                origins["tile_widths"] = f"policy_kwargs: {tiles_per_dimension} tiles per bounded dimension"
-            kwargs["tile_widths"] = default_tile_widths(self.observation_space, tiles_per_dimension)
-        resolved = {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
-        if self.verbose >= 1:
-            self._print_tiling(resolved, origins, notes)
-        return resolved
-
-    def _check_observation_keys(self, env_id: str, entry: dict[str, Any]) -> list[str]:
-        """Compare the key order and sizes sb3-er's tiling for ``env_id`` assumes (``observation_keys``) with the Dict
-        the env's ``FlattenObservation`` flattens: a ValueError when they differ (its tile widths would fall on the
-        wrong arrays). Returns a note when the env's Dict cannot be seen (a VecEnv other than DummyVecEnv)."""
-        expected = entry.get("observation_keys")
-        if expected is None:
-            return []
+        """Explicit tile-coding settings (:func:`~sb3_er.common.tile_coding.resolve_tiling`), so that save/load
+        rebuilds the same coder; printed with where each came from at ``verbose >= 1``."""
         envs = getattr(self.env, "envs", None)
-        space = flattened_dict_space(envs[0]) if envs else None
-        if space is None:
-            return [
-                f"the key order of {env_id}'s Dict observation is not checked against sb3-er's tiling "
-                f"{expected}: the env's FlattenObservation is out of reach"
-            ]
-        actual = observation_keys(space)
-        if actual != [list(pair) for pair in expected]:
-            raise ValueError(
-                f"sb3-er's tiling for {env_id} assumes the Dict observation {expected} ([key, size] in flattening "
-                f"order), but the env flattens {actual}: its tile widths would fall on the wrong arrays. Give "
-                "policy_kwargs=dict(tile_widths=[...]) for this env"
-            )
-        return []
-
-    def _print_tiling(self, resolved: dict[str, Any], origins: dict[str, str], notes: list[str]) -> None:
-        """Print the tiling in use and where each setting came from (verbose >= 1), e.g.
-        ``Tile coding: 8 tilings, tile widths [0.225, 0.0175] from sb3-er's tiling for MountainCar-v0 (...)``."""
-        n_tilings = resolved.get("n_tilings")
-        if n_tilings is None:
-            n_tilings = inspect.signature(self.policy_class).parameters["n_tilings"].default
-            origins["n_tilings"] = f"{self.policy_class.__name__}'s default"
-        widths = [float(f"{w:.4g}") for w in resolved["tile_widths"]]
-        if origins["n_tilings"] == origins["tile_widths"]:
-            line = f"Tile coding: {n_tilings} tilings, tile widths {widths} from {origins['tile_widths']}"
-        else:
-            line = (
-                f"Tile coding: {n_tilings} tilings from {origins['n_tilings']}; tile widths {widths} from "
-                f"{origins['tile_widths']}"
-            )
-        others = [
-            f"{name}={resolved[name]} from {origins[name]}"
-            for name in resolved
-            if name not in ("n_tilings", "tile_widths") and name in origins
-        ]
-        print("\n  ".join([line, *others, *[f"({note})" for note in notes]]))
+        return resolve_tiling(
+            self.policy_kwargs,
+            self._env_attribute,
+            self.observation_space,
+            self.action_space,
+            self.policy_class,
+            dict_space=lambda: flattened_dict_space(envs[0]) if envs else None,
+            verbose=self.verbose,
+        )
 
     def _setup_model(self) -> None:
         self._check_hyperparameters()
@@ -387,122 +293,92 @@ class TileQAlgorithm(BaseAlgorithm):
         if self.policy.initial_value_seed is not None:  # keep the drawn seed: a reloaded model rebuilds the same start
             self.policy_kwargs["initial_value_seed"] = self.policy.initial_value_seed
         coder = self.policy.tile_coder
-        self._slots = np.zeros(coder.n_tilings, dtype=np.int64)
-        self._next_slots = np.zeros(coder.n_tilings, dtype=np.int64)
         self._q_scratch = np.zeros(coder.n_actions, dtype=np.float64)
-        self._next_action = -1
-        if self.trace_lambda is not None:
-            self._setup_trace()
+        self._w_scratch = np.zeros(coder.n_actions, dtype=np.float64)
+        self._plain_layout = tuple(coder.layout)  # the per-step kernels take plain tuples (kernels.bundles)
+        self._target_copy: kernels.TargetCopy | None = None
+        if not isinstance(getattr(self, "_step_cap", None), np.ndarray):
+            self._step_cap = np.full(1, np.inf)  # the step-size bound so far (saved: it only ever tightens)
+        self._setup_env_state()
         self._setup_value_watch()
+        if self.env is not None:
+            if getattr(self, "observation_keys", None) is None:
+                self.observation_keys = vec_observation_keys(self.env)
+            else:  # a loaded model meets its env
+                self._check_observation_keys(self.env)
+
+    def _setup_env_state(self) -> None:
+        """What each env of the VecEnv carries from one step to the next: the tiles of its s_k and s_{k+1}, its pending
+        a_{k+1} (-1: none) and, learning online, its eligibility trace (Sarsa(lambda) keeps one trace per env)."""
+        coder = self.policy.tile_coder
+        n_envs = self.n_envs or 1
+        self._env_slots = [np.zeros(coder.n_tilings, dtype=np.int64) for _ in range(n_envs)]
+        self._env_next_slots = [np.zeros(coder.n_tilings, dtype=np.int64) for _ in range(n_envs)]
+        self._next_actions = np.full(n_envs, -1, dtype=np.int64)
+        self._traces = [self._new_trace() for _ in range(n_envs)] if self.trace_lambda is not None else []
 
     # --- the value watch (sb3_er.common.value_bounds) ------------------------------------------------------------
 
     def _setup_value_watch(self) -> None:
         """The bounds of the possible returns for the current env, and the kernels' watch array (empty when the
-        watch is off). The first excursion and the count of values outside carry over from an earlier watch."""
-        earlier = self._watch
-        self._watch = None
-        self._observing_rewards = False
-        self._watch_array = np.zeros(0)
-        if not self.value_watch or self.env is None:
-            return
+        watch is off: the bounds are kept all the same). The counts and the first excursion carry over from the
+        run's earlier watch (a new env in the same run)."""
         initial = _initial_range(self.policy.initial_value)
-        declared = self._env_attribute("reward_bounds")
-        changer = self._reward_changing_wrapper()
-        if declared is not None and changer is None:
-            watch = ValueWatch("env", RewardBounds.from_attribute(declared), self.gamma, initial)
+        if self.env is None:  # bounds from the rewards a loaded buffer holds, until an env is set
+            self._watch = ValueWatch("observed", None, self.gamma, initial, "no env yet", self.value_watch)
         else:
-            reason = (
-                "the env declares no reward_bounds"
-                if declared is None
-                else f"{changer} may change the rewards the env declares"
-            )
-            watch = ValueWatch("observed", None, self.gamma, initial, reason)
-            self._observing_rewards = True
-        if earlier is not None:
-            for entry in (
-                kernels.WATCH_UPDATES,
-                kernels.WATCH_OUT_OF_RANGE,
-                kernels.WATCH_FIRST_UPDATE,
-                kernels.WATCH_FIRST_VALUE,
-            ):
-                watch.array[entry] = earlier.array[entry]
-        self._watch = watch
-        self._watch_array = watch.array
-        self._observe_stored_rewards()
+            self._watch = ValueWatch.for_env(self.env, self.gamma, initial, self.value_watch, earlier=self._watch)
+        self._watch_array = self._watch.array
+        self._watch.read_buffer(getattr(self, "replay_buffer", None))
 
     def _observe_stored_rewards(self) -> None:
-        """With observed bounds (an env that declares none), widen them with every reward of a buffer this watch has
-        not read yet before learning from it: a buffer assigned directly (``model.replay_buffer =
-        other.replay_buffer``) is then covered as well as the transitions this learner collected (which it observes
-        step by step). Called when the watch is set up, when a buffer is loaded and before each replay phase or fit; a
-        buffer is read once per watch (it carries the watch's token, ``observed_by_watch``), so later calls cost
-        nothing. Declared bounds need nothing."""
-        buffer = getattr(self, "replay_buffer", None)  # None in learners without storage (Sarsa(lambda))
-        if not self._observing_rewards or self._watch is None or buffer is None:
-            return
-        if buffer.observed_by_watch == self._watch.token:
-            return
-        rewards, terminal = buffer.stored_rewards()
-        if rewards.size:
-            self._watch.observe_many(rewards, terminal)
-        buffer.observed_by_watch = self._watch.token
-
-    def _reward_changing_wrapper(self) -> str | None:
-        """The wrapper that may change the env's rewards (VecNormalize with norm_reward, a reward wrapper), or None."""
-        normalize = unwrap_vec_wrapper(self.env, VecNormalize)
-        if normalize is not None and normalize.norm_reward:
-            return "VecNormalize(norm_reward=True)"
-        if isinstance(self.env, DummyVecEnv):
-            return reward_changing_wrapper(self.env.envs[0])
-        return None
+        """With observed bounds, widen them with every reward of the buffer not read yet
+        (:meth:`ValueWatch.read_buffer`): a buffer assigned directly or loaded is covered before anything learns from
+        it."""
+        if self._watch is not None:
+            self._watch.read_buffer(getattr(self, "replay_buffer", None))
 
     @property
     def value_bounds(self) -> tuple[float, float] | None:
         """(low, high) of the values the learner may take (the possible returns and the initial values), or None
         without a watch."""
-        return None if self._watch is None else self._watch.bounds
+        return None if self._watch is None or not self.value_watch else self._watch.bounds
 
     @property
     def values_out_of_range(self) -> int:
         """How many targets and Q-values the watch saw outside the bounds (cumulative)."""
-        return 0 if self._watch is None else int(self._watch.array[kernels.WATCH_OUT_OF_RANGE])
+        return 0 if self._watch is None else self._watch.out_of_range
+
+    @property
+    def largest_excursion(self) -> float:
+        """The largest distance of a target or Q-value beyond the possible returns in this run, however small (0:
+        none), recorded so that a comparison under another margin needs no rerun."""
+        return 0.0 if self._watch is None else self._watch.largest_excursion
 
     def _value_out_of_bounds(self, where: str) -> None:
         """A kernel reported the first value outside the bounds: remember it, then warn or raise as asked."""
         watch = self._watch
-        value = float(watch.array[kernels.WATCH_FIRST_VALUE])
         low, high = watch.bounds
         self.value_excursion = {
             "step": int(self.num_timesteps),
-            "value": value,
+            "value": watch.first_value,
             "low": low,
             "high": high,
+            "margin": watch.margin,
             "where": where,
         }
         if self.value_bound_action == "ignore":
             return
-        side = f"above {high:.6g}" if value > high else f"below {low:.6g}"
-        flagged_low, flagged_high = widened(watch.bounds)
-        margin = flagged_high - high if value > high else low - flagged_low
-        percent = f"{TOLERANCE * 100:g} %"
-        share = (
-            f"{percent} of their width"
-            if math.isfinite(high - low)
-            else f"{percent} of the size of their finite end, at least {TOLERANCE:g}"
-        )
-        message = (
-            f"{type(self).__name__}: at step {self.num_timesteps} ({where}) a value of {value:.6g} left the possible "
-            f"returns {watch.describe()}: it lies {side} by more than {margin:.6g} ({share}). Values outside "
-            "them are impossible; the run's results reflect a learner that has left the regime it is meant for. "
-            "Set value_bound_action='ignore' to only count such values, 'raise' to stop."
-        )
+        message = watch.excursion_message(type(self).__name__, self.num_timesteps, where)
         if self.value_bound_action == "raise":
             raise ValueBoundError(message)
-        warnings.warn(message, ValueBoundWarning, stacklevel=2)
+        warnings.warn(message, ValueBoundWarning, stacklevel=3)
 
-    def _setup_trace(self) -> None:
-        """Sparse replacing trace sized for the longest a trace can live above the cut-off."""
+    # --- the kernels' arguments and what they report -------------------------------------------------------------
+
+    def _new_trace(self) -> tuple:
+        """A sparse replacing trace sized for the longest a trace can live above the cut-off, as
+        :func:`kernels.sarsa_lambda_step` takes it (a plain tuple of a ``kernels.Trace``)."""
         coder = self.policy.tile_coder
         decay = self.gamma * self.trace_lambda
         if decay <= 0.0:
@@ -512,25 +388,101 @@ class TileQAlgorithm(BaseAlgorithm):
         else:
             lifetime = int(math.ceil(math.log(self.trace_cutoff / coder.n_tilings) / math.log(decay))) + 2
         capacity = min(coder.n_weights, coder.n_tilings * lifetime)
-        self._trace_index = np.zeros(capacity, dtype=np.int64)
-        self._trace_value = np.zeros(capacity, dtype=np.float64)
-        self._trace_position = np.full(coder.n_weights, -1, dtype=np.int32)
-        self._trace_length = np.zeros(1, dtype=np.int64)
+        return tuple(
+            kernels.make(
+                kernels.Trace,
+                index=np.zeros(capacity, dtype=np.int64),
+                value=np.zeros(capacity, dtype=np.float64),
+                position=np.full(coder.n_weights, -1, dtype=np.int32),
+                length=np.zeros(1, dtype=np.int64),
+                decay=decay,
+                cutoff=self.trace_cutoff,
+            )
+        )
+
+    def _stabilizer_options(self) -> dict[str, Any]:
+        """Hook: UpdateRule fields of the stabilizers a learner uses (ER's; none here)."""
+        return {}
+
+    def _weights(self) -> kernels.Weights:
+        """theta as the kernels read it, with the target copy of a learner that keeps one."""
+        low, span, seed = self.policy.initial_arguments
+        return kernels.weights_bundle(self.policy.theta_array, low, span, seed, self._target_copy)
+
+    @property
+    def _scratch(self) -> kernels.Scratch:
+        """The kernels' scratch space (allocated once per model)."""
+        return kernels.Scratch(self._q_scratch, self._w_scratch)
+
+    @property
+    def step_size(self) -> float:
+        """alpha / N, the step of each of the N active weights at the current learning rate (thesis convention: the
+        learning rate is the step on Q). A learning-rate schedule is checked at every reading."""
+        rate = self.current_learning_rate
+        if not (math.isfinite(rate) and rate >= 0.0):
+            raise ValueError(
+                f"The learning-rate schedule gave {rate} at progress remaining {self._current_progress_remaining:.4g} "
+                f"(step {self.num_timesteps}); a learning rate must be a finite number >= 0 throughout"
+            )
+        return rate / self.policy.tile_coder.n_tilings
+
+    def _update_rule(self, **options) -> kernels.UpdateRule:
+        """The update rule of this learner at the current learning rate: alpha / N per active weight, gamma and epsilon;
+        ``options`` set the other fields (ER's target, sigma and residual direction; default plain Sarsa).
+
+        :param options: UpdateRule fields to set besides step_size, gamma and epsilon.
+        """
+        fields = dict(
+            target_kind=kernels.TARGET_SARSA,
+            sigma_kind=kernels.SIGMA_NONE,
+            residual_zeta=0.0,
+            residual_next_action=False,
+            truncate=False,
+            value_low=-math.inf,
+            value_high=math.inf,
+            step_bound=False,
+            step_cap=self._step_cap,
+        )
+        fields.update(self._stabilizer_options())
+        fields.update(options)
+        return kernels.make(
+            kernels.UpdateRule, step_size=self.step_size, gamma=self.gamma, epsilon=self.exploration_rate, **fields
+        )
+
+    def _check_status(self, status: int, where: str, delta: float = math.nan, obs: np.ndarray | None = None) -> None:
+        """React to what a kernel reported: the first value outside the possible returns (warn or raise, as asked),
+        an observation that cannot be tiled, a full trace, or divergence (a non-finite TD error).
+
+        :param status: the kernel's STATUS_*.
+        :param where: the update it was in, for messages (e.g. "the Sarsa(lambda) update").
+        :param delta: the TD error it returned.
+        :param obs: the observation it tiled.
+        """
+        if status == kernels.STATUS_OUT_OF_BOUNDS:
+            self._value_out_of_bounds(where)
+        elif status == kernels.STATUS_BAD_OBSERVATION:
+            raise ValueError(self.policy.tile_coder.bad_observation_message(obs, f" at step {self.num_timesteps}"))
+        elif status == kernels.STATUS_TRACE_FULL:
+            raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
+        elif status == kernels.STATUS_DIVERGED:
+            raise DivergenceError(
+                f"The Q-function diverged at step {self.num_timesteps} in {where}: TD error {delta}. "
+                f"Lower the learning rate (now {self.current_learning_rate}) or check the rewards' scale."
+            )
 
     def _excluded_save_params(self) -> list[str]:
         return super()._excluded_save_params() + [
-            "_slots",
-            "_next_slots",
+            "_env_slots",
+            "_env_next_slots",
             "_q_scratch",
-            "_trace_index",
-            "_trace_value",
-            "_trace_position",
-            "_trace_length",
-            "_next_action",
-            "_single_env",
+            "_w_scratch",
+            "_plain_layout",
+            "_traces",
+            "_next_actions",
+            "_direct_envs",
             "_watch",
             "_watch_array",
-            "_observing_rewards",
+            "_target_copy",
         ]
 
     def set_random_seed(self, seed: int | None = None) -> None:
@@ -579,16 +531,22 @@ class TileQAlgorithm(BaseAlgorithm):
         self: SelfTileQAlgorithm,
         total_timesteps: int = DEFAULT_TOTAL_TIMESTEPS,
         callback: MaybeCallback = None,
-        log_interval: int = 1,
+        log_interval: int = 4,
         tb_log_name: str = "",
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfTileQAlgorithm:
         """Interact for total_timesteps env steps (default 100,000), learning as the algorithm prescribes.
 
-        :param log_interval: log every this many episodes.
+        With N envs, each step of the VecEnv is N env steps (``num_timesteps`` moves by N), and each env's transition
+        is learned from (and stored) as it would be alone. A ``learn`` interrupted by an exception (Ctrl-C included)
+        loses nothing that happened; the next ``learn(reset_num_timesteps=False)`` closes what the interruption left
+        open and starts from freshly reset envs, so that no stored trajectory joins two episodes.
+
         :param total_timesteps: env steps to take (default 100,000).
         :param callback: SB3 callback(s) called at every step (default None).
+        :param log_interval: log (and print at ``verbose=1``) every this many finished episodes (default 4, SB3's for
+            its off-policy algorithms); None never.
         :param tb_log_name: name of the TensorBoard run (default: the class's name).
         :param reset_num_timesteps: start the step count and the episode afresh (default True); False continues a
             previous ``learn``.
@@ -596,6 +554,8 @@ class TileQAlgorithm(BaseAlgorithm):
         """
         if self.env is None:
             raise ValueError("This model has no environment: pass env= to load() or call set_env() before learn()")
+        if not reset_num_timesteps and getattr(self, "_interrupted", False):
+            self._last_obs = None  # where the envs stand after the interruption is unknown: _setup_learn resets them
         if reset_num_timesteps or self._last_obs is None:
             # _setup_learn resets the env: the episode in progress ends here, unfinished (see _end_episode_at_reset).
             self._end_episode_at_reset()
@@ -607,34 +567,66 @@ class TileQAlgorithm(BaseAlgorithm):
             self.value_excursion = None
             self._watch = None  # a new run: a new watch
         self._setup_value_watch()
-        self._single_env = self.env.envs[0] if type(self.env) is DummyVecEnv else None
+        env = self.env
+        self._direct_envs = env.envs if type(env) is DummyVecEnv else None
         callback.on_training_start(locals(), globals())
         callback.on_rollout_start()
         given = not (isinstance(callback, ConvertCallback) and callback.callback is None)
+        self._interrupted = True  # until the loop returns: an exception leaves the envs and the episodes mid-step
         self._interact(total_timesteps, callback if given else None, log_interval)
+        self._interrupted = False
         callback.on_rollout_end()
         callback.on_training_end()
         return self
 
     def _end_episode_at_reset(self) -> None:
-        """The env is about to be reset with an episode in progress (a new ``learn()``, ``set_env``, ``load``): forget
-        the pending a_{k+1} and the eligibility trace, so nothing of the old episode reaches the new one. Subclasses
-        close what they store of it (ER: the open trajectory, as truncated)."""
-        self._next_action = -1
-        if self.trace_lambda is not None:
-            kernels.clear_trace(self._trace_index, self._trace_position, self._trace_length)
+        """The envs are about to be reset with episodes in progress (a new ``learn()``, ``set_env``, ``load``, the
+        resumption of an interrupted ``learn``): forget the pending a_{k+1} and the eligibility traces, so nothing of
+        the old episodes reaches the new ones. Subclasses close what they store of them (ER: the open trajectories,
+        as truncated)."""
+        self._next_actions[:] = -1
+        for trace in self._traces:
+            kernels.clear_trace(trace)
+        self._interrupted = False
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
-        """SB3's ``set_env``, refusing observation-normalising wrappers. With ``force_reset`` (the default) the next
-        ``learn()`` resets the new env and the episode in progress ends, unfinished.
+        """SB3's ``set_env``, refusing observation-normalising wrappers; any number of envs. With ``force_reset`` (the
+        default) the next ``learn()`` resets the new env and the episode in progress ends, unfinished.
 
-        :param env: the new environment (a Gymnasium env or a VecEnv of one env) with the same spaces.
+        :param env: the new environment (a Gymnasium env or a VecEnv) with the same spaces.
         :param force_reset: reset the new env at the next ``learn()`` (default True).
         """
+        env = self._wrap_env(env, self.verbose)
+        self._check_env_wrappers(env)
+        self._check_observation_keys(env)
+        if getattr(self, "policy", None) is not None and env.num_envs != self.n_envs:
+            self._end_episode_at_reset()  # the episodes in progress end with the old envs
         super().set_env(env, force_reset)
-        self._check_env_wrappers(self.env)
+        if getattr(self, "observation_keys", None) is None:
+            self.observation_keys = vec_observation_keys(self.env)
         if getattr(self, "policy", None) is not None:
+            if len(self._next_actions) != self.n_envs:
+                self._setup_env_state()
+                self._on_n_envs_changed()
             self._setup_value_watch()  # the new env's rewards
+
+    def _on_n_envs_changed(self) -> None:
+        """Hook: the VecEnv's number of envs changed (ER's buffer keeps one open trajectory per env)."""
+
+    def _check_observation_keys(self, env: VecEnv) -> None:
+        """The Dict observation an env flattens must keep the keys and sizes, in order, that the model was built
+        with (its tile widths are per flattened entry): a ValueError naming both layouts otherwise.
+
+        :param env: the VecEnv (new or loaded).
+        """
+        expected = getattr(self, "observation_keys", None)
+        actual = vec_observation_keys(env)
+        if expected is not None and actual is not None and actual != expected:
+            raise ValueError(
+                f"This model was built on a Dict observation flattened as {expected} ([key, size] in order), but the "
+                f"env flattens {actual}: its tile widths would fall on the wrong entries. Give the env the same keys "
+                "in the same order (FlattenObservation sorts them by name unless the space is ordered otherwise)"
+            )
 
     def __getstate__(self) -> dict[str, Any]:
         """What a copy keeps (``copy.deepcopy``, pickling by Ray or ``multiprocessing``): everything but the logger,
@@ -782,14 +774,19 @@ class TileQAlgorithm(BaseAlgorithm):
                 raise
             raise ValueError(f"{load_path_or_dict}: {error}") from error
 
-    def _select_action(self, obs: np.ndarray) -> int:
+    def _select_action(self, obs: np.ndarray, env: int = 0) -> int:
+        """Epsilon-greedy a_k at s_k of env ``env`` (its tiles are written to that env's slots).
+
+        :param obs: s_k, float64 (D,).
+        :param env: the env's index (default 0).
+        """
         action = kernels.select_action(
             self.policy.theta_array,
             obs,
-            *self.policy.tile_coder.kernel_arguments,
+            self._plain_layout,
             self.exploration_rate,
             self.action_rng,
-            self._slots,
+            self._env_slots[env],
             self._q_scratch,
         )
         if action < 0:
@@ -803,75 +800,105 @@ class TileQAlgorithm(BaseAlgorithm):
         table = list(self.policy.to_env_actions(flat))
         return table, bool(table) and isinstance(table[0], np.ndarray)
 
-    def _interact(self, total_timesteps: int, callback: BaseCallback | None, log_interval: int) -> None:
+    def _observation(self, obs: Any, env: int, what: str) -> np.ndarray:
+        """An observation as it enters, checked once: an array of the observation space's shape, of numbers (a NaN
+        or an infinity is caught where it is tiled). ValueError naming the env, the space and what came.
+
+        :param obs: what the env returned.
+        :param env: the env's index.
+        :param what: where it came from (e.g. "step", "reset").
+        """
+        array = np.asarray(obs) if obs is not None else None
+        if array is None or array.shape != self.observation_space.shape or array.dtype.kind not in "biuf":
+            came = (
+                "None"
+                if obs is None
+                else f"{type(obs).__name__} {obs!r:.200}"
+                + (f" of shape {array.shape} and dtype {array.dtype}" if isinstance(obs, np.ndarray) else "")
+            )
+            raise ValueError(
+                f"env {env} of {type(self.env).__name__} returned from {what} at step {self.num_timesteps} an "
+                f"observation that does not fit the observation space {self.observation_space}: {came}"
+            )
+        return array.astype(np.float64, copy=False)
+
+    def _step_envs(self, actions: np.ndarray, env_actions: list[Any], copy_action: bool):
+        """Step every env with its flat action: (new_obs (N, ...) after the resets of finished envs, rewards float64
+        (N,), dones (N,), infos with "TimeLimit.truncated", and "terminal_observation" where done).
+
+        A plain DummyVecEnv's envs are stepped directly: what its ``step`` does, without its per-step deep copy of
+        ``info`` and with the env's float64 reward (DummyVecEnv's buffer would round it to float32)."""
+        envs = self._direct_envs
+        if envs is None:
+            new_obs, rewards, dones, infos = self.env.step(self.policy.to_env_actions(actions))
+            return new_obs, np.asarray(rewards, dtype=np.float64), np.asarray(dones, dtype=bool), infos
+        observations, rewards, dones, infos = [], np.zeros(len(envs)), np.zeros(len(envs), dtype=bool), []
+        for i, env in enumerate(envs):
+            env_action = env_actions[actions[i]].copy() if copy_action else env_actions[actions[i]]
+            obs, reward, terminated, truncated, info = env.step(env_action)
+            done = bool(terminated or truncated)
+            info["TimeLimit.truncated"] = bool(truncated and not terminated)
+            if done:
+                info["terminal_observation"] = obs
+                obs, self.env.reset_infos[i] = env.reset()
+            observations.append(obs)
+            rewards[i], dones[i] = float(reward), done
+            infos.append(info)
+        new_obs = np.asarray(observations[0])[np.newaxis] if len(envs) == 1 else np.stack(observations)
+        return new_obs, rewards, dones, infos
+
+    def _interact(self, total_timesteps: int, callback: BaseCallback | None, log_interval: int | None) -> None:
         """The interaction loop of ``learn()``: steps until ``total_timesteps`` or a callback's on_step returns False.
 
-        One step is: a_k (the pending a_{k+1} of the online update, else epsilon-greedy at s_k), the env step,
-        ``num_timesteps``, the callback (only when one is given), SB3's episode-info buffers, the online Sarsa(lambda)
-        update (one kernel call that also picks a_{k+1}), the subclass's ``_after_transition`` (storage, replay; only
-        when the subclass has one), the episode's end (counters, trace reset, log dump) and SB3's progress. A plain
-        one-env DummyVecEnv is stepped directly: the same results as its ``step`` without its per-step deep copy of
-        ``info`` and with the env's float64 reward (DummyVecEnv's buffer would round it to float32). The transition
-        is learned and stored even when the callback stops training, so that the env, ``_last_obs`` and the stored
-        trajectory stay in step and a later ``learn(reset_num_timesteps=False)`` continues the episode exactly where
-        it was.
+        One step of the N envs is: each env's a_k (its pending a_{k+1} from the online update, else epsilon-greedy at
+        s_k), the envs' step, ``num_timesteps`` (by N), the callback (only when one is given), SB3's episode-info
+        buffers, then per env in turn: the online Sarsa(lambda) update (one kernel call that also picks a_{k+1}), the
+        subclass's ``_after_transition`` (storage, replay; only when the subclass has one), the episode's end
+        (counters, trace reset, log dump). Each transition is learned and stored even when the callback stops
+        training, so that the envs, ``_last_obs`` and the stored trajectories stay in step and a later
+        ``learn(reset_num_timesteps=False)`` continues the episodes exactly where they were.
         """
-        single, vec_env = self._single_env, self.env
+        n_envs = self.n_envs
         env_actions, copy_action = self._env_action_table()
         after_transition = (
             None if type(self)._after_transition is TileQAlgorithm._after_transition else self._after_transition
         )
         online = self.trace_lambda is not None
-        coder = self.policy.tile_coder
-        theta = self.policy.theta_array
-        trace = (self._trace_index, self._trace_value, self._trace_position, self._trace_length) if online else ()
-        kernel_arguments = coder.kernel_arguments
-        n_tilings, gamma, epsilon = coder.n_tilings, self.gamma, self.exploration_rate
-        trace_decay = gamma * self.trace_lambda if online else 0.0
-        trace_cutoff, action_rng, q_scratch = self.trace_cutoff, self.action_rng, self._q_scratch
+        # the per-step kernels take plain tuples (kernels.bundles): built once here, the rule again when alpha moves
+        weights = tuple(self._weights())
+        layout = self._plain_layout
+        rule = tuple(self._update_rule()) if online else ()
+        scratch = tuple(self._scratch)
+        traces, env_slots, env_next_slots, next_actions = (
+            self._traces,
+            self._env_slots,
+            self._env_next_slots,
+            self._next_actions,
+        )
+        action_rng = self.action_rng
         constant_rate = _is_constant(self.lr_schedule)
-        step_size = self.current_learning_rate / n_tilings
         sarsa_lambda_step, clear_trace, isfinite = kernels.sarsa_lambda_step, kernels.clear_trace, math.isfinite
-        observe = self._watch.observe if self._observing_rewards else None
+        watch = self._watch
+        observe = watch.observe if watch is not None and watch.observing else None
         total = float(total_timesteps)
-        obs = np.asarray(self._last_obs[0], dtype=np.float64)
+        observations = [self._observation(self._last_obs[i], i, "reset") for i in range(n_envs)]
+        actions = np.zeros(n_envs, dtype=np.int64)
         while self.num_timesteps < total_timesteps:
-            action = self._next_action
-            if action < 0:
-                action = self._select_action(obs)
-            if single is not None:
-                env_action = env_actions[action].copy() if copy_action else env_actions[action]
-                new_obs, reward, terminated, truncated, info = single.step(env_action)
-                done = bool(terminated or truncated)
-                truncated = truncated and not terminated
-                info["TimeLimit.truncated"] = truncated
-                next_obs = np.asarray(new_obs, dtype=np.float64)
-                if done:
-                    info["terminal_observation"] = new_obs
-                    new_obs, vec_env.reset_infos[0] = single.reset()
-                terminated, truncated = bool(terminated), bool(truncated)
-                reward = float(reward)
-                new_obs = np.asarray(new_obs)[np.newaxis]
-            else:
-                new_obs, rewards, dones, infos = vec_env.step(self.policy.to_env_actions(np.array([action])))
-                info, done, reward = infos[0], bool(dones[0]), float(rewards[0])
-                truncated = done and bool(info.get("TimeLimit.truncated", False))
-                terminated = done and not truncated
-                next_obs = np.asarray(info["terminal_observation"] if done else new_obs[0], dtype=np.float64)
-            self.num_timesteps += 1
+            for i in range(n_envs):
+                action = next_actions[i]
+                actions[i] = action if action >= 0 else self._select_action(observations[i], i)
+            new_obs, rewards, dones, infos = self._step_envs(actions, env_actions, copy_action)
+            self.num_timesteps += n_envs
             continue_training = True
             if callback is not None:
-                actions = self.policy.to_env_actions(np.array([action]))  # the env's format, as SB3's callbacks read it
-                if single is not None:
-                    rewards, dones, infos = np.array([reward], dtype=np.float64), np.array([done]), [info]
                 callback.update_locals(
                     {
                         "self": self,
                         "callback": callback,
                         "log_interval": log_interval,
-                        "obs": obs,
-                        "action": action,
-                        "actions": actions,
+                        "obs": observations[0] if n_envs == 1 else np.stack(observations),
+                        "action": int(actions[0]) if n_envs == 1 else actions.copy(),
+                        "actions": self.policy.to_env_actions(actions.copy()),  # the env's format, as SB3 reads it
                         "new_obs": new_obs,
                         "rewards": rewards,
                         "dones": dones,
@@ -879,79 +906,57 @@ class TileQAlgorithm(BaseAlgorithm):
                     }
                 )
                 continue_training = callback.on_step()
-                theta, action_rng = self.policy.theta_array, self.action_rng  # a callback may have replaced them
-            if "episode" in info or "is_success" in info:
-                self._update_info_buffer([info], np.array([done]))
-            if not isfinite(reward):
-                raise ValueError(f"The environment returned a non-finite reward {reward} at step {self.num_timesteps}")
-            if observe is not None:
-                observe(reward, terminated)
-            next_action = -1
-            if online:
-                if not constant_rate:
-                    step_size = self.current_learning_rate / n_tilings
-                next_action, delta, status = sarsa_lambda_step(
-                    theta,
-                    *trace,
-                    self._slots,
-                    action,
-                    reward,
-                    terminated,
-                    next_obs,
-                    self._next_slots,
-                    q_scratch,
-                    *kernel_arguments,
-                    step_size,
-                    gamma,
-                    trace_decay,
-                    trace_cutoff,
-                    epsilon,
-                    action_rng,
-                    self._watch_array,
-                )
-                if status:
-                    self._online_update_status(status, next_obs)
-                if not isfinite(delta):
-                    self._raise_divergence(delta, "the Sarsa(lambda) update")
-                self._td_error_sum += abs(delta)
-                self._td_error_count += 1
-            self._next_action = next_action
-            if after_transition is not None:
-                after_transition(obs, action, reward, next_obs, terminated, done, info)
-            if done:
-                self._episode_num += 1
-                self.falls += is_fall(info, terminated)
-                self._next_action = -1
+                if self.policy.theta_array is not weights[0] or self.action_rng is not action_rng:
+                    weights, action_rng = tuple(self._weights()), self.action_rng  # replaced by the callback
+            if any("episode" in info or "is_success" in info for info in infos):
+                self._update_info_buffer(infos, dones)
+            if online and not constant_rate:
+                rule = tuple(self._update_rule())
+            for i in range(n_envs):
+                info, done, reward, action = infos[i], bool(dones[i]), float(rewards[i]), int(actions[i])
+                truncated = done and bool(info.get("TimeLimit.truncated", False))
+                terminated = done and not truncated
+                next_obs = self._observation(info["terminal_observation"] if done else new_obs[i], i, "step")
+                if not isfinite(reward):
+                    raise ValueError(f"env {i} returned a non-finite reward {reward} at step {self.num_timesteps}")
+                if observe is not None and observe(reward, terminated) and online:
+                    rule = tuple(self._update_rule())  # the bounds moved: truncation reads them
+                next_action = -1
                 if online:
-                    clear_trace(self._trace_index, self._trace_position, self._trace_length)
-                if log_interval and self._episode_num % log_interval == 0:
-                    self.dump_logs()
-                obs = np.asarray(new_obs[0], dtype=np.float64)
-            else:
-                self._slots, self._next_slots = self._next_slots, self._slots
-                obs = next_obs
+                    transition = (env_slots[i], action, reward, terminated, next_obs, env_next_slots[i])
+                    next_action, delta, status = sarsa_lambda_step(
+                        weights, traces[i], layout, rule, transition, action_rng, scratch, self._watch_array
+                    )
+                    if status:
+                        self._check_status(status, "the Sarsa(lambda) update", delta, next_obs)
+                    if not isfinite(delta):
+                        self._check_status(kernels.STATUS_DIVERGED, "the Sarsa(lambda) update", delta)
+                    self._td_error_sum += abs(delta)
+                    self._td_error_count += 1
+                next_actions[i] = next_action
+                if after_transition is not None:
+                    after_transition(i, env_slots[i], observations[i], action, reward, next_obs, terminated, done, info)
+                if done:
+                    self._episode_num += 1
+                    self.falls += is_fall(info, terminated)
+                    next_actions[i] = -1
+                    if online:
+                        clear_trace(traces[i])
+                    if log_interval and self._episode_num % log_interval == 0:
+                        self.dump_logs()
+                    observations[i] = self._observation(new_obs[i], i, "reset")
+                else:
+                    env_slots[i], env_next_slots[i] = env_next_slots[i], env_slots[i]
+                    observations[i] = next_obs
             self._last_obs = new_obs
             self._current_progress_remaining = 1.0 - float(self.num_timesteps) / total
             if not continue_training:
                 break
 
-    def _online_update_status(self, status: int, next_obs: np.ndarray) -> None:
-        """React to a status of the Sarsa(lambda) kernel other than STATUS_OK."""
-        if status == kernels.STATUS_OUT_OF_BOUNDS:
-            self._value_out_of_bounds("the Sarsa(lambda) update")
-        elif status == kernels.STATUS_BAD_OBSERVATION:
-            raise ValueError(self.policy.tile_coder.bad_observation_message(next_obs, f" at step {self.num_timesteps}"))
-        if status == kernels.STATUS_TRACE_FULL:
-            raise RuntimeError("The eligibility trace outgrew its capacity; raise trace_cutoff")
-
-    def _raise_divergence(self, delta: float, where: str) -> None:
-        raise DivergenceError(
-            f"The Q-function diverged at step {self.num_timesteps} in {where}: TD error {delta}. "
-            f"Lower the learning rate (now {self.current_learning_rate}) or check the rewards' scale."
-        )
-
     def _after_transition(
         self,
+        env: int,
+        slots: np.ndarray,
         obs: np.ndarray,
         action: int,
         reward: float,
@@ -960,15 +965,24 @@ class TileQAlgorithm(BaseAlgorithm):
         done: bool,
         info: dict[str, Any],
     ) -> None:
-        """Hook for experience storage and replay; the base class learns online only."""
+        """Hook for experience storage and replay; the base class learns online only.
+
+        :param env: the env the transition came from.
+        :param slots: the tiles of s_k.
+        :param obs: s_k.
+        :param action: a_k, the flat action index.
+        :param reward: r_{k+1}.
+        :param next_obs: s_{k+1} (the true last observation at an episode's end).
+        :param terminated: whether s_{k+1} is terminal.
+        :param done: whether the episode ended (terminated or truncated).
+        :param info: the env's info of this step.
+        """
 
     def _record_train_metrics(self) -> None:
         if self._td_error_count:
             self.logger.record("train/td_error", self._td_error_sum / self._td_error_count)
             self._td_error_sum, self._td_error_count = 0.0, 0
-        weights_abs_mean, memory_fill = kernels.weight_statistics(
-            self.policy.theta_array, *self.policy.initial_arguments
-        )
+        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.weights)
         self.logger.record("train/weights_abs_mean", weights_abs_mean)
         self.logger.record("train/memory_fill", memory_fill)
         self.logger.record("train/learning_rate", self.current_learning_rate)

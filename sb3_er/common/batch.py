@@ -199,23 +199,25 @@ class BufferedTileQAlgorithm(TrajectoryBufferIO, TileQAlgorithm):
     def _setup_model(self) -> None:
         super()._setup_model()
         self.replay_buffer = TrajectoryReplayBuffer(
-            self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {})
+            self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {}), n_envs=self.n_envs or 1
         )
 
     def _end_episode_at_reset(self) -> None:
-        """The episode in progress was cut off by an env reset: its trajectory is closed as truncated at its last real
-        s_{t+1} (as ER does), never joined to the next episode; no fit is triggered."""
+        """The episodes in progress were cut off by an env reset: their trajectories are closed as truncated at their
+        last real s_{t+1} (as ER does), never joined to the next episodes; no fit is triggered."""
         super()._end_episode_at_reset()
         if self.replay_buffer is not None:
             self.replay_buffer.truncate_open_trajectory()
 
-    def _store_transition(self, obs, action, reward, next_obs, terminated, done, info) -> bool:
-        """Add (s_k, a_k, r_{k+1}, s_{k+1}); close the trajectory at s_{k+1} if it ends here. Returns whether it
-        closed."""
-        self.replay_buffer.add(obs, self._slots, action, reward, next_obs)
-        if done or info.get("segment_end", False):
-            return self.replay_buffer.close_trajectory(next_obs, terminated)
-        return False
+    def _on_n_envs_changed(self) -> None:
+        if self.replay_buffer is not None:
+            self.replay_buffer.set_n_envs(self.n_envs)
+
+    def _store_transition(self, env, slots, obs, action, reward, next_obs, terminated, done, info) -> bool:
+        """Add (s_k, a_k, r_{k+1}, s_{k+1}) to env ``env``'s open trajectory; close it at s_{k+1} if it ends here.
+        Returns whether it closed (and was kept)."""
+        closes = done or info.get("segment_end", False)
+        return self.replay_buffer.add(obs, slots, action, reward, next_obs, env, end=terminated if closes else None)
 
     def _record_train_metrics(self) -> None:
         super()._record_train_metrics()
@@ -252,8 +254,8 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         check_integer("n_iterations", self.n_iterations, minimum=1)
         check_number("ridge", self.ridge, 0.0, low_open=True, unit=" (it keeps the systems regular)")
 
-    def _after_transition(self, obs, action, reward, next_obs, terminated, done, info) -> None:
-        self._store_transition(obs, action, reward, next_obs, terminated, done, info)
+    def _after_transition(self, env, slots, obs, action, reward, next_obs, terminated, done, info) -> None:
+        self._store_transition(env, slots, obs, action, reward, next_obs, terminated, done, info)
         if done and (self._episode_num + 1) % self.fit_every == 0:
             self.fit()
 
@@ -296,7 +298,7 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
     def _initial_values(self, indices: np.ndarray) -> np.ndarray:
         """theta_0 (the policy's initial weights, 0 by default) at the weight ``indices`` (f,)."""
         out = np.empty(indices.shape[0])
-        kernels.initial_weights_at(indices, *self.policy.initial_arguments, out)
+        kernels.initial_weights_at(indices, self.policy.weights, out)
         return out
 
     def _reset_weights(self, touched: np.ndarray, values: np.ndarray) -> None:
@@ -306,7 +308,7 @@ class FittedTileQAlgorithm(BufferedTileQAlgorithm):
         if low == 0.0 and span == 0.0:
             theta.fill(0.0)
         else:
-            kernels.fill_initial_weights(theta, *self.policy.initial_arguments)
+            kernels.fill_initial_weights(self.policy.weights)
         theta[touched] = values
 
 

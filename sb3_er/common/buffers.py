@@ -26,6 +26,50 @@ NPZ_VERSION = 1
 ZIP_MAGIC = b"PK\x03\x04"
 
 
+class _Stretch:
+    """One env's open stretch while several envs step (kept apart until it closes): rows that grow by doubling."""
+
+    def __init__(self, n_dims: int, n_tilings: int, capacity: int = 64):
+        self.observations = np.zeros((capacity, n_dims), dtype=np.float64)
+        self.slots = np.zeros((capacity, n_tilings), dtype=np.int64)
+        self.actions = np.zeros(capacity, dtype=np.int64)
+        self.rewards = np.zeros(capacity, dtype=np.float64)
+        self.next_obs = np.zeros(n_dims, dtype=np.float64)
+
+    def write(self, t: int, obs, slots, action, reward, next_obs) -> None:
+        """Write row t (the caller counts it afterwards); the latest s_{t+1} too, which a truncation closes at."""
+        if t == self.actions.shape[0]:
+            for name in ("observations", "slots", "actions", "rewards"):
+                old = getattr(self, name)
+                grown = np.zeros((2 * old.shape[0], *old.shape[1:]), dtype=old.dtype)
+                grown[: old.shape[0]] = old
+                setattr(self, name, grown)
+        self.observations[t] = obs
+        self.slots[t] = slots
+        self.actions[t] = action
+        self.rewards[t] = reward
+        self.next_obs[:] = next_obs
+
+
+def _counter(index: int, doc: str) -> property:
+    """A property over one entry of the buffer's counters array (see TrajectoryReplayBuffer)."""
+
+    def get(self) -> int:
+        return int(self._counters[index])
+
+    def set(self, value: int) -> None:
+        self._counters[index] = value
+
+    return property(get, set, doc=doc)
+
+
+# the buffer's counters, one int64 array (see TrajectoryReplayBuffer); several envs' open stretches follow them
+(N_TRAJECTORIES, N_TRANSITIONS, OPEN_LENGTH, WRITE_ROW, OLDEST_TRAJECTORY, OPEN_NEXT, N_OPEN_NEW, OPEN_COVERED) = range(
+    8
+)
+N_COUNTERS = 8
+
+
 class TrajectoryReplayBuffer:
     """Transitions (s_t, a_t, r_{t+1}) grouped in trajectories, with the tiles of s_t precomputed, and the visit vector
     w.
@@ -42,6 +86,16 @@ class TrajectoryReplayBuffer:
     ``truncate_last_traj``), :meth:`truncate_open_trajectory` closes it as truncated: replay bootstraps from that real
     s_{t+1} and never joins the cut episode to the next one.
 
+    Several envs (``n_envs`` > 1) step in turn, so their transitions arrive interleaved: each env's open stretch is
+    kept apart (staged) and enters the ring whole when it closes (its episode's end, or a segment end), so that a
+    stored trajectory is one stretch of one env's episode. Replay then draws from the closed trajectories; an open
+    stretch is replayed once it closes. With one env the open trajectory is stored in the ring as it grows and is
+    replayed with the rest (Alg. 8 line 2 draws e' from {1, ..., e}, the current episode included).
+
+    Every change is made so that an interruption at any point (Ctrl-C, a ``KeyboardInterrupt`` between any two Python
+    statements) leaves a consistent buffer that holds only transitions that happened: rows and trajectory records are
+    written first and counted by a single assignment to the counters array at the end.
+
     A pruned database (thesis 3.5.3: "it might be beneficial to remove excess samples from the database [...] a
     pruned database with evenly distributed samples"), ``prune="coverage"``: when a trajectory closes, it is dropped
     if at least ``prune_threshold`` of its samples (s_t, a_t) were already covered by the data stored before it, all
@@ -55,10 +109,19 @@ class TrajectoryReplayBuffer:
     :param prune: None (keep every trajectory, the thesis's ER) or "coverage".
     :param prune_threshold: with ``prune="coverage"``, the share of covered samples (in (0, 1]) at which a trajectory
         is dropped; default 0.9.
+    :param n_envs: the envs whose transitions arrive interleaved (default 1).
     """
 
     PRUNE_OPTIONS = (None, "coverage")
     DEFAULT_PRUNE_THRESHOLD = 0.9
+
+    n_trajectories = _counter(N_TRAJECTORIES, "Closed trajectories stored.")
+    n_transitions = _counter(N_TRANSITIONS, "Stored transitions in the ring, the open trajectory's included.")
+    open_length = _counter(OPEN_LENGTH, "Rows of the open trajectory in the ring (one env).")
+    write_row = _counter(WRITE_ROW, "The first row after the closed trajectories.")
+    oldest_trajectory = _counter(OLDEST_TRAJECTORY, "The index of the oldest closed trajectory.")
+    n_open_new = _counter(N_OPEN_NEW, "Pruning: features first visited by the open trajectory.")
+    open_covered = _counter(OPEN_COVERED, "Pruning: the open trajectory's samples covered before it began.")
 
     def __init__(
         self,
@@ -66,9 +129,12 @@ class TrajectoryReplayBuffer:
         tile_coder: TileCoder,
         prune: str | None = None,
         prune_threshold: float = DEFAULT_PRUNE_THRESHOLD,
+        n_envs: int = 1,
     ):
         if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1:
             raise ValueError(f"buffer_size must be an integer of at least 1, got {capacity!r}")
+        if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
+            raise ValueError(f"n_envs must be an integer of at least 1, got {n_envs!r}")
         self.check_kwargs({"prune": prune, "prune_threshold": prune_threshold})
         self.capacity = int(capacity)
         self.tile_coder = tile_coder
@@ -85,19 +151,16 @@ class TrajectoryReplayBuffer:
         self.trajectory_terminated = np.zeros(self.capacity, dtype=np.bool_)
         self.trajectory_next_obs = np.zeros((self.capacity, n_dims), dtype=np.float64)
         self.trajectory_next_slots = np.zeros((self.capacity, n_tilings), dtype=np.int64)
-        self.open_next_obs = np.zeros(n_dims, dtype=np.float64)
+        # the open trajectory's latest s_{t+1} in one of two rows, the counters naming which (written, then counted)
+        self._open_next = np.zeros((2, n_dims), dtype=np.float64)
         self.open_next_slots = np.zeros(n_tilings, dtype=np.int64)
         self.visits = np.zeros(tile_coder.n_weights, dtype=np.uint8)
-        self.oldest_trajectory = 0
-        self.write_row = 0
-        self.n_trajectories = 0
-        self.n_transitions = 0
-        self.open_length = 0
+        self.n_envs = int(n_envs)
+        self._counters = np.zeros(N_COUNTERS + (self.n_envs if self.n_envs > 1 else 0), dtype=np.int64)
+        self._stretches = [_Stretch(n_dims, n_tilings) for _ in range(self.n_envs)] if self.n_envs > 1 else []
         # the pruned database: features first visited by the open trajectory, and how many of its samples were covered
         self.fresh = np.zeros(tile_coder.n_weights, dtype=np.uint8) if prune else np.zeros(0, dtype=np.uint8)
         self.open_new_features = np.zeros(16 * tile_coder.n_tilings if prune else 0, dtype=np.int64)
-        self.n_open_new = 0
-        self.open_covered = 0
         # The token of the value watch that has read this buffer's stored rewards (ValueWatch.token); None: none has.
         # Not saved: a loaded buffer is read again by the watch it meets.
         self.observed_by_watch: str | None = None
@@ -143,6 +206,11 @@ class TrajectoryReplayBuffer:
             logger.record("train/pruned_transitions_share", self.n_pruned_transitions / seen if seen else 0.0)
 
     @property
+    def open_next_obs(self) -> np.ndarray:
+        """The open trajectory's latest s_{t+1} (one env), (D,)."""
+        return self._open_next[self._counters[OPEN_NEXT]]
+
+    @property
     def n_closed_transitions(self) -> int:
         return self.n_transitions - self.open_length
 
@@ -155,34 +223,74 @@ class TrajectoryReplayBuffer:
     def open_trajectory(self) -> int:
         return (self.oldest_trajectory + self.n_trajectories) % self.capacity
 
-    def add(self, obs: np.ndarray, slots: np.ndarray, action: int, reward: float, next_obs: np.ndarray) -> None:
-        """Append (s_t, a_t, r_{t+1}) to the open trajectory, remember s_{t+1} and mark phi(s_t, a_t) as visited
-        (Eq. 5.2).
+    def staged_length(self, env: int) -> int:
+        """The transitions of env ``env``'s open stretch not yet in the ring (several envs; 0 with one env).
+
+        :param env: the env's index.
+        """
+        return int(self._counters[N_COUNTERS + env]) if self.n_envs > 1 else 0
+
+    def add(
+        self,
+        obs: np.ndarray,
+        slots: np.ndarray,
+        action: int,
+        reward: float,
+        next_obs: np.ndarray,
+        env: int = 0,
+        end: bool | None = None,
+    ) -> bool:
+        """Append (s_t, a_t, r_{t+1}) to env ``env``'s open trajectory, remember s_{t+1} and mark phi(s_t, a_t) as
+        visited (Eq. 5.2); with ``end`` given, the trajectory then closes at s_{t+1} (:meth:`close_trajectory`), both
+        counted at once. Returns whether a trajectory was closed and kept (not pruned).
 
         :param obs: the state s_t, in the observation space's shape.
         :param slots: its tile slots, (N,) for N tilings.
         :param action: the flat action index a_t.
         :param reward: the reward r_{t+1}.
         :param next_obs: the next state s_{t+1}.
+        :param env: the env it came from (default 0).
+        :param end: None (default) to keep the trajectory open; else whether s_{t+1} is terminal, closing it there.
         """
-        if self.n_transitions == self.capacity:
-            self._evict_oldest_trajectory()
-        p = (self.write_row + self.open_length) % self.capacity
+        if self.n_envs > 1:
+            stretch, index = self._stretches[env], N_COUNTERS + env
+            length = int(self._counters[index])
+            stretch.write(length, obs, slots, action, reward, next_obs)
+            self._counters[index] = length + 1  # counted
+            if end is None:
+                return False
+            return self.close_trajectory(next_obs, end, env)
+        counts = self._counters.copy()
+        if counts[N_TRANSITIONS] == self.capacity:
+            counts = self._evict_oldest_trajectory()
+        p = (counts[WRITE_ROW] + counts[OPEN_LENGTH]) % self.capacity
         self.observations[p] = obs
         self.slots[p] = slots
         self.actions[p] = action
         self.rewards[p] = reward
-        self.transition_trajectory[p] = self.open_trajectory
-        self.open_next_obs[:] = next_obs
-        self.open_length += 1
-        self.n_transitions += 1
+        self.transition_trajectory[p] = (counts[OLDEST_TRAJECTORY] + counts[N_TRAJECTORIES]) % self.capacity
+        spare = 1 - counts[OPEN_NEXT]
+        self._open_next[spare] = next_obs
+        self._mark(slots, action, counts)
+        counts[OPEN_LENGTH] += 1
+        counts[N_TRANSITIONS] += 1
+        counts[OPEN_NEXT] = spare
+        kept = False
+        if end is not None:
+            kept = self._close(counts, next_obs, end)
+        self._counters[:] = counts  # counted: the transition (and the close) all at once
+        return kept
+
+    def _mark(self, slots: np.ndarray, action: int, counts: np.ndarray) -> None:
+        """w <- w OR phi(s_t, a_t); with pruning, also track the open trajectory's new features and coverage in
+        ``counts`` (committed with the transition)."""
         coder = self.tile_coder
         if not self.prune:
             kernels.mark_visited(self.visits, slots, coder.stride, coder.action_columns, action)
             return
-        if self.n_open_new + coder.n_tilings > self.open_new_features.shape[0]:
+        if counts[N_OPEN_NEW] + coder.n_tilings > self.open_new_features.shape[0]:
             self.open_new_features = np.concatenate([self.open_new_features, np.zeros_like(self.open_new_features)])
-        self.n_open_new, covered = kernels.mark_visited_tracked(
+        n_new, covered = kernels.mark_visited_tracked(
             self.visits,
             self.fresh,
             slots,
@@ -190,78 +298,154 @@ class TrajectoryReplayBuffer:
             coder.action_columns,
             action,
             self.open_new_features,
-            self.n_open_new,
+            int(counts[N_OPEN_NEW]),
         )
-        self.open_covered += covered
+        counts[N_OPEN_NEW] = n_new
+        counts[OPEN_COVERED] += covered
 
-    def close_trajectory(self, next_obs: np.ndarray, terminated: bool) -> bool:
-        """End the open trajectory at s_{t+1} = next_obs; returns False if it was empty or pruning dropped it.
+    def close_trajectory(self, next_obs: np.ndarray, terminated: bool, env: int = 0) -> bool:
+        """End env ``env``'s open trajectory at s_{t+1} = next_obs; returns False if it was empty or pruning dropped
+        it.
 
         :param next_obs: the trajectory's last next state s_{t+1}.
         :param terminated: whether it ended in a terminal state (no bootstrap from it) rather than truncated.
+        :param env: the env whose trajectory closes (default 0).
         """
-        if self.open_length == 0:
+        if self.n_envs > 1:
+            return self._commit_stretch(env, next_obs, terminated)
+        counts = self._counters.copy()
+        kept = self._close(counts, next_obs, terminated)
+        self._counters[:] = counts
+        return kept
+
+    def _close(self, counts: np.ndarray, next_obs: np.ndarray, terminated: bool) -> bool:
+        """Close the open trajectory in ``counts`` (the caller commits them): its record is written first, in the
+        trajectory slot after the closed ones, which no count covers yet."""
+        open_length = int(counts[OPEN_LENGTH])
+        if open_length == 0:
             return False
         if self.prune:
             self.n_closed_total += 1
-            new = self.open_new_features[: self.n_open_new]
+            new = self.open_new_features[: counts[N_OPEN_NEW]]
             self.fresh[new] = 0
-            dropped = self.open_covered >= self.prune_threshold * self.open_length
+            dropped = counts[OPEN_COVERED] >= self.prune_threshold * open_length
+            counts[N_OPEN_NEW] = counts[OPEN_COVERED] = 0
             if dropped:  # its rows are overwritten by the next trajectory; only it visited its new features
                 self.visits[new] = 0
                 self.n_pruned_trajectories += 1
-                self.n_pruned_transitions += self.open_length
-                self.n_transitions -= self.open_length
-            self.n_open_new, self.open_covered = 0, 0
-            if dropped:
-                self.open_length = 0
+                self.n_pruned_transitions += open_length
+                counts[N_TRANSITIONS] -= open_length
+                counts[OPEN_LENGTH] = 0
                 return False
-        j = self.open_trajectory
-        self.trajectory_start[j] = self.write_row
-        self.trajectory_length[j] = self.open_length
+        j = (counts[OLDEST_TRAJECTORY] + counts[N_TRAJECTORIES]) % self.capacity
+        self.trajectory_start[j] = counts[WRITE_ROW]
+        self.trajectory_length[j] = open_length
         self.trajectory_terminated[j] = terminated
         self.trajectory_next_obs[j] = next_obs
         self.trajectory_next_slots[j] = self.tile_coder.slots(next_obs)
-        self.n_trajectories += 1
-        self.write_row = (self.write_row + self.open_length) % self.capacity
-        self.open_length = 0
+        counts[N_TRAJECTORIES] += 1
+        counts[WRITE_ROW] = (counts[WRITE_ROW] + open_length) % self.capacity
+        counts[OPEN_LENGTH] = 0
         return True
 
+    def _commit_stretch(self, env: int, next_obs: np.ndarray, terminated: bool) -> bool:
+        """Several envs: env ``env``'s staged stretch enters the ring whole (its features marked visited in w then)
+        and closes there. Room is made first (each eviction committed on its own); then its rows are written and the
+        ring's counters and the stretch's length committed in one assignment, so an interruption leaves the stretch
+        either staged or stored, never both."""
+        index = N_COUNTERS + env
+        length = int(self._counters[index])
+        if length == 0:
+            return False
+        if length > self.capacity:
+            raise ValueError(
+                f"A single trajectory ({length} transitions) is longer than buffer_size={self.capacity}; increase "
+                "buffer_size or close trajectories more often (episode ends, info['segment_end'])"
+            )
+        while self.n_transitions + length > self.capacity:
+            self._evict_oldest_trajectory()
+        stretch = self._stretches[env]
+        counts = self._counters.copy()
+        for t in range(length):
+            p = (counts[WRITE_ROW] + counts[OPEN_LENGTH]) % self.capacity
+            self.observations[p] = stretch.observations[t]
+            self.slots[p] = stretch.slots[t]
+            self.actions[p] = stretch.actions[t]
+            self.rewards[p] = stretch.rewards[t]
+            self.transition_trajectory[p] = (counts[OLDEST_TRAJECTORY] + counts[N_TRAJECTORIES]) % self.capacity
+            self._mark(stretch.slots[t], int(stretch.actions[t]), counts)
+            counts[OPEN_LENGTH] += 1
+            counts[N_TRANSITIONS] += 1
+        kept = self._close(counts, next_obs, terminated)
+        counts[index] = 0
+        self._counters[:] = counts
+        return kept
+
     def truncate_open_trajectory(self) -> bool:
-        """Close the open trajectory as truncated at its latest s_{t+1} (its episode was cut off); False if empty."""
+        """Close every open trajectory as truncated at its latest s_{t+1} (its episode was cut off); False if all
+        were empty."""
+        if self.n_envs > 1:
+            closed = [
+                self._commit_stretch(env, stretch.next_obs.copy(), False) for env, stretch in enumerate(self._stretches)
+            ]
+            return any(closed)
         return self.close_trajectory(self.open_next_obs.copy(), terminated=False)
 
-    def _evict_oldest_trajectory(self) -> None:
+    def set_n_envs(self, n_envs: int) -> None:
+        """Take transitions from ``n_envs`` envs from now on; every open trajectory is first closed as truncated.
+
+        :param n_envs: the number of envs.
+        """
+        if n_envs == self.n_envs:
+            return
+        self.truncate_open_trajectory()
+        n_dims, n_tilings = self.tile_coder.n_dims, self.tile_coder.n_tilings
+        counters = np.zeros(N_COUNTERS + (n_envs if n_envs > 1 else 0), dtype=np.int64)
+        counters[:N_COUNTERS] = self._counters[:N_COUNTERS]
+        self._stretches = [_Stretch(n_dims, n_tilings) for _ in range(n_envs)] if n_envs > 1 else []
+        self.n_envs = int(n_envs)
+        self._counters = counters
+
+    def _evict_oldest_trajectory(self) -> np.ndarray:
+        """Drop the oldest closed trajectory, committed at once; returns the new counters."""
         if self.n_trajectories == 0:
             raise ValueError(
                 f"A single trajectory is longer than buffer_size={self.capacity}; increase buffer_size or close "
                 "trajectories more often (episode ends, info['segment_end'])"
             )
-        j = self.oldest_trajectory
-        self.n_transitions -= self.trajectory_length[j]
-        self.oldest_trajectory = (j + 1) % self.capacity
-        self.n_trajectories -= 1
+        counts = self._counters.copy()
+        j = counts[OLDEST_TRAJECTORY]
+        counts[N_TRANSITIONS] -= self.trajectory_length[j]
+        counts[OLDEST_TRAJECTORY] = (j + 1) % self.capacity
+        counts[N_TRAJECTORIES] -= 1
+        self._counters[:] = counts
+        return counts
 
-    def replay_arguments(self) -> tuple:
-        """The buffer's arrays and counters in the order of ``kernels.replay_phase``, the open trajectory included."""
+    def replay_data(self) -> kernels.Trajectories:
+        """The stored data as the replay kernels read it (a :class:`~sb3_er.common.kernels.bundles.Trajectories`),
+        the open trajectory included: its latest s_{t+1} is tiled here."""
         if self.open_length:
             self.open_next_slots[:] = self.tile_coder.slots(self.open_next_obs)
-        return (
-            self.slots,
-            self.actions,
-            self.rewards,
-            self.transition_trajectory,
-            self.trajectory_start,
-            self.trajectory_length,
-            self.trajectory_terminated,
-            self.trajectory_next_slots,
-            self.oldest_trajectory,
-            self.n_trajectories,
-            self._oldest_row(),
-            self.n_transitions,
-            self.open_trajectory,
-            self.open_length,
-            self.open_next_slots,
+        first_row = self._oldest_row()
+        return kernels.make(
+            kernels.Trajectories,
+            visits=self.visits,
+            slots=self.slots,
+            actions=self.actions,
+            rewards=self.rewards,
+            transition_trajectory=self.transition_trajectory,
+            trajectory_start=self.trajectory_start,
+            trajectory_length=self.trajectory_length,
+            trajectory_terminated=self.trajectory_terminated,
+            trajectory_next_slots=self.trajectory_next_slots,
+            oldest_trajectory=self.oldest_trajectory,
+            n_closed_trajectories=self.n_trajectories,
+            first_row=first_row,
+            n_transitions=self.n_transitions,
+            open_trajectory=self.open_trajectory,
+            open_start=(first_row + self.n_transitions - self.open_length) % self.capacity,
+            open_length=self.open_length,
+            open_next_slots=self.open_next_slots,
         )
 
     def stored_rewards(self) -> tuple[np.ndarray, np.ndarray]:
@@ -318,6 +502,15 @@ class TrajectoryReplayBuffer:
             "open_covered": self.open_covered,
             "pruned": (self.n_closed_total, self.n_pruned_trajectories, self.n_pruned_transitions),
         }
+        if self.n_envs > 1:  # each env's open stretch, staged outside the ring
+            lengths = np.array([self.staged_length(env) for env in range(self.n_envs)], dtype=np.int64)
+            state["n_envs"] = self.n_envs
+            state["stretch_lengths"] = lengths
+            for name in ("observations", "slots", "actions", "rewards"):
+                state[f"stretch_{name}"] = np.concatenate(
+                    [getattr(stretch, name)[:length] for stretch, length in zip(self._stretches, lengths, strict=True)]
+                )
+            state["stretch_next_obs"] = np.stack([stretch.next_obs for stretch in self._stretches])
         state["checksums"] = {name: field_checksum(value) for name, value in state.items()}
         return state
 
@@ -335,6 +528,7 @@ class TrajectoryReplayBuffer:
             TileCoder(**state["tile_coder_config"]),
             state.get("prune"),
             state.get("prune_threshold", self.DEFAULT_PRUNE_THRESHOLD),
+            int(state.get("n_envs", 1)),
         )
         if self.prune:
             new = state["open_new_features"]
@@ -366,6 +560,22 @@ class TrajectoryReplayBuffer:
         else:  # saved before the open trajectory kept its s_{t+1}: it cannot be closed, so drop it
             self.n_transitions, self.open_length = n - open_length, 0
         self.write_row = (n - open_length) % self.capacity
+        if self.n_envs > 1:
+            first = 0
+            for env, length in enumerate(state["stretch_lengths"]):
+                stretch = self._stretches[env]
+                for t in range(first, first + int(length)):
+                    stretch.write(
+                        t - first,
+                        state["stretch_observations"][t],
+                        state["stretch_slots"][t],
+                        state["stretch_actions"][t],
+                        state["stretch_rewards"][t],
+                        state["stretch_next_obs"][env],
+                    )
+                stretch.next_obs[:] = state["stretch_next_obs"][env]
+                self._counters[N_COUNTERS + env] = length
+                first += int(length)
 
 
 # --- checking a saved state ------------------------------------------------------------------------------------------
@@ -437,9 +647,7 @@ def _finite(name: str, values: np.ndarray) -> None:
 def _tiles_match(name: str, slots_name: str, observations: np.ndarray, slots: np.ndarray, coder: TileCoder) -> None:
     """The stored tiles are the tiles of the stored observations (either one altered shows here)."""
     expected = np.empty_like(slots)
-    if not kernels.batch_state_slots(
-        observations, coder.inv_widths, coder.offsets, coder.wrap_tiles, coder.slot_mask, expected
-    ):
+    if not kernels.batch_state_slots(observations, coder.layout, expected):
         raise _field_error(name, "observations too large to tile")
     mismatch = np.flatnonzero(np.any(expected != slots, axis=1))
     if mismatch.size:
@@ -521,6 +729,28 @@ def check_state(state: Any) -> None:
         open_next_obs = _array(state, "open_next_obs", np.float64, (n_dims,))
         if open_length:
             _finite("open_next_obs", open_next_obs)
+
+    if "n_envs" in state:
+        n_envs = _integer(state, "n_envs", 2)
+        lengths = _array(state, "stretch_lengths", np.int64, (n_envs,))
+        if lengths.min() < 0:
+            raise _field_error("stretch_lengths", f"a negative length {lengths.min()}")
+        staged = int(lengths.sum())
+        stretch_observations = _array(state, "stretch_observations", np.float64, (staged, n_dims))
+        _finite("stretch_observations", stretch_observations)
+        stretch_slots = _array(state, "stretch_slots", np.int64, (staged, n_tilings))
+        _in_range("stretch_slots", stretch_slots, coder.n_slots, "the tile coding's slots")
+        _tiles_match("stretch_observations", "stretch_slots", stretch_observations, stretch_slots, coder)
+        _in_range(
+            "stretch_actions",
+            _array(state, "stretch_actions", np.int64, (staged,)),
+            coder.n_actions,
+            "the flat action indices",
+        )
+        _finite("stretch_rewards", _array(state, "stretch_rewards", np.float64, (staged,)))
+        _finite("stretch_next_obs", _array(state, "stretch_next_obs", np.float64, (n_envs, n_dims)))
+        if open_length:
+            raise _field_error("open_length", "several envs keep no open trajectory in the ring")
 
     visits = _array(state, "visits", np.uint8, (coder.n_weights,))
     if visits.size and visits.max() > 1:

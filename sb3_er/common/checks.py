@@ -83,11 +83,14 @@ def check_choice(name: str, value: Any, options) -> None:
         raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
 
 
-def check_bool(name: str, value: Any) -> None:
+def check_bool(name: str, value: Any, optional: bool = False) -> None:
     """``value`` must be True or False (Python or NumPy bool, not 0 or 1); the ValueError names the parameter.
 
     :param name: the parameter's name, for the message.
     :param value: the value given.
+    :param optional: None is allowed too (default False).
     """
+    if optional and value is None:
+        return
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {value!r}")

@@ -16,11 +16,14 @@ are refused: tile coding needs the low-dimensional state.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 import sys
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from gymnasium import spaces
 
 #: The namespace of shimmy's dm_control ids.
@@ -39,12 +42,23 @@ def is_dm_control_id(env_id: Any) -> bool:
 
 
 def register_dm_control_envs() -> None:
-    """Register shimmy's ``dm_control/<domain>-<task>-v0`` ids with Gymnasium (by importing shimmy), once.
+    """Register shimmy's ``dm_control/<domain>-<task>-v0`` ids with Gymnasium (by importing shimmy), once, with
+    entry points that pickle (:class:`RegisteredEntryPoint`), so that a ``SubprocVecEnv`` worker can send an env's
+    ``spec`` back; and for subprocesses: a forkserver that starts afterwards imports
+    :mod:`sb3_er.common.register_dm_control` before it starts ``SubprocVecEnv`` workers (see
+    :mod:`sb3_er.common.env_ids`).
 
     Raises ModuleNotFoundError naming the ``dmc`` extra when shimmy or dm_control is missing.
     """
-    if "dm_control/cartpole-swingup-v0" in gym.registry:
-        return
+    if "dm_control/cartpole-swingup-v0" not in gym.registry:
+        _import_shimmy()
+    _make_entry_points_picklable()
+    from sb3_er_envs import preload_in_subprocesses
+
+    preload_in_subprocesses("sb3_er.common.register_dm_control")
+
+
+def _import_shimmy() -> None:
     try:
         if "dm_control" not in sys.modules:
             # dm_control picks its OpenGL backend once, at import: choose it as LEO does (sb3_er_envs.leo._gl), so that
@@ -72,13 +86,48 @@ def register_dm_control_envs() -> None:
         )
 
 
-def register_if_dm_control_id(env_id: Any) -> None:
-    """:func:`register_dm_control_envs` when ``env_id`` is a ``dm_control/`` id, else nothing.
+#: shimmy's own entry point of each ``dm_control/`` id, in this process (filled by register_dm_control_envs).
+_SHIMMY_ENTRY_POINTS: dict[str, Any] = {}
 
-    :param env_id: an env id, an env or None.
+
+class RegisteredEntryPoint:
+    """The entry point of a ``dm_control/`` id: shimmy's, called by the id.
+
+    shimmy registers its ids with functions defined inside its registering function, which cannot be pickled: a
+    ``SubprocVecEnv`` worker asked for such an env's ``spec`` (as a model asks, to look up the env's tiling) dies
+    sending it, and the VecEnv raises a bare ``EOFError``. This stand-in pickles as the id alone and, called in a
+    process that has not registered the ids yet, registers them first.
+
+    :param env_id: the ``dm_control/`` id.
     """
-    if is_dm_control_id(env_id):
-        register_dm_control_envs()
+
+    def __init__(self, env_id: str):
+        self.env_id = env_id
+
+    def __call__(self, **kwargs: Any) -> gym.Env:
+        if self.env_id not in _SHIMMY_ENTRY_POINTS:
+            register_dm_control_envs()
+        return _SHIMMY_ENTRY_POINTS[self.env_id](**kwargs)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, RegisteredEntryPoint) and other.env_id == self.env_id
+
+    def __hash__(self) -> int:
+        return hash((RegisteredEntryPoint, self.env_id))
+
+    def __repr__(self) -> str:
+        return f"RegisteredEntryPoint({self.env_id!r})"
+
+
+def _make_entry_points_picklable() -> None:
+    """Replace every ``dm_control/`` id's entry point that is not a string by a :class:`RegisteredEntryPoint`."""
+    for env_id, spec in list(gym.registry.items()):
+        if not env_id.startswith(DM_CONTROL_NAMESPACE + "/") or isinstance(
+            spec.entry_point, (str, RegisteredEntryPoint)
+        ):
+            continue
+        _SHIMMY_ENTRY_POINTS[env_id] = spec.entry_point
+        gym.registry[env_id] = dataclasses.replace(spec, entry_point=RegisteredEntryPoint(env_id))
 
 
 def observation_keys(space: spaces.Dict) -> list[list[Any]]:
@@ -89,9 +138,26 @@ def observation_keys(space: spaces.Dict) -> list[list[Any]]:
     return [[key, int(spaces.flatdim(subspace))] for key, subspace in space.spaces.items()]
 
 
+#: A two-dimensional Dict entry of floats is an image when both its sides are at least this long.
+IMAGE_SIDE = 16
+
+
+def is_image(space: spaces.Box) -> bool:
+    """Whether a Box holds an image rather than state: three or more dimensions (height, width, channels), or two
+    dimensions of an integer dtype (a grayscale image) or with both sides of at least :data:`IMAGE_SIDE` pixels. A
+    small two-dimensional array of floats is state (manipulator's ``arm_pos``: the cos and sin of 8 joints, (8, 2)).
+
+    :param space: a Box space.
+    """
+    shape = space.shape
+    if len(shape) >= 3:
+        return True
+    return len(shape) == 2 and (np.issubdtype(space.dtype, np.integer) or min(shape) >= IMAGE_SIDE)
+
+
 def check_flat_dict(space: spaces.Dict) -> None:
-    """Refuse a Dict observation whose flattening tile coding cannot use: pixels (or any image or array of two or
-    more dimensions), nested Dicts and non-Box entries; a ValueError naming the key.
+    """Refuse a Dict observation whose flattening tile coding cannot use: pixels (an image, :func:`is_image`), nested
+    Dicts and non-Box entries; a ValueError naming the key. Arrays of state are flattened in C order.
 
     :param space: a Dict observation space.
     """
@@ -101,28 +167,76 @@ def check_flat_dict(space: spaces.Dict) -> None:
                 f"The observation's key {key!r} is a {type(subspace).__name__} space ({subspace}): "
                 "sb3-er flattens Dict observations of Box arrays only"
             )
-        if len(subspace.shape) >= 2:
-            kind = "pixels (an image)" if len(subspace.shape) == 3 else "an array"
+        if is_image(subspace):
             raise ValueError(
-                f"The observation's key {key!r} holds {kind} of shape {subspace.shape} ({subspace.dtype}): tile coding "
-                "needs low-dimensional state observations, and flattening it would make one tiled dimension per "
-                f"{'pixel' if len(subspace.shape) == 3 else 'entry'}. Use the task's state observations (dm_control's "
-                "suite without a pixels wrapper, shimmy's default) or extract low-dimensional features first"
+                f"The observation's key {key!r} holds pixels (an image) of shape {subspace.shape} ({subspace.dtype}): "
+                "tile coding needs low-dimensional state observations, and flattening it would make one tiled "
+                "dimension per pixel. Use the task's state observations (dm_control's suite without a pixels "
+                "wrapper, shimmy's default) or extract low-dimensional features first"
             )
 
 
 #: Where the suite's rewards lie: every task's reward is in the unit interval, on terminating transitions too
-#: (Tassa et al. 2018, "DeepMind Control Suite", arXiv:1801.00690), so its returns lie in [0, 1 / (1 - gamma)].
+#: (Tassa et al. 2018, "DeepMind Control Suite", arXiv:1801.00690), so its returns lie in [0, 1 / (1 - gamma)]. Each
+#: domain's ``get_reward`` (dm_control/suite/<domain>.py) keeps to it: products and averages of ``rewards.tolerance``
+#: terms (each in [0, 1]) or 0/1 indicators. The exceptions are in :data:`DM_CONTROL_DOMAIN_REWARD_BOUNDS`.
 DM_CONTROL_REWARD_BOUNDS = {"step": (0.0, 1.0), "terminal": (0.0, 1.0)}
+
+#: The suite's domains whose rewards leave the unit interval. lqr's reward is 1 - (|q|^2 / 2 + 0.1 |u|^2 / 2)
+#: (dm_control/suite/lqr.py: a quadratic state and control cost subtracted from 1), at most 1 (at rest, no force) and
+#: unbounded below: its undamped springs and unlimited actuators bound neither the positions nor the forces.
+DM_CONTROL_DOMAIN_REWARD_BOUNDS = {"lqr": {"step": (-math.inf, 1.0), "terminal": (-math.inf, 1.0)}}
+
+
+def suite_task(env_id: Any) -> tuple[str, str] | None:
+    """``(domain, task)`` of a ``dm_control/<domain>-<task>-v0`` id of dm_control's suite (``suite.ALL_TASKS``), or
+    None for any other id (shimmy's locomotion and manipulation ids included). Imports dm_control's suite: call it
+    only for a ``dm_control/`` id.
+
+    :param env_id: an env id (a ``module:`` prefix allowed).
+    """
+    if not is_dm_control_id(env_id):
+        return None
+    name = env_id.rpartition(":")[2][len(DM_CONTROL_NAMESPACE) + 1 :]
+    name, _, version = name.rpartition("-v")
+    domain, _, task = name.partition("-")
+    from dm_control import suite
+
+    return (domain, task) if version.isdigit() and (domain, task) in suite.ALL_TASKS else None
+
+
+def dm_control_reward_bounds(env_id: Any) -> dict[str, tuple[float, float]] | None:
+    """The reward bounds of a suite task's id (:data:`DM_CONTROL_REWARD_BOUNDS`, or its domain's entry of
+    :data:`DM_CONTROL_DOMAIN_REWARD_BOUNDS`); None for an id outside dm_control's suite, whose rewards nothing
+    declares.
+
+    :param env_id: an env id.
+    """
+    task = suite_task(env_id)
+    if task is None:
+        return None
+    return DM_CONTROL_DOMAIN_REWARD_BOUNDS.get(task[0], DM_CONTROL_REWARD_BOUNDS)
 
 
 class FlattenSuiteObservation(gym.wrappers.FlattenObservation):
-    """Gymnasium's ``FlattenObservation`` of a dm_control suite task, declaring the suite's ``reward_bounds`` to the
-    value watch (:data:`DM_CONTROL_REWARD_BOUNDS`), which would otherwise bound the values by the rewards observed
+    """Gymnasium's ``FlattenObservation`` of a dm_control suite task, declaring the task's ``reward_bounds`` to the
+    value watch (:func:`dm_control_reward_bounds`), which would otherwise bound the values by the rewards observed
     so far: near zero for the many steps before a swing-up task first pays, so that possible values would be
-    reported as impossible."""
+    reported as impossible. An env outside the suite (or without a spec) declares nothing (``reward_bounds`` None).
 
-    reward_bounds = DM_CONTROL_REWARD_BOUNDS
+    rl-zoo's ``env_wrapper: sb3_er.common.dict_observations.FlattenSuiteObservation`` uses it for each env of a VecEnv.
+
+    :param env: a dm_control suite task with a Dict observation of Box arrays (shimmy's ``dm_control/`` ids).
+    """
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self.reward_bounds = dm_control_reward_bounds(getattr(env.spec, "id", None))
+
+    @property
+    def dict_observation_space(self) -> spaces.Dict:
+        """The Dict space it flattens (read by the model's key-order check, across processes too)."""
+        return self.env.observation_space
 
 
 def flatten_dict_observation(env: gym.Env) -> gym.Env:
@@ -163,5 +277,27 @@ def dict_vec_env_message(space: spaces.Dict) -> str:
         f"Tile coding needs a flat Box observation, and this VecEnv observes a Dict {observation_keys(space)} "
         "([key, size] pairs). A single env is flattened for you; for a VecEnv, flatten each env with "
         "gymnasium.wrappers.FlattenObservation (make_vec_env(..., wrapper_class=FlattenObservation), rl-zoo's "
-        "`env_wrapper: gymnasium.wrappers.FlattenObservation`)"
+        "`env_wrapper: gymnasium.wrappers.FlattenObservation`); for a task of dm_control's suite, with "
+        "sb3_er.common.dict_observations.FlattenSuiteObservation, which also declares the task's reward bounds"
     )
+
+
+def vec_observation_keys(vec_env) -> list[list[Any]] | None:
+    """``[[key, size], ...]`` of the Dict observation the (first) env of a VecEnv flattens (:func:`observation_keys`),
+    or None when it flattens none or it cannot be seen: a DummyVecEnv's env is read directly, envs in subprocesses
+    through their ``dict_observation_space`` attribute (:class:`FlattenSuiteObservation` has one).
+
+    :param vec_env: a VecEnv, possibly wrapped.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper
+
+    level = vec_env
+    while isinstance(level, VecEnvWrapper):
+        level = level.venv
+    if isinstance(level, DummyVecEnv):
+        space = flattened_dict_space(level.envs[0])
+    elif level.has_attr("dict_observation_space"):
+        space = level.get_attr("dict_observation_space", indices=0)[0]
+    else:
+        space = None
+    return None if space is None else observation_keys(space)

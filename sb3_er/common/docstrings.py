@@ -1,13 +1,23 @@
 """Parameter documentation repeated per class, as sb3-contrib repeats it, from one written source per parameter.
 
-An algorithm passes most of its constructor's parameters on to its base through ``**kwargs`` (``ERSigma`` to ``ER``,
-``ER`` to ``TileQAlgorithm``). :func:`inherit_parameters` completes such a class's docstring with the ``:param:``
-fields of every parameter it accepts and does not document itself, taken from the classes it passes them to, so that
-``help(ERSigma)`` and the API pages list every parameter of ``ERSigma`` with its meaning, unit and default.
+Every public class spells out its whole constructor signature, as sb3-contrib's algorithms do, so that ``help()``,
+``inspect.signature``, IDEs and the API pages show each parameter with its default; a parameter's documentation is
+written once, in the ``:param:`` field of the class that introduces it (``gamma`` in ``TileQAlgorithm``,
+``n_replays`` in ``ER``). :func:`inherit_parameters` completes a class's docstring with the fields of every parameter
+it accepts and does not document itself, taken from its bases, with this class's default appended where a field does
+not state one, so that ``help(ERSigma)`` and the API pages list every parameter of ``ERSigma`` with its meaning, unit
+and default. A class documents a base's parameter again only where the parameter means more there or its default
+differs (``ERSigma``'s ``sigma="average_worst"``).
+
+Adding a parameter to a class: put it in that class's ``__init__`` (signature, attribute, check in
+``_check_hyperparameters``) with its ``:param:`` field, then in the signature and the ``super().__init__`` call of every
+public subclass (``tests/test_signatures.py`` names each subclass whose signature or call lacks it). A parameter of
+``TileQAlgorithm`` so goes into the eight algorithms, one of ``ER`` into its three presets.
 """
 
 from __future__ import annotations
 
+import ast
 import inspect
 import re
 from collections.abc import Iterable
@@ -125,10 +135,75 @@ def parameter_defaults(cls: type) -> dict[str, object]:
 
 
 def _with_default(field: str, name: str, defaults: dict[str, object]) -> str:
-    """`field`, with this class's default of `name` appended when the field does not state its default."""
-    if "default" in field.lower() or name not in defaults:
+    """`field`, with this class's default of `name` appended when the field does not state its default
+    (:func:`documented_default`)."""
+    if name not in defaults or documented_default(field) is not NOT_STATED:
         return field
     return f"{field} Default: ``{defaults[name]!r}``."
+
+
+NOT_STATED = object()
+"""What :func:`documented_default` returns for a field that states no default."""
+
+#: A default as the docs write it: a quoted string, a number (``1,000,000``, ``1e-06``, ``2**22``), None, True or False.
+_LITERAL = "(?:{})".format(
+    "|".join(
+        (
+            r'"[^"]*"',
+            r"'[^']*'",
+            r"-?\d{1,3}(?:,\d{3})+(?:\.\d+)?",
+            r"-?\d+(?:\.\d+)?(?:e-?\d+)?(?:\*\*\d+)?",
+            "None",
+            "True",
+            "False",
+        )
+    )
+)
+_STATED_DEFAULTS = (
+    # the form inherit_parameters appends: "Default: ``0.2``."
+    re.compile(r"Default: ``(?P<value>[^`]+)``"),
+    # a literal followed by "(default": "None (default) acts ...", '"reversed" (default, the thesis's)'
+    re.compile(rf"(?:^|(?<=[\s(]))(?P<value>{_LITERAL}) \(default\b"),
+    # "default" followed by a literal: "(default 0.2, ...)", "; default None."
+    re.compile(rf"(?:\(|[;,.] )[Dd]efault (?P<value>{_LITERAL})(?=[,;:).]|$)"),
+)
+
+
+def _literal(text: str) -> object:
+    """A default as the docs write it, as a value: ``1,000,000`` and ``2**22`` read as numbers."""
+    text = text.strip()
+    if re.fullmatch(r"-?\d{1,3}(?:,\d{3})+(?:\.\d+)?", text):
+        text = text.replace(",", "")
+    power = re.fullmatch(r"(\d+)\*\*(\d+)", text)
+    if power:
+        return int(power.group(1)) ** int(power.group(2))
+    return ast.literal_eval(text)
+
+
+def documented_default(field: str) -> object:
+    """The default a ``:param:`` field states, as a value, or :data:`NOT_STATED`.
+
+    A field states its default as ``Default: ``0.2``.`` (what :func:`inherit_parameters` appends), as a literal
+    followed by ``(default`` (``"reversed" (default, the thesis's)``, ``None (default) acts ...``), or as
+    ``default`` followed by a literal and a ``,``, ``;``, ``:``, ``)`` or ``.`` after an opening parenthesis or a
+    ``,``, ``;`` or ``.`` (``(default 0.2, ...)``, ``; default None.``); a default given in words (``default 7 per
+    dimension``) states none. ``1,000,000`` and ``2**22`` read as numbers.
+
+    :param field: the field, as :func:`parameter_fields` returns it.
+    :return: the stated default; ValueError when the field states two different ones.
+    """
+    text = " ".join(field.split())
+    values = [_literal(match.group("value")) for pattern in _STATED_DEFAULTS for match in pattern.finditer(text)]
+    if not values:
+        return NOT_STATED
+    if any(_differ(value, values[0]) for value in values[1:]):
+        raise ValueError(f"the field states several defaults, {values}: {text}")
+    return values[0]
+
+
+def _differ(a: object, b: object) -> bool:
+    """Whether two defaults differ (1 and 1.0 do not; True and 1 do)."""
+    return a != b or isinstance(a, bool) != isinstance(b, bool)
 
 
 def inherit_parameters(cls: type | None = None, *, hidden: Iterable[str] = ()):

@@ -163,13 +163,13 @@ class TileQPolicy(BasePolicy):
         self.initial_value = initial_value if low != high else low
         self.initial_value_seed = None if low == high else int(initial_value_seed)
         n = self.tile_coder.n_tilings
+        #: How the weights start, per weight: (initial_low, initial_span, initial_seed) of the kernels' Weights.
         self.initial_arguments = (low / n, (high - low) / n, np.uint64(self.initial_value_seed or 0))
-        """Initial weights in kernel order: initial_low, initial_span (per weight) and initial_seed."""
         # NumPy allocates large arrays with transparent huge pages, which spares the random row reads TLB misses.
         self.register_buffer("theta", th.from_numpy(np.zeros(self.tile_coder.n_weights, dtype=np.float64)))
         self._share_theta()
         if low != 0.0 or high != 0.0:
-            kernels.fill_initial_weights(self.theta_array, *self.initial_arguments)
+            kernels.fill_initial_weights(self.weights)
         choices = np.stack(np.unravel_index(np.arange(self.tile_coder.n_actions), self.tile_coder.action_nvec), axis=1)
         if continuous:  # the level of each dimension of each joint action, in the Box's dtype
             self.action_table = np.stack([levels[j][choices[:, j]] for j in range(len(levels))], axis=1).astype(
@@ -209,6 +209,13 @@ class TileQPolicy(BasePolicy):
     def _share_theta(self) -> None:
         self._check_theta(self.theta)
         self.__dict__["theta_array"] = self.theta.numpy()
+
+    @property
+    def weights(self):
+        """theta and how it started, as the kernels read them (a :class:`~sb3_er.common.kernels.bundles.Weights`),
+        without a target copy (an algorithm that keeps one builds its own bundle)."""
+        low, span, seed = self.initial_arguments
+        return kernels.weights_bundle(self.theta_array, low, span, seed)
 
     def _apply(self, fn, recurse=True):
         """Keep theta a CPU float64 tensor whose NumPy view the kernels share (``.to(device)`` must not rebind it)."""
@@ -333,10 +340,9 @@ class TileQPolicy(BasePolicy):
 
         :param indices: weight indices, any integer array shape.
         """
-        indices = np.asarray(indices, dtype=np.int64)
+        indices = np.ascontiguousarray(indices, dtype=np.int64)
         out = np.empty(indices.size, dtype=np.float64)
-        for j, i in enumerate(indices.reshape(-1)):
-            out[j] = kernels.initial_weight(i, *self.initial_arguments)
+        kernels.initial_weights_at(indices.reshape(-1), self.weights, out)
         return out.reshape(indices.shape)
 
     def _as_batch(self, observation) -> tuple[np.ndarray, bool]:
@@ -352,7 +358,7 @@ class TileQPolicy(BasePolicy):
         coder = self.tile_coder
         out = np.empty(observations.shape[0], dtype=np.int64)
         ok = kernels.greedy_actions(
-            self.theta_array, observations, *coder.kernel_arguments, self._slots_scratch, self._q_scratch, out
+            self.theta_array, observations, coder.layout, self._slots_scratch, self._q_scratch, out
         )
         if not ok:
             bad = next(row for row in observations if not _tileable(coder, row))
@@ -380,7 +386,7 @@ class TileQPolicy(BasePolicy):
         batch, _ = self._as_batch(observations)
         coder = self.tile_coder
         out = np.empty((batch.shape[0], coder.n_actions), dtype=np.float64)
-        if not kernels.batch_q_values(self.theta_array, batch, *coder.kernel_arguments, self._slots_scratch, out):
+        if not kernels.batch_q_values(self.theta_array, batch, coder.layout, self._slots_scratch, out):
             bad = next(row for row in batch if not _tileable(coder, row))
             raise ValueError(coder.bad_observation_message(bad))
         return out

@@ -3,8 +3,9 @@ tilings: sb3-er's tilings for known env ids (package data) and the generic rule 
 
 import functools
 import importlib.resources
+import inspect
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -25,8 +26,9 @@ MIN_DEFAULT_TILES_PER_DIMENSION = 2
 DEFAULT_CELL_BUDGET = 2**14
 #: sb3-er's tilings for known env ids (package data, shipped in the wheel).
 PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
-#: Observation bounds this large in magnitude (such as +-float32 max) are placeholders for "unbounded", not a range.
-PLACEHOLDER_BOUND = 1e30
+#: Observation bounds this large in magnitude are placeholders for "unbounded", not a range: +-float32 max, and MuJoCo's
+#: mjMAXVAL (1e10), its stand-in for "no limit".
+PLACEHOLDER_BOUND = 1e10
 
 WEIGHTS_PER_CACHE_LINE = 8  # float64 weights in a 64-byte cache line: a state tile's row starts on a line boundary
 #: The distinct state tiles per tiling a run is assumed to visit when the observation space holds more (or is
@@ -142,17 +144,17 @@ class TileCoder:
         self.slot_mask = n_slots - 1
         self.memory_size = int(memory_size)
         self.n_weights = n_slots * self.stride
-        self.kernel_arguments = (
-            self.inv_widths,
-            self.offsets,
-            self.wrap_tiles,
-            self.slot_mask,
-            self.stride,
-            self.action_columns,
-            self.columns_are_actions,
+        self.layout = kernels.make(
+            kernels.TileLayout,
+            inv_widths=self.inv_widths,
+            offsets=self.offsets,
+            wrap_tiles=self.wrap_tiles,
+            slot_mask=self.slot_mask,
+            stride=self.stride,
+            action_columns=self.action_columns,
+            columns_are_actions=self.columns_are_actions,
         )
-        """The coder in kernel order: inv_widths, offsets, wrap_tiles, slot_mask, stride, action_columns,
-        columns_are_actions."""
+        """The coder as the kernels read it (a :class:`~sb3_er.common.kernels.bundles.TileLayout`)."""
 
     def _check_wrap_periods(self, wrap_periods) -> list[float | None]:
         if wrap_periods is None:
@@ -251,7 +253,7 @@ class TileCoder:
         """
         out = np.empty(self.n_tilings, dtype=np.int64)
         obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(self.n_dims)
-        if not kernels.state_slots(obs, self.inv_widths, self.offsets, self.wrap_tiles, self.slot_mask, out):
+        if not kernels.state_slots(obs, self.layout, out):
             raise ValueError(self.bad_observation_message(obs))
         return out
 
@@ -432,7 +434,7 @@ def default_tile_widths(
     ``tiles_per_dimension`` tiles per dimension if given; otherwise the generic rule,
     ``default_tiles_per_dimension(D, cell_budget)`` with D the number of non-constant dimensions (at most 10, at
     least 2 tiles each, ``cell_budget`` cells per tiling). Bounds that are infinite, or placeholders for infinity
-    (magnitude >= 1e30, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
+    (magnitude >= 1e10, such as +-float32 max), cannot be split: those dimensions need explicit widths and the
     ValueError names them. A dimension whose bounds coincide (a constant) gets width 1, one tile for its only value.
 
     :param observation_space: a Box observation space with finite bounds.
@@ -453,7 +455,7 @@ def default_tile_widths(
     if unbounded.size:
         raise ValueError(
             f"Observation dimensions {unbounded.tolist()} are unbounded (bounds {low[unbounded].tolist()} to "
-            f"{high[unbounded].tolist()}; magnitudes of 1e30 or more, such as +-float32 max, count as unbounded) and "
+            f"{high[unbounded].tolist()}; magnitudes of 1e10 or more, such as +-float32 max, count as unbounded) and "
             "no tile widths were given: pass policy_kwargs=dict(tile_widths=[...]) or give the env a `tile_widths` "
             "attribute"
         )
@@ -485,3 +487,137 @@ def package_tilings() -> dict[str, dict[str, Any]]:
                 f"not add up to its observation_shape {entry['observation_shape']}"
             )
     return entries
+
+
+#: The env attributes a tiling setting can come from (each the TileQPolicy argument of the same name).
+ENV_TILING_ATTRIBUTES = ("tile_widths", "wrap_periods", "action_values", "action_tile_widths", "memory_size")
+
+
+def _to_builtin(value: Any) -> Any:
+    """Arrays and tuples (possibly nested) as lists of Python numbers, so settings pickle and print plainly."""
+    if isinstance(value, (np.ndarray, list, tuple)):
+        return [_to_builtin(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def resolve_tiling(
+    policy_kwargs: dict[str, Any],
+    env_attribute: Callable[[str], Any],
+    observation_space: spaces.Box,
+    action_space: spaces.Space,
+    policy_class: type,
+    dict_space: Callable[[], spaces.Dict | None] = lambda: None,
+    verbose: int = 0,
+) -> dict[str, Any]:
+    """The tile-coding settings of a model, explicit, so that save/load rebuilds the same coder.
+
+    Each setting comes from the first of: ``policy_kwargs``; the env's attribute of that name
+    (:data:`ENV_TILING_ATTRIBUTES`); sb3-er's tiling for the env's id (:func:`package_tilings`, or for a task of
+    dm_control's suite its domain's or a derived tiling: ``dm_control_tilings.tiling_for_env``; only when neither
+    ``policy_kwargs`` (``tile_widths`` or ``tiles_per_dimension``) nor the env give tile widths, and the observation
+    has the entry's shape); for tile widths, the generic rule (:func:`default_tile_widths`: ``tiles_per_dimension`` if
+    given, else a cell budget per tiling). At ``verbose >= 1`` the tiling in use is printed with where it came from.
+
+    :param policy_kwargs: the model's policy_kwargs (``tiles_per_dimension`` is consumed here).
+    :param env_attribute: an optional attribute of the (first) env by name, None when absent.
+    :param observation_space: the (flat Box) observation space.
+    :param action_space: the action space (a derived dm_control tiling acts with its levels).
+    :param policy_class: the policy class (for its default number of tilings, printed).
+    :param dict_space: the Dict space the env flattens into its observation, None when out of reach: checked against
+        the key order a package tiling assumes.
+    :param verbose: print the tiling at 1 or more (default 0).
+    """
+    kwargs = dict(policy_kwargs)
+    tiles_per_dimension = kwargs.pop("tiles_per_dimension", None)
+    origins = {name: "policy_kwargs" for name, value in kwargs.items() if value is not None}
+    for name in ENV_TILING_ATTRIBUTES:
+        if (
+            kwargs.get(name) is None
+            and not (name == "tile_widths" and tiles_per_dimension is not None)
+            and not (name == "action_values" and kwargs.get("action_bins") is not None)
+        ):
+            kwargs[name] = env_attribute(name)
+            if kwargs[name] is not None:
+                origins[name] = f"the env's {name} attribute"
+    notes = []
+    if kwargs.get("tile_widths") is None and tiles_per_dimension is None:
+        from sb3_er.common.dm_control_tilings import tiling_for_env  # it reads this module's package tilings
+
+        spec = env_attribute("spec")
+        env_id = getattr(spec, "id", None)
+        entry = tiling_for_env(spec, action_space, kwargs)  # by id; dm_control's suite: by domain or derived
+        shape = tuple(observation_space.shape)
+        if entry is not None and tuple(entry["observation_shape"]) != shape:
+            notes.append(
+                f"sb3-er's tiling for {env_id} is for observations of shape "
+                f"{tuple(entry['observation_shape'])}, not {shape}: not used"
+            )
+        elif entry is not None:
+            notes.extend(_check_observation_keys(env_id, entry, dict_space()))
+            for name, value in entry.items():
+                if name not in ("observation_shape", "observation_keys", "source") and kwargs.get(name) is None:
+                    kwargs[name] = value
+                    origins[name] = f"sb3-er's tiling for {env_id} ({entry['source']})"
+    if kwargs.get("tile_widths") is None:
+        if tiles_per_dimension is None:
+            tiles_per_dimension = default_tiles_per_dimension(varying_dimensions(observation_space))
+            origins["tile_widths"] = (
+                f"the generic rule: {tiles_per_dimension} tiles per bounded dimension, "
+                f"min(10, floor({DEFAULT_CELL_BUDGET} cells ^ (1/D))), at least 2"
+            )
+        else:
+            origins["tile_widths"] = f"policy_kwargs: {tiles_per_dimension} tiles per bounded dimension"
+        kwargs["tile_widths"] = default_tile_widths(observation_space, tiles_per_dimension)
+    resolved = {k: _to_builtin(v) for k, v in kwargs.items() if v is not None}
+    if verbose >= 1:
+        print(_describe_tiling(resolved, origins, notes, policy_class))
+    return resolved
+
+
+def _check_observation_keys(env_id: str, entry: dict[str, Any], space: spaces.Dict | None) -> list[str]:
+    """Compare the key order and sizes sb3-er's tiling for ``env_id`` assumes (``observation_keys``) with the Dict
+    the env's ``FlattenObservation`` flattens: a ValueError when they differ (its tile widths would fall on the
+    wrong arrays). Returns a note when the env's Dict cannot be seen."""
+    from sb3_er.common.dict_observations import observation_keys
+
+    expected = entry.get("observation_keys")
+    if expected is None:
+        return []
+    if space is None:
+        return [
+            f"the key order of {env_id}'s Dict observation is not checked against sb3-er's tiling "
+            f"{expected}: the env's FlattenObservation is out of reach"
+        ]
+    actual = observation_keys(space)
+    if actual != [list(pair) for pair in expected]:
+        raise ValueError(
+            f"sb3-er's tiling for {env_id} assumes the Dict observation {expected} ([key, size] in flattening "
+            f"order), but the env flattens {actual}: its tile widths would fall on the wrong arrays. Give "
+            "policy_kwargs=dict(tile_widths=[...]) for this env"
+        )
+    return []
+
+
+def _describe_tiling(resolved: dict[str, Any], origins: dict[str, str], notes: list[str], policy_class: type) -> str:
+    """The tiling in use and where each setting came from, e.g. ``Tile coding: 8 tilings, tile widths [0.225,
+    0.0175] from sb3-er's tiling for MountainCar-v0 (...)``."""
+    n_tilings = resolved.get("n_tilings")
+    if n_tilings is None:
+        n_tilings = inspect.signature(policy_class).parameters["n_tilings"].default
+        origins["n_tilings"] = f"{policy_class.__name__}'s default"
+    widths = [float(f"{w:.4g}") for w in resolved["tile_widths"]]
+    if origins["n_tilings"] == origins["tile_widths"]:
+        line = f"Tile coding: {n_tilings} tilings, tile widths {widths} from {origins['tile_widths']}"
+    else:
+        line = (
+            f"Tile coding: {n_tilings} tilings from {origins['n_tilings']}; tile widths {widths} from "
+            f"{origins['tile_widths']}"
+        )
+    others = [
+        f"{name}={resolved[name]} from {origins[name]}"
+        for name in resolved
+        if name not in ("n_tilings", "tile_widths") and name in origins
+    ]
+    return "\n  ".join([line, *others, *[f"({note})" for note in notes]])

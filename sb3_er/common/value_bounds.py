@@ -20,6 +20,7 @@ change rewards, from the rewards observed so far.
 from __future__ import annotations
 
 import math
+import re
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -30,7 +31,8 @@ import numpy as np
 
 from sb3_er.common import kernels
 
-#: A value beyond the bounds by more than this share of their width is flagged.
+#: A value counts as outside the possible returns only beyond this share of the largest reward's size (one reward's
+#: worth of rounding and generalisation, whatever the width of the returns).
 TOLERANCE = 0.05
 VALUE_BOUND_ACTIONS = ("warn", "raise", "ignore")
 
@@ -135,20 +137,42 @@ def value_bounds(returns: tuple[float, float], initial: tuple[float, float]) -> 
     return min(returns[0], initial[0]), max(returns[1], initial[1])
 
 
-def widened(bounds: tuple[float, float], tolerance: float = TOLERANCE) -> tuple[float, float]:
-    """The bounds widened on each side by ``tolerance`` times their width (and a rounding margin); a half-infinite
-    interval's finite end by ``tolerance`` times its magnitude (at least 1).
+def reward_size(rewards: RewardBounds | None) -> float:
+    """The largest |r| the rewards can take (0 before any is known; infinite when a bound is).
+
+    :param rewards: the reward bounds, or None.
+    """
+    if rewards is None:
+        return 0.0
+    ends = [*rewards.step, *(rewards.terminal or ())]
+    return max(abs(end) for end in ends)
+
+
+def margin(rewards: RewardBounds | None, bounds: tuple[float, float], tolerance: float = TOLERANCE) -> float:
+    """How far beyond the possible returns a value may lie before it counts as outside: ``tolerance`` times the
+    largest reward's size (:func:`reward_size`), plus a rounding margin of 1e-9 of the bounds' magnitude.
+
+    Why one reward's size rather than the returns' width: the width grows as 1 / (1 - gamma) (10,485 on the pendulum
+    swing-up), so a share of it lets values many rewards beyond the bounds pass (a Q of +87.6 from rewards <= 0
+    there), while a share of one reward is what rounding and the generalisation of a linear approximator may add.
+
+    :param rewards: the reward bounds (None before any reward is known).
+    :param bounds: the (low, high) bounds of the values.
+    :param tolerance: the share of the largest reward's size (default 0.05).
+    """
+    size = reward_size(rewards)
+    finite = [abs(b) for b in bounds if math.isfinite(b)]
+    rounding = 1e-9 * max(1.0, *finite)
+    return tolerance * size + rounding if math.isfinite(size) else math.inf
+
+
+def widened(bounds: tuple[float, float], width: float) -> tuple[float, float]:
+    """The bounds widened by ``width`` on each side (:func:`margin`).
 
     :param bounds: the (low, high) interval; either end may be infinite.
-    :param tolerance: the widening per side as a share of the width (default 0.05).
+    :param width: how far to widen each side.
     """
-    low, high = bounds
-    finite = [b for b in bounds if math.isfinite(b)]
-    if not finite:
-        return low, high
-    width = high - low if len(finite) == 2 else max(1.0, abs(finite[0]))
-    margin = tolerance * width + 1e-9 * max(1.0, *(abs(b) for b in finite))
-    return low - margin, high + margin
+    return bounds[0] - width, bounds[1] + width
 
 
 def reward_changing_wrapper(env: gym.Env) -> str | None:
@@ -169,8 +193,58 @@ def reward_changing_wrapper(env: gym.Env) -> str | None:
     return None
 
 
+#: VecEnv wrappers that never change the reward.
+REWARD_PRESERVING_VEC_WRAPPERS = (
+    "VecMonitor",
+    "VecCheckNan",
+    "VecFrameStack",
+    "VecTransposeImage",
+    "VecExtractDictObs",
+    "VecVideoRecorder",
+)
+
+
+def _wrapper_names(description: str) -> list[str]:
+    """The class names in Gymnasium's ``str(env)`` of a wrapped env, outermost first: ``<TimeLimit<Monitor<...>>>``."""
+    return re.findall(r"<(\w+)", description)
+
+
+def vec_reward_changer(vec_env) -> str | None:
+    """The wrapper that may change the rewards a VecEnv's envs declare, at any level, or None: a VecNormalize that
+    normalises rewards, a VecEnv wrapper off the allow-list :data:`REWARD_PRESERVING_VEC_WRAPPERS`, or a Gymnasium
+    wrapper of the (first) env off :data:`REWARD_PRESERVING_WRAPPERS` (:func:`reward_changing_wrapper`). Envs in
+    subprocesses are read through their ``str`` (Gymnasium prints the wrapper chain), where an observation or action
+    wrapper that is not on the allow-list cannot be told from a reward wrapper and counts as one.
+
+    :param vec_env: the VecEnv, possibly wrapped.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecNormalize
+
+    level = vec_env
+    while isinstance(level, VecEnvWrapper):
+        if isinstance(level, VecNormalize):
+            if level.norm_reward:
+                return "VecNormalize(norm_reward=True)"
+        elif type(level).__name__ not in REWARD_PRESERVING_VEC_WRAPPERS:
+            return type(level).__name__
+        level = level.venv
+    if isinstance(level, DummyVecEnv):
+        return reward_changing_wrapper(level.envs[0])
+    try:
+        description = level.env_method("__str__", indices=0)[0]
+    except Exception:  # a VecEnv that cannot describe its envs: assume the worst
+        return f"an env of {type(level).__name__} that cannot be inspected"
+    names = _wrapper_names(description)
+    for name in names[:-1]:  # the last is the env itself
+        if name not in REWARD_PRESERVING_WRAPPERS:
+            return name
+    return None
+
+
 class ValueWatch:
-    """The bounds a learner's values must keep and the kernels' watch array (``kernels.new_watch``).
+    """The bounds a learner's values must keep, the kernels' watch array, and what a learner makes of them: the
+    stored rewards a replay phase is about to learn from, the phase's figures, and the message when a value first
+    leaves the bounds.
 
     :param source: where the reward bounds come from: ``"env"`` (declared) or ``"observed"`` (the rewards seen so far,
         updated by :meth:`observe`).
@@ -178,23 +252,74 @@ class ValueWatch:
     :param gamma: the learner's discount.
     :param initial: (low, high) of the initial values.
     :param reason: why the bounds are observed (shown in messages), e.g. "the env declares no reward_bounds".
+    :param enabled: whether the kernels watch (False: the array is empty and the kernels skip it; the bounds are
+        still kept, for the stabilizers that read them).
     """
 
     def __init__(
-        self, source: str, bounds: RewardBounds | None, gamma: float, initial: tuple[float, float], reason: str = ""
+        self,
+        source: str,
+        bounds: RewardBounds | None,
+        gamma: float,
+        initial: tuple[float, float],
+        reason: str = "",
+        enabled: bool = True,
     ):
         self.source = source
         self.gamma = float(gamma)
         self.initial = (float(initial[0]), float(initial[1]))
         self.reason = reason
+        self.enabled = enabled
         #: Names this watch to the buffers whose stored rewards it has read (``observed_by_watch``).
         self.token = uuid.uuid4().hex
-        self.array = kernels.new_watch()
+        self.array = kernels.new_watch() if enabled else kernels.NO_WATCH
         self._declared = bounds
         self._step = [math.inf, -math.inf]
         self._terminal = [math.inf, -math.inf]
         self.bounds = (math.inf, -math.inf)
+        self.margin = 0.0
+        self._phase_start: tuple[float, np.ndarray] | None = None
         self._update_bounds()
+
+    @classmethod
+    def for_env(
+        cls,
+        vec_env,
+        gamma: float,
+        initial: tuple[float, float],
+        enabled: bool = True,
+        earlier: ValueWatch | None = None,
+    ) -> ValueWatch:
+        """The watch of a VecEnv: the (first) env's declared ``reward_bounds``, unless a wrapper at any level may
+        change the rewards (:func:`vec_reward_changer`) or the env declares none, then the rewards observed. The
+        counts and the first excursion carry over from ``earlier`` (a watch of the same run).
+
+        :param vec_env: the VecEnv.
+        :param gamma: the learner's discount.
+        :param initial: (low, high) of the initial values.
+        :param enabled: whether the kernels watch (default True).
+        :param earlier: the run's previous watch, or None.
+        """
+        declared = vec_env.get_attr("reward_bounds", indices=0)[0] if vec_env.has_attr("reward_bounds") else None
+        changer = vec_reward_changer(vec_env)
+        if declared is not None and changer is None:
+            watch = cls("env", RewardBounds.from_attribute(declared), gamma, initial, enabled=enabled)
+        else:
+            reason = (
+                "the env declares no reward_bounds"
+                if declared is None
+                else f"{changer} may change the rewards the env declares"
+            )
+            watch = cls("observed", None, gamma, initial, reason, enabled=enabled)
+        if earlier is not None and enabled and earlier.enabled:
+            for entry in CUMULATIVE:
+                watch.array[entry] = earlier.array[entry]
+        return watch
+
+    @property
+    def observing(self) -> bool:
+        """Whether the bounds come from the rewards observed (they widen with each new reward)."""
+        return self.source == "observed"
 
     @property
     def reward_bounds(self) -> RewardBounds | None:
@@ -215,19 +340,23 @@ class ValueWatch:
         else:
             returns = self.initial
         self.bounds = value_bounds(returns, self.initial)
-        self.array[kernels.WATCH_LOW], self.array[kernels.WATCH_HIGH] = widened(self.bounds)
+        self.margin = margin(rewards, self.bounds)
+        if self.enabled:
+            kernels.set_watch_bounds(self.array, *self.bounds, self.margin)
 
-    def observe(self, reward: float, terminated: bool) -> None:
-        """Widen observed bounds with one reward (``source="observed"``; call per transition).
+    def observe(self, reward: float, terminated: bool) -> bool:
+        """Widen observed bounds with one reward (``source="observed"``; call per transition); True when the bounds
+        moved.
 
         :param reward: the transition's reward.
         :param terminated: whether the transition ended the episode in a terminal state.
         """
         seen = self._terminal if terminated else self._step
         if seen[0] <= reward <= seen[1]:
-            return
+            return False
         seen[0], seen[1] = min(seen[0], reward), max(seen[1], reward)
         self._update_bounds()
+        return True
 
     def observe_many(self, rewards: np.ndarray, terminal: np.ndarray) -> None:
         """:meth:`observe` for arrays of rewards and termination flags (a replay buffer's stored transitions).
@@ -240,6 +369,72 @@ class ValueWatch:
             if chosen.size:
                 self.observe(float(chosen.min()), flag)
                 self.observe(float(chosen.max()), flag)
+
+    def read_buffer(self, buffer) -> None:
+        """With observed bounds, widen them with every reward of a buffer this watch has not read yet, before a
+        learner learns from it: a buffer assigned directly (``model.replay_buffer = other.replay_buffer``) or loaded
+        is then covered as well as the transitions the learner collected (which it observes step by step). A buffer
+        is read once per watch (it carries the watch's token, ``observed_by_watch``), so later calls cost nothing.
+
+        :param buffer: the TrajectoryReplayBuffer, or None.
+        """
+        if not self.observing or buffer is None or buffer.observed_by_watch == self.token:
+            return
+        rewards, terminal = buffer.stored_rewards()
+        if rewards.size:
+            self.observe_many(rewards, terminal)
+        buffer.observed_by_watch = self.token
+
+    def begin_phase(self, buffer) -> None:
+        """Before a replay phase: read the buffer's rewards (:meth:`read_buffer`) and start the phase's own figures
+        of ER-sigma's target shift (the period's are kept aside and added back by :meth:`end_phase`).
+
+        :param buffer: the TrajectoryReplayBuffer the phase replays.
+        """
+        self.read_buffer(buffer)
+        if not self.enabled:
+            return
+        self._phase_start = (self.array[kernels.WATCH_UPDATES], self.array[SHIFT_ENTRIES].copy())
+        self.array[SHIFT_ENTRIES] = 0.0
+
+    def end_phase(self, flagged: bool) -> tuple[dict[str, float], int | None]:
+        """After a replay phase: (ER-sigma's shift figures of the phase: ``sigma_shift``, the mean T_sigma - T,
+        ``sigma_raised`` and ``sigma_lowered``, the shares of targets it raised and lowered; the 1-based number within
+        the phase of the update whose value first left the bounds, when the kernel reported it (``flagged``)).
+
+        :param flagged: whether the phase's kernel returned STATUS_OUT_OF_BOUNDS.
+        """
+        if not self.enabled or self._phase_start is None:
+            return {}, None
+        updates_before, period_shift = self._phase_start
+        self._phase_start = None
+        figures = {}
+        shift_sum, shifted, raised, lowered = self.array[SHIFT_ENTRIES]
+        if shifted > 0:
+            figures = dict(
+                sigma_shift=float(shift_sum / shifted),
+                sigma_raised=float(raised / shifted),
+                sigma_lowered=float(lowered / shifted),
+            )
+        self.array[SHIFT_ENTRIES] += period_shift
+        first = int(self.array[kernels.WATCH_FIRST_UPDATE] - updates_before) + 1 if flagged else None
+        return figures, first
+
+    @property
+    def first_value(self) -> float:
+        """The first value the watch saw outside the bounds (NaN: none yet)."""
+        return float(self.array[kernels.WATCH_FIRST_VALUE]) if self.enabled else math.nan
+
+    @property
+    def out_of_range(self) -> int:
+        """How many targets and Q-values the watch saw outside the bounds (cumulative)."""
+        return int(self.array[kernels.WATCH_OUT_OF_RANGE]) if self.enabled else 0
+
+    @property
+    def largest_excursion(self) -> float:
+        """The largest distance of a target or Q-value beyond the possible returns so far, margin or not (0: none),
+        recorded so that another margin needs no rerun."""
+        return float(self.array[kernels.WATCH_EXCURSION]) if self.enabled else 0.0
 
     def describe(self) -> str:
         """The bounds and where they come from, for messages."""
@@ -273,6 +468,31 @@ class ValueWatch:
             f"values in [{self.initial[0]:.6g}, {self.initial[1]:.6g}])"
         )
 
+    def excursion_message(self, learner: str, step: int, where: str) -> str:
+        """What the first value outside the bounds means, for the ValueBoundWarning (or ValueBoundError): the value,
+        how far beyond the bounds and the margin, whether the policy can still be good and how to check it, and where
+        the documentation explains it.
+
+        :param learner: the algorithm's name.
+        :param step: the environment step.
+        :param where: which update it was (e.g. "replayed update 3 of replay phase 20").
+        """
+        value = self.first_value
+        low, high = self.bounds
+        side = f"{value - high:.6g} above" if value > high else f"{low - value:.6g} below"
+        share = f"{TOLERANCE * 100:g} % of the largest reward, {reward_size(self.reward_bounds):.6g}"
+        return (
+            f"{learner}: at step {step} ({where}) a value of {value:.6g} left the possible returns "
+            f"{self.describe()}: it lies {side} them, beyond the margin of {self.margin:.6g} ({share}). No expected "
+            "return lies there, so the learner's values have stopped being estimates of returns (the sign of "
+            "divergence). The greedy policy may still be good, since only the order of the actions' values "
+            "chooses it: check it with stable_baselines3.common.evaluation.evaluate_policy(model, env, "
+            "deterministic=True), and compare runs by that rather than by the values. The documentation's page "
+            "'The value watch' (docs/value_watch.md) explains the bounds and the stabilizers that keep values "
+            "inside them (preset='stable'). value_bound_action='ignore' only counts such values "
+            "(model.values_out_of_range); 'raise' stops at the first."
+        )
+
     def period_figures(self) -> dict[str, float]:
         """The logging period's figures (NaN where nothing was seen), then a new period."""
         watch = self.array
@@ -289,6 +509,19 @@ class ValueWatch:
             figures["sigma_raised"] = float(watch[kernels.WATCH_RAISED] / count)
             figures["sigma_lowered"] = float(watch[kernels.WATCH_LOWERED] / count)
         figures["q_out_of_range"] = int(watch[kernels.WATCH_OUT_OF_RANGE])
+        figures["value_excursion"] = float(watch[kernels.WATCH_EXCURSION])
         figures["value_bound_low"], figures["value_bound_high"] = self.bounds
         kernels.reset_watch_period(watch)
         return figures
+
+
+#: The value watch's entries of ER-sigma's target shift (kernels.watch_shift).
+SHIFT_ENTRIES = [kernels.WATCH_SHIFT_SUM, kernels.WATCH_SHIFT_COUNT, kernels.WATCH_RAISED, kernels.WATCH_LOWERED]
+#: The entries that accumulate over a whole run (kept when a run's watch is rebuilt for a new env).
+CUMULATIVE = (
+    kernels.WATCH_UPDATES,
+    kernels.WATCH_OUT_OF_RANGE,
+    kernels.WATCH_FIRST_UPDATE,
+    kernels.WATCH_FIRST_VALUE,
+    kernels.WATCH_EXCURSION,
+)

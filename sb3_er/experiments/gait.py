@@ -36,6 +36,7 @@ class GaitTrace:
         mid-stance).
     :param fell: whether the walk ended in a fall.
     :param distance: the walker's progress, the sum of its step lengths, in leg lengths.
+    :param distances: the progress at each sample, in leg lengths (default None: not recorded).
     """
 
     time: np.ndarray
@@ -44,6 +45,7 @@ class GaitTrace:
     swing_foot_height: np.ndarray
     fell: bool
     distance: float
+    distances: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.time)
@@ -77,7 +79,7 @@ def gait_trace(
     model, env: gym.Env, seconds: float = 10.0, start_state=GARCIA_FIXED_POINT, seed: int | None = None
 ) -> GaitTrace:
     """Walk greedily with ``model`` in ``env`` for ``seconds`` (or until a fall or the episode's time limit) and record
-    time, stance angle, hip angle and swing-foot height at every control step.
+    time, stance angle, hip angle, swing-foot height and distance walked at every control step.
 
     ``start_state`` is a state ``[phi_st, phi_h, phi_st', phi_h']`` (default Garcia's fixed point, so that traces of
     different algorithms start alike), or None for the env's random start drawn with ``seed``.
@@ -89,14 +91,14 @@ def gait_trace(
     :param seed: the seed of a random start (default None).
     """
     base = _walker(env)
-    rows: list[tuple[float, float, float]] = []
+    rows: list[tuple[float, float, float, float]] = []
     outcome = {"fell": False, "distance": 0.0}
 
     def record(info, terminated):
         stance, hip = float(base.state[0]), float(base.state[1])
-        rows.append((stance, hip, float(info["swing_foot_height"])))
         outcome["fell"] = bool(terminated)
         outcome["distance"] = float(info.get("distance", 0.0))
+        rows.append((stance, hip, float(info["swing_foot_height"]), outcome["distance"]))
 
     _greedy_walk(model, env, seconds, start_state, seed, record)
     values = np.array(rows)
@@ -107,6 +109,7 @@ def gait_trace(
         swing_foot_height=values[:, 2],
         fell=outcome["fell"],
         distance=outcome["distance"],
+        distances=values[:, 3],
     )
 
 

@@ -105,7 +105,8 @@ class GreedyDistanceProtocol(BaseCallback):
     states); a run lasts one episode of the evaluation environment and its distance is the last ``info["distance"]``.
     Each record holds ``learning_time_s``, ``timesteps``, ``distance`` (mean over runs), ``distance_std``,
     ``cumulative_falls`` (falls while learning), ``episodes``, ``wall_time_s`` and ``values_out_of_range`` (module
-    docstring). Learning stops after ``learning_time`` seconds, with a final evaluation.
+    docstring). Learning stops after ``learning_time`` seconds, with a final evaluation. With several envs the learning
+    time counts every env's steps, and an evaluation runs when the count reaches or passes each interval.
 
     :param eval_envs: the evaluation environments, one per greedy run (at least one).
     :param dt: the learning env's control step in seconds.
@@ -154,16 +155,21 @@ class GreedyDistanceProtocol(BaseCallback):
         self.episodes = 0
         self._seeds = np.random.default_rng(eval_seed)
         self._start = 0.0
+        self._next_evaluation = self.eval_every_steps
 
     def _on_training_start(self) -> None:
         self._start = time.perf_counter()
+        self._next_evaluation = (self.num_timesteps // self.eval_every_steps + 1) * self.eval_every_steps
         self._evaluate()
 
     def _on_step(self) -> bool:
         for index in np.flatnonzero(self.locals["dones"]):
             self.episodes += 1
             self.falls += bool(self.locals["infos"][index].get("fell", False))
-        if self.num_timesteps % self.eval_every_steps == 0 or self.num_timesteps >= self.total_steps:
+        # an evaluation when num_timesteps reaches or crosses the next multiple (it moves by the number of envs)
+        if self.num_timesteps >= self._next_evaluation or self.num_timesteps >= self.total_steps:
+            while self._next_evaluation <= self.num_timesteps:
+                self._next_evaluation += self.eval_every_steps
             self._evaluate()
             if self.progress is not None:
                 self.progress(min(self.num_timesteps, self.total_steps) / self.total_steps)

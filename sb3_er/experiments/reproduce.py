@@ -285,7 +285,7 @@ def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: 
                 table["hip_angle"].to_numpy(),
                 table["swing_foot_height"].to_numpy(),
                 bool(table["fell"].iloc[-1]),
-                0.0,
+                float(table["distance"].iloc[-1]) if "distance" in table else 0.0,  # older runs did not record it
             )
             figures.append(
                 plot_gait(

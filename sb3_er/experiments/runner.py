@@ -169,15 +169,16 @@ def execute_run(job: RunJob, progress_queue=None) -> RunResult:
     import gymnasium as gym
     import torch
 
-    import sb3_er_envs  # noqa: F401  (registers the environment ids)
     from sb3_er import DivergenceError
     from sb3_er.common.base_class import ValueBoundWarning
+    from sb3_er.common.env_ids import register_env_id
     from sb3_er.zoo import algorithm_classes
 
     torch.set_num_threads(1)
     start = time.perf_counter()
     code = records.code_version()  # the code this run starts with
     experiment = job.experiment
+    register_env_id(experiment.env_id)  # sb3_er/ (or dm_control/) ids, in this worker process
     last_reported = [-1.0]
     reports_to = [progress_queue]
 
@@ -237,7 +238,8 @@ GAIT_SECONDS = 10.0
 
 def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
     """The data of a run's own figures, made where the run ran: for the simplest walker, the final greedy policy's
-    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` and an animation as ``walker.gif``.
+    gait from Garcia's fixed point (thesis Figures 4.6 / 6.3) as ``gait.csv`` (with the distance walked at each step)
+    and an animation of the same walk as ``walker.gif``.
 
     :param job: the run.
     :param model: the trained model.
@@ -259,6 +261,7 @@ def figure_artifacts(job: RunJob, model) -> dict[str, bytes]:
             "hip_angle": trace.hip_angle,
             "swing_foot_height": trace.swing_foot_height,
             "fell": trace.fell,
+            "distance": trace.distances,  # walked since the start, what the GIF's caption gives
         }
     )
     with tempfile.TemporaryDirectory() as folder:
@@ -328,8 +331,9 @@ def expected_rows(job: RunJob) -> int | None:
         return int(job.budget)
     import gymnasium as gym
 
-    import sb3_er_envs  # noqa: F401
+    from sb3_er.common.env_ids import register_env_id
 
+    register_env_id(experiment.env_id)
     env = gym.make(experiment.env_id, **dict(job.env_kwargs))
     dt = env.unwrapped.dt
     env.close()

@@ -160,12 +160,12 @@ def _checked_candidates(candidates) -> list[Candidate]:
 def screen_command(
     experiment_name: str, candidates, out_dir: Path, title: str, notes: str, argv: list[str] | None = None
 ) -> pd.DataFrame:
-    """The command line of a screen script: ``[--only NAME ...] [--seeds N] [--summary-only]``. Runs (or resumes) the
-    candidates, seals their records and writes ``summary.md``; prints and returns the ranked table.
+    """The command line of a screen script: ``[--only NAME ...] [--seeds N] [--summary-only] [--out DIR]``. Runs (or
+    resumes) the candidates, seals their records and writes ``summary.md``; prints and returns the ranked table.
 
     :param experiment_name: the experiment screened ("pendulum", "walker" or "leo").
     :param candidates: the candidate readings (:class:`Candidate`).
-    :param out_dir: the screen's folder (a sub-folder per candidate).
+    :param out_dir: the screen's folder (a sub-folder per candidate), the default of ``--out``.
     :param title: the summary's title.
     :param notes: text added under the summary's table (default "").
     :param argv: the script's arguments (default None: ``sys.argv[1:]``).
@@ -176,7 +176,9 @@ def screen_command(
     parser.add_argument("--only", nargs="+", help="screen only these candidates")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--summary-only", action="store_true", help="write summary.md from the finished runs")
+    parser.add_argument("--out", type=Path, default=Path(out_dir), help=f"the screen's folder (default {out_dir})")
     arguments = parser.parse_args(argv)
+    out_dir = arguments.out
     if not arguments.summary_only:
         run_screen(experiment_name, candidates, out_dir, n_seeds=arguments.seeds, only=arguments.only)
     seal_finished_runs(experiment_name, candidates, out_dir, n_seeds=arguments.seeds)
@@ -190,18 +192,21 @@ def tiling_screen_command(
     candidates: Mapping[str, Mapping[str, dict]],
     run_one,
     summarize,
+    out_dir: Path,
     default_seeds=(0,),
     seeds_outermost: bool = False,
     argv: list[str] | None = None,
 ) -> None:
     """The command line of a tiling screen over env ids (the continuous-action and dm_control screens):
-    ``[--envs ID ...] [--candidates NAME ...] [--seeds N ...] [--summarize]``. Runs every chosen (env, candidate,
-    seed) through ``run_one``, which skips a finished run (so the command resumes), or only ``summarize()``.
+    ``[--envs ID ...] [--candidates NAME ...] [--seeds N ...] [--summarize] [--out DIR]``. Runs every chosen (env,
+    candidate, seed) through ``run_one``, which skips a finished run (so the command resumes), or only ``summarize``.
 
     :param description: the command's description (its script's first docstring paragraph).
     :param candidates: env id -> candidate name -> the candidate's ``policy_kwargs``.
-    :param run_one: ``run_one(env_id, candidate_name, seed)`` runs one candidate on one seed, or skips it if finished.
-    :param summarize: ``summarize()`` writes the screen's summary from its finished runs.
+    :param run_one: ``run_one(env_id, candidate_name, seed, out)`` runs one candidate on one seed into the screen's
+        folder ``out``, or skips it if finished.
+    :param summarize: ``summarize(out)`` writes the summary of the screen's folder ``out`` from its finished runs.
+    :param out_dir: the screen's folder, the default of ``--out``.
     :param default_seeds: the seeds run when ``--seeds`` is not given (default (0,)).
     :param seeds_outermost: loop over seeds outermost, so that the first seed of every candidate finishes first
         (default False: env, then candidate, then seed).
@@ -226,9 +231,10 @@ def tiling_screen_command(
     )
     parser.add_argument("--seeds", nargs="+", type=int, default=list(default_seeds))
     parser.add_argument("--summarize", action="store_true", help="write the summary from the finished runs")
+    parser.add_argument("--out", type=Path, default=Path(out_dir), help=f"the screen's folder (default {out_dir})")
     arguments = parser.parse_args(argv)
     if arguments.summarize:
-        summarize()
+        summarize(arguments.out)
         return
     chosen = {
         env_id: [name for name in candidates[env_id] if arguments.candidates is None or name in arguments.candidates]
@@ -246,7 +252,7 @@ def tiling_screen_command(
     else:
         jobs = [(env_id, name, seed) for env_id, name in pairs for seed in arguments.seeds]
     for env_id, name, seed in jobs:
-        run_one(env_id, name, seed)
+        run_one(env_id, name, seed, arguments.out)
 
 
 def run_screen(

@@ -5,8 +5,8 @@ about unvisited features (zero initial values above the values experience carrie
 targets; where vanilla ER is pessimistic, σ raises them, and nothing in the update then holds the values to the
 returns that are possible. Each run replays with ER-σ under the env's zoo settings and records, for every replay
 phase, the mean shift T_σ - T of its targets over the same transitions' targets without σ (the same a' where the draw
-explored, the greedy one otherwise: :func:`sb3_er.common.kernels.next_state_value`), the shares of targets raised and
-lowered, and the value watch's count of values outside the possible returns.
+explored, the greedy one otherwise: :func:`sb3_er.common.kernels.replay.er_sigma_td_error`), the shares of targets
+raised and lowered, and the value watch's count of values outside the possible returns.
 
 Readings (:data:`READINGS`): each is the reading of a table reproduction, with the same env settings and run length,
 and names that reproduction's results folder (:attr:`Reading.results`), so that the docs can say which regime ER-σ was

@@ -17,6 +17,7 @@ drops greatly towards the best case (Figure B.1; the thesis prints no numbers).
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -173,7 +174,7 @@ def verdict(table: pd.DataFrame) -> str:
     towards_best = [name for name in ("average", "average_best", "best") if name in set(scored["definition"])]
     if len(towards_best) >= 2:
         values = [float(scored[scored["definition"] == name]["score"].iloc[0]) for name in towards_best]
-        falling = all(later < earlier for earlier, later in zip(values, values[1:], strict=True))
+        falling = all(later < earlier for earlier, later in itertools.pairwise(values))
         text += f"From the average towards the best case ({' → '.join(towards_best)}) the score " + (
             "falls at every step, as in the thesis." if falling else "does not fall at every step."
         )

@@ -41,6 +41,9 @@ import numpy as np
 from gymnasium import spaces
 
 from sb3_er.common import kernels
+from sb3_er.common.kernels.policy import argmax_first
+from sb3_er.common.kernels.replay import er_sigma_td_error
+from sb3_er.common.kernels.tiles import all_q_values, q_value, visited_q_values
 
 #: Figure 5.6's two cases: (r, Q(s_k, a_k) initially, Q(s_{k+1}, a_k) initially).
 CASES = {
@@ -118,6 +121,7 @@ def self_affecting_model(
     residual_zeta: float = 1.0,
     memory_size: int = 2**16,
     value_bound_action: str = "ignore",
+    **model_kwargs,
 ) -> SelfAffectingSample:
     """Figure 5.6's example: a model of `variant` (a key of :data:`VARIANTS`) whose buffer holds one transition
     (s_k, a_k, r, s_{k+1}), s_{k+1} sharing `shared` of the `n_tilings` tiles of s_k, with the case's reward and
@@ -138,6 +142,7 @@ def self_affecting_model(
     :param residual_zeta: zeta of the residual variants (default 1).
     :param memory_size: the hashed weight table's size (default 2^16).
     :param value_bound_action: the value watch's action (default "ignore": values grow here on purpose).
+    :param model_kwargs: further keyword arguments of the model, e.g. the stabilizers (``truncate_targets=True``).
     """
     import sb3_er
 
@@ -163,6 +168,7 @@ def self_affecting_model(
         value_bound_action=value_bound_action,
         policy_kwargs={"n_tilings": n_tilings, "initial_value": values["q_next"], "memory_size": memory_size},
         **kwargs,
+        **model_kwargs,
     )
     coder = model.policy.tile_coder
     # Tiling k covers [j - k/N, j + 1 - k/N): s = c + 0.5/N and s' = s + (N - shared)/N cross the boundaries of
@@ -275,74 +281,33 @@ COMPARISON_COLUMNS = (
 
 
 @nb.njit(cache=True)
-def _compare_targets(
-    theta,
-    visits,
-    slots,
-    actions,
-    rewards,
-    next_slots,
-    terminal,
-    stride,
-    action_columns,
-    columns_are_actions,
-    sigma_kind,
-    gamma,
-    initial_low,
-    initial_span,
-    initial_seed,
-    q,
-    w,
-    out,
-):
-    n, n_tilings = slots.shape
+def _compare_targets(weights, data, next_slots, terminal, layout, rule, scratch, out):
+    """Per stored row i of ``data``: Q(s, a), vanilla ER's greedy target, ER-sigma's greedy target (the kernels' own
+    :func:`~sb3_er.common.kernels.replay.er_sigma_td_error` under ``rule``: Q-learning, epsilon 0), W of the action it
+    chose and of all actions at s', whether no action was visited there, and the shares of phi(s, a) that the
+    chosen next feature vectors share (columns :data:`COMPARISON_COLUMNS`)."""
+    theta = weights.theta
+    n, n_tilings = data.slots.shape
+    q, w = scratch.q, scratch.w
+    has_initial = weights.initial_low != 0.0 or weights.initial_span != 0.0
     rng = np.zeros(4, dtype=np.uint64)  # never drawn from: greedy targets (epsilon 0, Q-learning)
+    no_watch = np.zeros(0)
     for i in range(n):
-        a = actions[i]
-        q_sa = 0.0
-        for k in range(n_tilings):
-            q_sa += theta[slots[i, k] * stride + action_columns[k, a]]
-        out[i, 0] = q_sa
+        a = data.actions[i]
+        out[i, 0] = q_value(theta, data.slots[i], layout, a)
         out[i, 8] = terminal[i]
         if terminal[i]:
-            out[i, 1] = rewards[i]
-            out[i, 2] = rewards[i]
+            out[i, 1] = data.rewards[i]
+            out[i, 2] = data.rewards[i]
             continue
-        kernels.all_q_values(theta, next_slots[i], stride, action_columns, columns_are_actions, q)
-        greedy = kernels.argmax_first(q)
-        out[i, 1] = rewards[i] + gamma * q[greedy]
-        value, chosen, _ = kernels.next_state_value(
-            theta,
-            visits,
-            next_slots[i],
-            stride,
-            action_columns,
-            columns_are_actions,
-            n_tilings,
-            kernels.TARGET_Q_LEARNING,
-            sigma_kind,
-            0.0,
-            rng,
-            q,
-            w,
-            initial_low,
-            initial_span,
-            initial_seed,
+        all_q_values(theta, next_slots[i], layout, q)
+        greedy = argmax_first(q)
+        out[i, 1] = data.rewards[i] + rule.gamma * q[greedy]
+        _, target, _, chosen = er_sigma_td_error(
+            weights, data, i, next_slots[i], False, layout, rule, rng, scratch, no_watch
         )
-        out[i, 2] = rewards[i] + gamma * value
-        kernels.all_q_values_and_visit_counts(
-            theta,
-            visits,
-            next_slots[i],
-            stride,
-            action_columns,
-            columns_are_actions,
-            q,
-            w,
-            initial_low,
-            initial_span,
-            initial_seed,
-        )
+        out[i, 2] = target
+        visited_q_values(theta, data.visits, next_slots[i], layout, has_initial, q, w)
         total = 0.0
         for b in range(w.shape[0]):
             total += w[b]
@@ -352,9 +317,9 @@ def _compare_targets(
         for column, b in ((6, greedy), (7, chosen)):
             shared = 0
             for k in range(n_tilings):
-                feature = slots[i, k] * stride + action_columns[k, a]
+                feature = data.slots[i, k] * layout.stride + layout.action_columns[k, a]
                 for j in range(n_tilings):
-                    if next_slots[i, j] * stride + action_columns[j, b] == feature:
+                    if next_slots[i, j] * layout.stride + layout.action_columns[j, b] == feature:
                         shared += 1
                         break
             out[i, column] = shared / n_tilings
@@ -401,24 +366,39 @@ def target_comparison(model, sigma: str = "average_worst") -> dict[str, np.ndarr
     out = np.zeros((rows.size, len(COMPARISON_COLUMNS)))
     q = np.zeros(coder.n_actions)
     w = np.zeros(coder.n_actions)
-    _compare_targets(
-        policy.theta_array,
-        buffer.visits,
-        np.ascontiguousarray(buffer.slots[rows]),
-        np.ascontiguousarray(buffer.actions[rows]),
-        np.ascontiguousarray(buffer.rewards[rows]),
-        next_slots,
-        terminal,
-        coder.stride,
-        coder.action_columns,
-        coder.columns_are_actions,
-        SIGMAS[sigma],
-        float(model.gamma),
-        *policy.initial_arguments,
-        q,
-        w,
-        out,
+    # the stored rows, oldest first, as a Trajectories bundle of their own (the target reads s, a, r and w)
+    no_rows = np.zeros(0, dtype=np.int64)
+    data = kernels.make(
+        kernels.Trajectories,
+        visits=buffer.visits,
+        slots=np.ascontiguousarray(buffer.slots[rows]),
+        actions=np.ascontiguousarray(buffer.actions[rows]),
+        rewards=np.ascontiguousarray(buffer.rewards[rows]),
+        transition_trajectory=no_rows,
+        trajectory_start=no_rows,
+        trajectory_length=no_rows,
+        trajectory_terminated=np.zeros(0, dtype=bool),
+        trajectory_next_slots=np.zeros((0, coder.n_tilings), dtype=np.int64),
+        oldest_trajectory=0,
+        n_closed_trajectories=0,
+        first_row=0,
+        n_transitions=rows.size,
+        open_trajectory=-1,
+        open_start=0,
+        open_length=0,
+        open_next_slots=np.zeros(coder.n_tilings, dtype=np.int64),
     )
+    rule = kernels.make(
+        kernels.UpdateRule,
+        target_kind=kernels.TARGET_Q_LEARNING,
+        sigma_kind=SIGMAS[sigma],
+        residual_zeta=0.0,
+        residual_next_action=False,
+        step_size=0.0,
+        gamma=model.gamma,
+        epsilon=0.0,
+    )
+    _compare_targets(policy.weights, data, next_slots, terminal, coder.layout, rule, kernels.Scratch(q, w), out)
     result = {name: out[:, i] for i, name in enumerate(COMPARISON_COLUMNS)}
     result["terminal"] = result["terminal"].astype(bool)
     result["no_action_visited"] = result["no_action_visited"].astype(bool)

@@ -2,7 +2,7 @@
 
 Run from the repository root (10 seeds, 100 episodes, one `sb3-er reproduce` folder per candidate; resumes):
 
-    nice -n 10 .venv/bin/python results/measured/pendulum_sarsa_screen/screen.py [--only NAME ...] [--summary-only]
+    nice -n 10 .venv/bin/python benchmarks/pendulum_sarsa_screen.py [--only NAME ...] [--summary-only] [--out DIR]
 
 Candidates differ from the printed reading (torque limit 0.6 N m, goal |theta| < 0.1 rad and |theta'| < 1 rad/s
 ending the episode, reward in rad and rad/s, 5 RK4 steps per 0.01 s control step, Table 4.1's J about the centre of
@@ -17,7 +17,8 @@ from pathlib import Path
 
 from sb3_er.experiments.screen import Candidate, screen_command
 
-HERE = Path(__file__).resolve().parent
+#: The screen's folder (--out): a sub-folder per candidate, its summary.md and summary.csv.
+OUT = Path(__file__).resolve().parents[1] / "results" / "measured" / "pendulum_sarsa_screen"
 PRINTED = {"velocity_tile_width": 0.33}
 GOAL_ENDS = "an episode ends after 15 s or when the goal is reached"
 CANDIDATES = [
@@ -29,30 +30,51 @@ CANDIDATES = [
     Candidate("no_goal", {**PRINTED, "terminate_at_goal": False}, "no goal: every episode runs 15 s"),
     Candidate("goal_wide", {**PRINTED, "goal_angle": 0.2, "goal_velocity": 2.0}, "goal 0.2 rad & 2 rad/s ends"),
     Candidate("goal_up", {**PRINTED, "goal_velocity": None}, "goal: pointing up, |theta| < 0.1 rad at any rate"),
-    Candidate("goal_up_torque_0.9", {**PRINTED, "goal_velocity": None, "max_torque": 0.9},
-              "goal: pointing up at any rate; torque limit 0.9 N m"),
+    Candidate(
+        "goal_up_torque_0.9",
+        {**PRINTED, "goal_velocity": None, "max_torque": 0.9},
+        "goal: pointing up at any rate; torque limit 0.9 N m",
+    ),
     Candidate("goal_narrow", {**PRINTED, "goal_angle": 0.05, "goal_velocity": 0.5}, "goal 0.05 rad & 0.5 rad/s ends"),
     Candidate("degrees", {**PRINTED, "reward_units": "degrees"}, "Eq. 4.1 in degrees and degrees/s"),
     Candidate("euler_1", {**PRINTED, "integrator": "euler", "substeps": 1}, "one semi-implicit Euler step per 0.01 s"),
     Candidate("rk4_1", {**PRINTED, "substeps": 1}, "one RK4 step per 0.01 s"),
     Candidate("pivot", {**PRINTED, "inertia_about": "pivot"}, "Table 4.1's J about the pivot"),
-    Candidate("no_goal_torque_0.8", {**PRINTED, "terminate_at_goal": False, "max_torque": 0.8},
-              "no goal: every episode runs 15 s; torque limit 0.8 N m"),
+    Candidate(
+        "no_goal_torque_0.8",
+        {**PRINTED, "terminate_at_goal": False, "max_torque": 0.8},
+        "no goal: every episode runs 15 s; torque limit 0.8 N m",
+    ),
 ]
-CANDIDATES = [Candidate(c.name, c.env_kwargs, c.description,
-                        frozenset({GOAL_ENDS} if c.env_kwargs.get("terminate_at_goal", True) else set()))
-              for c in CANDIDATES]
+CANDIDATES = [
+    Candidate(
+        c.name,
+        c.env_kwargs,
+        c.description,
+        frozenset({GOAL_ENDS} if c.env_kwargs.get("terminate_at_goal", True) else set()),
+    )
+    for c in CANDIDATES
+]
 # Checks of the printed width the candidates keep (they choose nothing): other velocity widths.
 WIDTH_CHECKS = [
-    Candidate("width_1.0", {"velocity_tile_width": 1.0}, "velocity width 1.0 rad/s (not printed), else as printed",
-              check=True),
+    Candidate(
+        "width_1.0", {"velocity_tile_width": 1.0}, "velocity width 1.0 rad/s (not printed), else as printed", check=True
+    ),
     Candidate("width_3.3", {"velocity_tile_width": 3.3}, "velocity width 3.3 rad/s (the earlier default)", check=True),
-    Candidate("width_3.3_no_goal", {"velocity_tile_width": 3.3, "terminate_at_goal": False},
-              "velocity width 3.3 rad/s, no goal", check=True),
+    Candidate(
+        "width_3.3_no_goal",
+        {"velocity_tile_width": 3.3, "terminate_at_goal": False},
+        "velocity width 3.3 rad/s, no goal",
+        check=True,
+    ),
 ]
 CANDIDATES += WIDTH_CHECKS
 
 if __name__ == "__main__":
     screen_command(
-        "pendulum", CANDIDATES, HERE, "Pendulum: Sarsa(λ) screen at the printed tile widths (thesis Table 6.1)",
-        notes=__doc__.split("\n\n", 1)[0] + " 100 learning episodes per run (the experiment's run length).")
+        "pendulum",
+        CANDIDATES,
+        OUT,
+        "Pendulum: Sarsa(λ) screen at the printed tile widths (thesis Table 6.1)",
+        notes=__doc__.split("\n\n", 1)[0] + " 100 learning episodes per run (the experiment's run length).",
+    )

@@ -1,15 +1,15 @@
-"""Screen tilings for Gymnasium's continuous-action classic control on Sarsa(lambda) alone (issue 26).
+"""Screen tilings for Gymnasium's continuous-action classic control on Sarsa(lambda) alone.
 
-    nice -n 10 python results/measured/continuous_tilings/screen.py [--envs ...] [--candidates ...] [--seeds 0 1 2]
-    python results/measured/continuous_tilings/screen.py --summarize
+    nice -n 10 python benchmarks/continuous_tilings.py [--envs ...] [--candidates ...] [--seeds 0 1 2] [--out DIR]
+    python benchmarks/continuous_tilings.py --summarize [--out DIR]
 
 Each run is ``SarsaLambda("TileQ", env_id, seed=seed, policy_kwargs=<candidate>).learn(100_000)``: the class
 defaults (alpha 0.2, gamma 0.99, epsilon 0.05, lambda 0.92) and the default action levels (7 per dimension, both
 bounds included); only the tiling (and, for MountainCarContinuous-v0, Q's initial value) varies. Then 20 greedy
 episodes (``evaluate_policy(deterministic=True)``) on a fresh env reset with seed 1000 + seed, as
-benchmarks/continuous_targets.py evaluates. One JSON per (env, candidate, seed) under runs/, written atomically with
-the code version; a finished run is skipped, so the command resumes. ``--summarize`` writes summary.csv and
-summary.md from the runs.
+benchmarks/continuous_targets.py evaluates. One JSON per (env, candidate, seed) under <out>/runs/ (default out:
+results/measured/continuous_tilings), written atomically with the code version; a finished run is skipped, so the
+command resumes. ``--summarize`` writes <out>/summary.csv and <out>/summary.md from the runs.
 """
 
 import json
@@ -31,10 +31,10 @@ from sb3_er.common.atomic import write_atomically  # noqa: E402
 from sb3_er.experiments.records import code_version  # noqa: E402
 from sb3_er.experiments.screen import tiling_screen_command  # noqa: E402
 
-HERE = Path(__file__).resolve().parent
+OUT = Path(__file__).resolve().parents[1] / "results" / "measured" / "continuous_tilings"
 STEPS = 100_000
 EVAL_EPISODES = 20
-#: The issue's level for the median greedy return.
+#: The level the median greedy return of a seed should reach (as benchmarks/continuous_targets.py judges it).
 TARGETS = {"Pendulum-v1": -200.0, "MountainCarContinuous-v0": 90.0}
 CANDIDATES = {
     # Pendulum-v1 observes (cos theta, sin theta, theta dot) within [-1, 1], [-1, 1], [-8, 8]: k tiles per bound range
@@ -56,7 +56,7 @@ CANDIDATES = {
 
 
 def run(env_id: str, candidate: str, seed: int, out: Path) -> None:
-    path = out / env_id / candidate / f"seed_{seed}.json"
+    path = out / "runs" / env_id / candidate / f"seed_{seed}.json"
     if path.is_file():
         return
     kwargs = CANDIDATES[env_id][candidate]
@@ -65,12 +65,22 @@ def run(env_id: str, candidate: str, seed: int, out: Path) -> None:
     cpu = time.process_time() - cpu
     env = Monitor(gym.make(env_id))
     env.reset(seed=1000 + seed)
-    returns, lengths = evaluate_policy(model, env, n_eval_episodes=EVAL_EPISODES, deterministic=True,
-                                       return_episode_rewards=True)
-    record = {"env_id": env_id, "candidate": candidate, "policy_kwargs": kwargs, "seed": seed, "steps": STEPS,
-              "episodes": model._episode_num, "learn_cpu_s": cpu, "greedy_returns": [float(r) for r in returns],
-              "greedy_lengths": [int(n) for n in lengths], "median": statistics.median(returns),
-              "code": code_version()}
+    returns, lengths = evaluate_policy(
+        model, env, n_eval_episodes=EVAL_EPISODES, deterministic=True, return_episode_rewards=True
+    )
+    record = {
+        "env_id": env_id,
+        "candidate": candidate,
+        "policy_kwargs": kwargs,
+        "seed": seed,
+        "steps": STEPS,
+        "episodes": model._episode_num,
+        "learn_cpu_s": cpu,
+        "greedy_returns": [float(r) for r in returns],
+        "greedy_lengths": [int(n) for n in lengths],
+        "median": statistics.median(returns),
+        "code": code_version(),
+    }
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomically(path, json.dumps(record, indent=1))
     print(f"{env_id} {candidate} seed {seed}: median {record['median']:.1f}, {cpu:.1f} CPU s", flush=True)
@@ -78,34 +88,41 @@ def run(env_id: str, candidate: str, seed: int, out: Path) -> None:
 
 def summarize(out: Path) -> None:
     rows = []
-    for path in sorted(out.glob("*/*/seed_*.json")):
+    for path in sorted((out / "runs").glob("*/*/seed_*.json")):
         record = json.loads(path.read_text())
-        rows.append({key: record[key] for key in ("env_id", "candidate", "seed", "median", "learn_cpu_s", "episodes")}
-                    | {"code_sha256": record["code"]["code_sha256"][:10]})
+        rows.append(
+            {key: record[key] for key in ("env_id", "candidate", "seed", "median", "learn_cpu_s", "episodes")}
+            | {"code_sha256": record["code"]["code_sha256"][:10]}
+        )
     frame = pd.DataFrame(rows).sort_values(["env_id", "candidate", "seed"])
-    write_atomically(HERE / "summary.csv", frame.to_csv(index=False))
-    lines = ["# Continuous-action tilings: Sarsa(lambda) screen", "",
-             f"Generated by `python results/measured/continuous_tilings/screen.py --summarize` from runs/. Sarsa(lambda) "
-             f"with its class defaults and 7 action levels per dimension, {STEPS:,} steps, median return of "
-             f"{EVAL_EPISODES} greedy episodes per seed.", "",
-             "| env | candidate | policy_kwargs | median greedy return per seed | median over seeds | seeds at the level "
-             "| learn CPU s (mean) |", "|---|---|---|---|---:|---:|---:|"]
+    write_atomically(out / "summary.csv", frame.to_csv(index=False))
+    lines = [
+        "# Continuous-action tilings: Sarsa(lambda) screen",
+        "",
+        f"Generated by `python benchmarks/continuous_tilings.py --summarize` from runs/. Sarsa(lambda) "
+        f"with its class defaults and 7 action levels per dimension, {STEPS:,} steps, median return of "
+        f"{EVAL_EPISODES} greedy episodes per seed.",
+        "",
+        "| env | candidate | policy_kwargs | median greedy return per seed | median over seeds | seeds at the level "
+        "| learn CPU s (mean) |",
+        "|---|---|---|---|---:|---:|---:|",
+    ]
     for (env_id, candidate), group in frame.groupby(["env_id", "candidate"], sort=False):
         level = TARGETS[env_id]
         medians = group["median"].tolist()
-        lines.append(f"| {env_id} (>= {level:g}) | {candidate} | `{CANDIDATES[env_id][candidate]}` | "
-                     f"{', '.join(f'{m:.1f}' for m in medians)} | {statistics.median(medians):.1f} | "
-                     f"{sum(m >= level for m in medians)}/{len(medians)} | {group['learn_cpu_s'].mean():.1f} |")
+        lines.append(
+            f"| {env_id} (>= {level:g}) | {candidate} | `{CANDIDATES[env_id][candidate]}` | "
+            f"{', '.join(f'{m:.1f}' for m in medians)} | {statistics.median(medians):.1f} | "
+            f"{sum(m >= level for m in medians)}/{len(medians)} | {group['learn_cpu_s'].mean():.1f} |"
+        )
     versions = sorted(frame["code_sha256"].unique())
     lines += ["", f"Code versions (code_sha256, first 10 hex digits) of these runs: {', '.join(versions)}."]
-    write_atomically(HERE / "summary.md", "\n".join(lines) + "\n")
+    write_atomically(out / "summary.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
 def main(argv=None) -> None:
-    out = HERE / "runs"
-    tiling_screen_command(__doc__.split("\n\n")[0], CANDIDATES, lambda env_id, name, seed: run(env_id, name, seed, out),
-                          lambda: summarize(out), default_seeds=(0, 1, 2), argv=argv)
+    tiling_screen_command(__doc__.split("\n\n")[0], CANDIDATES, run, summarize, OUT, default_seeds=(0, 1, 2), argv=argv)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,162 @@
+"""The replay stabilizers, each against its guarantee on a hand case (issue 34): truncation (with and without the
+target copy) keeps Figure 5.6's self-affecting sample inside the possible returns for every ER variant, where the
+literal algorithms leave them; the target copy is read by bootstrapping and taken anew at each phase; the step-size
+bound stops a step that would carry a transition's TD error past zero; the replay ratio bounds the updates per new
+sample; presets resolve with explicit arguments winning."""
+
+import kernel_bundles as bundles
+import numpy as np
+import pytest
+
+from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma
+from sb3_er.common import kernels
+from sb3_er.common.buffers import TrajectoryReplayBuffer
+from sb3_er.common.tile_coding import TileCoder
+from sb3_er.er import PRESETS, resolve_preset
+from sb3_er.experiments import value_growth as vg
+
+
+def _possible(case: str) -> tuple[float, float]:
+    """Figure 5.6's possible returns by hand: the sample pays r forever, r / (1 - gamma), hulled with the values the
+    weights start at (Q(s', a) initially, and Q(s, a) initially)."""
+    values = vg.CASES[case]
+    returns = values["reward"] / (1.0 - vg.FIGURE_GAMMA)
+    start = (values["q_next"], values["q_state"])
+    return min(returns, *start), max(returns, *start)
+
+
+@pytest.mark.parametrize("variant", list(vg.VARIANTS))
+@pytest.mark.parametrize("case", list(vg.CASES))
+@pytest.mark.parametrize("target_copy", [False, True])
+def test_truncation_keeps_the_self_affecting_sample_inside_the_possible_returns(variant, case, target_copy):
+    low, high = _possible(case)
+    literal = vg.replay_values(vg.self_affecting_model(variant, case, shared=3), 400)
+    stable = vg.replay_values(
+        vg.self_affecting_model(variant, case, shared=3, truncate_targets=True, target_copy=target_copy), 400
+    )
+    tolerance = 1e-9 * max(abs(low), abs(high))
+    assert np.all((stable >= low - tolerance) & (stable <= high + tolerance)), (stable.min(), stable.max())
+    if case == "b" and variant in ("ER", "ER-σ"):  # the literal sample leaves them (thesis 5.3.1): it can fail
+        assert literal.max() > high
+
+
+def test_the_target_copy_is_read_by_bootstrapping_and_refreshed_per_phase():
+    """With a target copy, a phase bootstraps from the weights as they were when it began: replaying the chain
+    0 -> 1 -> 2 -> (terminal, reward 10) reversed, with alpha 1 and gamma 1, backs the reward up one step per phase
+    instead of to the start in one pass (thesis 4.1's reversed replay, whose speed the copy gives up)."""
+    coder = TileCoder([1.0], [1], n_tilings=1, memory_size=2**12)
+    buffer = TrajectoryReplayBuffer(100, coder)
+    for s, r in zip([0, 1, 2], [0.0, 0.0, 10.0], strict=True):
+        end = True if s == 2 else None
+        buffer.add(np.array([float(s)]), coder.slots(np.array([float(s)])), 0, r, np.array([s + 1.0]), end=end)
+    values = lambda theta: [theta[coder.feature_indices(np.array([float(s)]), 0)].sum() for s in range(3)]  # noqa: E731
+    plain = np.zeros(coder.n_weights)
+    bundles.replay_phase(plain, buffer, bundles.rule(1.0, 1.0))
+    assert values(plain) == [10.0, 10.0, 10.0]
+    theta = np.zeros(coder.n_weights)
+    copy = kernels.TargetCopy(theta)
+    seen = []
+    for _ in range(3):
+        kernels.refresh_target(bundles.weights(theta, target=copy))
+        bundles.replay_phase(theta, buffer, bundles.rule(1.0, 1.0), target=copy)
+        seen.append(values(theta))
+    assert seen == [[0.0, 0.0, 10.0], [0.0, 10.0, 10.0], [10.0, 10.0, 10.0]]
+    assert copy.n_changed[0] == 3 and np.array_equal(np.flatnonzero(copy.changed_flag), np.sort(copy.changed[:3]))
+
+
+def _one_step(alpha: float, step_bound: bool, cap: np.ndarray):
+    """One replayed update of (s = 0.5, r = 1, s' = 3.5, never visited) with N = 4 tilings: Q(s, a) = 0 -> the
+    target 1 + gamma Q(s', a') = 1. Returns the TD error of the same transition after the update."""
+    coder = TileCoder([1.0], [1], n_tilings=4, memory_size=2**12)
+    buffer = TrajectoryReplayBuffer(10, coder)
+    buffer.add(np.array([0.5]), coder.slots(np.array([0.5])), 0, 1.0, np.array([3.5]), end=True)
+    theta = np.zeros(coder.n_weights)
+    update = bundles.rule(alpha / 4, 0.9, step_bound=step_bound, step_cap=cap)
+    bundles.replay_phase(theta, buffer, update)
+    return 1.0 - theta[coder.feature_indices(np.array([0.5]), 0)].sum()
+
+
+def test_the_step_size_bound_stops_an_overshoot():
+    """alpha 1.5 > 1: the plain step carries Q(s, a) past its target (the TD error 1 becomes 1 - 1.5 = -0.5);
+    Dabney and Barto's bound, 1 / |phi^T phi| = 1 / 4 per weight at a terminal transition, makes it exactly 0, and
+    keeps that bound for the rest of the run."""
+    assert _one_step(1.5, False, np.full(1, np.inf)) == pytest.approx(-0.5)
+    cap = np.full(1, np.inf)
+    assert _one_step(1.5, True, cap) == pytest.approx(0.0, abs=1e-12)
+    assert cap[0] == pytest.approx(1 / 4)
+    assert _one_step(0.5, True, np.full(1, np.inf)) == pytest.approx(0.5)  # alpha <= 1: it does not bind
+
+
+def test_the_step_size_bound_with_a_trace():
+    """Sarsa(lambda) with replacing traces: s0 -> s1 -> s0, one tiling each, disjoint. At the second step the trace
+    holds phi(s0) gamma lambda and phi(s1) = 1, and s' = s0: (gamma phi' - phi)^T e = gamma (gamma lambda) - 1, by
+    hand, so the bound is 1 / (1 - gamma^2 lambda) per weight, looser than without the trace (1)."""
+    coder = TileCoder([1.0], [1], n_tilings=1, memory_size=2**12)
+    gamma, lam = 0.9, 0.5
+    theta = np.zeros(coder.n_weights)
+    trace = tuple(bundles.trace(coder.n_weights, 16, decay=gamma * lam, cutoff=1e-9))
+    cap = np.full(1, np.inf)
+    rule = tuple(bundles.rule(5.0, gamma, step_bound=True, step_cap=cap))
+    for s, s_next in ((0.5, 1.5), (1.5, 0.5)):
+        transition = (coder.slots(np.array([s])), 0, 0.0, False, np.array([s_next]), np.zeros(1, np.int64))
+        kernels.sarsa_lambda_step(
+            tuple(bundles.weights(theta)),
+            trace,
+            tuple(coder.layout),
+            rule,
+            transition,
+            kernels.new_rng_state(0),
+            tuple(bundles.scratch(1)),
+            kernels.NO_WATCH,
+        )
+        if s == 0.5:
+            assert cap[0] == pytest.approx(1.0)  # first step: e = phi(s0), phi' = phi(s1): |0 - 1| = 1
+    assert cap[0] == pytest.approx(1.0)  # the second step's bound, 1 / (1 - 0.405), is looser: the cap stays 1
+    assert 1.0 / (1.0 - gamma * gamma * lam) > 1.0
+
+
+@pytest.mark.parametrize("algo", [ER, ERSigma, ResidualER, ResidualERSigma])
+def test_the_replay_ratio_bounds_updates_per_new_sample(algo):
+    """With replay_ratio r, the replayed updates stay within r x the transitions stored plus one trajectory's worth
+    per phase; without it, the thesis's 100 trajectories per phase make far more."""
+    model = algo("TileQ", "CartPole-v1", seed=0, replay_ratio=4.0, value_bound_action="ignore").learn(3000)
+    longest = max(model.replay_buffer.trajectory_length[: model.replay_buffer.n_trajectories])
+    assert model.replay_updates <= 4.0 * 3000 + longest
+    assert model.replay_updates >= 4.0 * 3000 - 4.0 * longest - 4.0 * 500  # the last episode's samples may wait
+    literal = algo("TileQ", "CartPole-v1", seed=0, value_bound_action="ignore").learn(3000)
+    assert literal.replay_updates > 5 * model.replay_updates
+
+
+def test_presets_resolve_with_explicit_arguments_winning():
+    none = dict.fromkeys(
+        (
+            "n_replays",
+            "replay_ratio",
+            "truncate_targets",
+            "target_copy",
+            "step_size_bound",
+            "replays_per_stored_trajectory",
+        )
+    )
+    assert resolve_preset("thesis", none) == PRESETS["thesis"]
+    assert resolve_preset("stable", none) == PRESETS["stable"]
+    assert resolve_preset("stable", {**none, "truncate_targets": False})["truncate_targets"] is False
+    volume = resolve_preset("stable", {**none, "n_replays": 7})  # an explicit volume replaces the preset's
+    assert volume["n_replays"] == 7 and volume["replay_ratio"] is None
+    with pytest.raises(ValueError, match="preset"):
+        resolve_preset("fast", none)
+    model = ERSigma("TileQ", "CartPole-v1", preset="stable", target_copy=False)
+    assert model.stabilizers == {**PRESETS["stable"], "target_copy": False}
+
+
+def test_a_model_saved_before_presets_loads_with_the_thesis_algorithm(tmp_path):
+    """A file without the preset's attributes (saved before they existed) loads as the thesis's algorithm."""
+    model = ERSigma("TileQ", "CartPole-v1", preset="stable", seed=0)
+    model.save(tmp_path / "m")
+    loaded = ERSigma.load(tmp_path / "m")
+    assert loaded.stabilizers == model.stabilizers  # the file's values
+    for name in ("preset", "truncate_targets", "target_copy", "step_size_bound", "replay_ratio", "stabilizers"):
+        del model.__dict__[name]
+    model.save(tmp_path / "old")
+    old = ERSigma.load(tmp_path / "old")
+    assert old.preset == "thesis" and old.stabilizers == PRESETS["thesis"]
