@@ -17,8 +17,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
-from stable_baselines3.common.utils import safe_mean
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_wrapper
+from stable_baselines3.common.utils import check_for_correct_spaces, safe_mean
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_normalize, unwrap_vec_wrapper
 
 from sb3_er.common import kernels
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
@@ -599,9 +599,16 @@ class TileQAlgorithm(BaseAlgorithm):
         env = self._wrap_env(env, self.verbose)
         self._check_env_wrappers(env)
         self._check_observation_keys(env)
-        if getattr(self, "policy", None) is not None and env.num_envs != self.n_envs:
-            self._end_episode_at_reset()  # the episodes in progress end with the old envs
-        super().set_env(env, force_reset)
+        check_for_correct_spaces(env, self.observation_space, self.action_space)
+        if env.num_envs != self.n_envs:  # SB3 refuses another number of envs; here each env's state is rebuilt
+            if getattr(self, "policy", None) is not None:
+                self._end_episode_at_reset()  # the episodes in progress end with the old envs
+            force_reset = True  # the last observations are the old envs'
+        self._vec_normalize_env = unwrap_vec_normalize(env)
+        if force_reset:
+            self._last_obs = None
+        self.n_envs = env.num_envs
+        self.env = env
         if getattr(self, "observation_keys", None) is None:
             self.observation_keys = vec_observation_keys(self.env)
         if getattr(self, "policy", None) is not None:

@@ -34,12 +34,12 @@ class _Stretch:
         self.slots = np.zeros((capacity, n_tilings), dtype=np.int64)
         self.actions = np.zeros(capacity, dtype=np.int64)
         self.rewards = np.zeros(capacity, dtype=np.float64)
-        self.next_obs = np.zeros(n_dims, dtype=np.float64)
+        self.next_observations = np.zeros((capacity, n_dims), dtype=np.float64)
 
     def write(self, t: int, obs, slots, action, reward, next_obs) -> None:
-        """Write row t (the caller counts it afterwards); the latest s_{t+1} too, which a truncation closes at."""
+        """Write row t with its s_{t+1} (the caller counts it afterwards: until then nothing reads it)."""
         if t == self.actions.shape[0]:
-            for name in ("observations", "slots", "actions", "rewards"):
+            for name in ("observations", "slots", "actions", "rewards", "next_observations"):
                 old = getattr(self, name)
                 grown = np.zeros((2 * old.shape[0], *old.shape[1:]), dtype=old.dtype)
                 grown[: old.shape[0]] = old
@@ -48,7 +48,7 @@ class _Stretch:
         self.slots[t] = slots
         self.actions[t] = action
         self.rewards[t] = reward
-        self.next_obs[:] = next_obs
+        self.next_observations[t] = next_obs
 
 
 def _counter(index: int, doc: str) -> property:
@@ -256,10 +256,10 @@ class TrajectoryReplayBuffer:
             stretch, index = self._stretches[env], N_COUNTERS + env
             length = int(self._counters[index])
             stretch.write(length, obs, slots, action, reward, next_obs)
-            self._counters[index] = length + 1  # counted
             if end is None:
+                self._counters[index] = length + 1  # counted
                 return False
-            return self.close_trajectory(next_obs, end, env)
+            return self._commit_stretch(env, next_obs, end, length + 1)  # counted and stored at once
         counts = self._counters.copy()
         if counts[N_TRANSITIONS] == self.capacity:
             counts = self._evict_oldest_trajectory()
@@ -348,13 +348,13 @@ class TrajectoryReplayBuffer:
         counts[OPEN_LENGTH] = 0
         return True
 
-    def _commit_stretch(self, env: int, next_obs: np.ndarray, terminated: bool) -> bool:
+    def _commit_stretch(self, env: int, next_obs: np.ndarray, terminated: bool, length: int | None = None) -> bool:
         """Several envs: env ``env``'s staged stretch enters the ring whole (its features marked visited in w then)
         and closes there. Room is made first (each eviction committed on its own); then its rows are written and the
         ring's counters and the stretch's length committed in one assignment, so an interruption leaves the stretch
         either staged or stored, never both."""
         index = N_COUNTERS + env
-        length = int(self._counters[index])
+        length = int(self._counters[index]) if length is None else length
         if length == 0:
             return False
         if length > self.capacity:
@@ -385,9 +385,11 @@ class TrajectoryReplayBuffer:
         """Close every open trajectory as truncated at its latest s_{t+1} (its episode was cut off); False if all
         were empty."""
         if self.n_envs > 1:
-            closed = [
-                self._commit_stretch(env, stretch.next_obs.copy(), False) for env, stretch in enumerate(self._stretches)
-            ]
+            closed = []
+            for env, stretch in enumerate(self._stretches):
+                length = self.staged_length(env)
+                if length:
+                    closed.append(self._commit_stretch(env, stretch.next_observations[length - 1].copy(), False))
             return any(closed)
         return self.close_trajectory(self.open_next_obs.copy(), terminated=False)
 
@@ -510,7 +512,9 @@ class TrajectoryReplayBuffer:
                 state[f"stretch_{name}"] = np.concatenate(
                     [getattr(stretch, name)[:length] for stretch, length in zip(self._stretches, lengths, strict=True)]
                 )
-            state["stretch_next_obs"] = np.stack([stretch.next_obs for stretch in self._stretches])
+            state["stretch_next_observations"] = np.concatenate(
+                [stretch.next_observations[:length] for stretch, length in zip(self._stretches, lengths, strict=True)]
+            )
         state["checksums"] = {name: field_checksum(value) for name, value in state.items()}
         return state
 
@@ -571,9 +575,8 @@ class TrajectoryReplayBuffer:
                         state["stretch_slots"][t],
                         state["stretch_actions"][t],
                         state["stretch_rewards"][t],
-                        state["stretch_next_obs"][env],
+                        state["stretch_next_observations"][t],
                     )
-                stretch.next_obs[:] = state["stretch_next_obs"][env]
                 self._counters[N_COUNTERS + env] = length
                 first += int(length)
 
@@ -748,7 +751,7 @@ def check_state(state: Any) -> None:
             "the flat action indices",
         )
         _finite("stretch_rewards", _array(state, "stretch_rewards", np.float64, (staged,)))
-        _finite("stretch_next_obs", _array(state, "stretch_next_obs", np.float64, (n_envs, n_dims)))
+        _finite("stretch_next_observations", _array(state, "stretch_next_observations", np.float64, (staged, n_dims)))
         if open_length:
             raise _field_error("open_length", "several envs keep no open trajectory in the ring")
 
@@ -951,13 +954,17 @@ class TrajectoryBufferIO:
         else:
             check_file_object(path, "r")  # SB3's TypeError or ValueError for what is not an open binary file
         buffer = load_buffer(path, self.policy.tile_coder, allow_pickle)
-        if truncate_last_traj and buffer.truncate_open_trajectory():
-            warnings.warn(  # SB3's HerReplayBuffer.truncate_last_trajectory, the buffer of SB3 that keeps episodes
-                "The last trajectory in the replay buffer will be truncated.\n"
-                "If you are in the same episode as when the replay buffer was saved,\n"
-                "you should use `truncate_last_traj=False` to avoid that issue.",
-                stacklevel=2,
-            )
+        in_progress = buffer.open_length + sum(buffer.staged_length(env) for env in range(buffer.n_envs))
+        if truncate_last_traj:
+            buffer.truncate_open_trajectory()
+            if in_progress:
+                warnings.warn(  # SB3's HerReplayBuffer.truncate_last_trajectory, the buffer of SB3 that keeps episodes
+                    "The last trajectory in the replay buffer will be truncated.\n"
+                    "If you are in the same episode as when the replay buffer was saved,\n"
+                    "you should use `truncate_last_traj=False` to avoid that issue.",
+                    stacklevel=2,
+                )
+        buffer.set_n_envs(self.n_envs or 1)  # saved by a model of another number of envs: its open stretches close
         self.replay_buffer = buffer
         self._on_buffer_replaced()
         self._observe_stored_rewards()  # the value watch takes the reward range of the loaded data too
