@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test lint demo docs install clean
+.PHONY: test test-versions lint demo docs install clean
 
 install: $(STAMP)
 
@@ -17,6 +17,25 @@ $(STAMP): pyproject.toml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadfile -q
+
+# Models must move between Python versions: the save/load tests again under each of OTHER_PYTHONS (interpreters, by
+# name or path; .ci/run passes the oldest supported Python and the newest installed), each in its own venv
+# (.venv-<interpreter name>) holding the package and its test tools. Each reads the model files the others wrote
+# (tests/data).
+OTHER_PYTHONS ?= python3.10 python3.13
+VERSION_TESTS := tests/test_cross_version.py tests/test_save_load.py tests/test_corrupt_files.py tests/test_sb3_contract.py
+
+test-versions:
+	@for python in $(OTHER_PYTHONS); do \
+	  venv=.venv-$$(basename $$python); \
+	  if [ ! -f $$venv/.installed ] || [ pyproject.toml -nt $$venv/.installed ]; then \
+	    $$python -m venv $$venv && $$venv/bin/pip install --quiet --upgrade pip \
+	      && $$venv/bin/pip install --quiet torch==2.13.0 && $$venv/bin/pip install --quiet -e ".[dev]" \
+	      && touch $$venv/.installed || exit 1; \
+	  fi; \
+	  echo "$$($$venv/bin/python --version): $(VERSION_TESTS)"; \
+	  $$venv/bin/python -m pytest -n 2 --dist loadfile -q $(VERSION_TESTS) || exit 1; \
+	done
 
 # ruff's lint and format check (configured in pyproject.toml); `ruff format .` and `ruff check --fix .` mend.
 lint: $(STAMP)
@@ -37,6 +56,6 @@ docs: $(STAMP)
 
 # Removes the venv, caches, build files and what the demo writes; the committed measurements in results/measured/ stay.
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis *.egg-info build dist docs/_build docs/results
+	rm -rf $(VENV) .venv-* .pytest_cache .hypothesis *.egg-info build dist docs/_build docs/results
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 	find results -mindepth 1 -maxdepth 1 ! -name measured -exec rm -rf {} + 2>/dev/null || true

@@ -150,7 +150,8 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="NAME:VALUE",
         type=_name_value,
         help="a reading of the env other than its defaults, as gymnasium.make keyword arguments, e.g. "
-        "--env-kwargs n_actions:3 fall:angles (values read as YAML: 3 is a number, angles a string)",
+        "--env-kwargs n_actions:3 fall:angles (values read as YAML: 3 is a number, angles a string); checked against "
+        "the env's constructor before any run starts",
     )
     parser.add_argument(
         "--algo-kwargs",
@@ -258,6 +259,23 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
     }
 
 
+def _check_env_kwargs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """A parser error (exit 2) before any run starts for --env-kwargs the experiment's env does not take, or takes with
+    values of another type or that it refuses (:func:`sb3_er.common.env_ids.check_env_kwargs`), and for --env-kwargs
+    given to an analysis that runs several envs with their own settings."""
+    if not args.env_kwargs:
+        return
+    spec = {**EXPERIMENTS, **ANALYSES}.get(args.experiment)
+    if spec is None:
+        parser.error(f"--env-kwargs does not apply to {args.experiment}: it runs each env with its own settings")
+    from sb3_er.common.env_ids import check_env_kwargs
+
+    try:
+        check_env_kwargs(spec.env_id, dict(args.env_kwargs))
+    except ValueError as error:
+        parser.error(str(error))
+
+
 def reproduce_command(argv: Sequence[str]) -> None:
     """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J] [--backend ray ...]`.
 
@@ -288,6 +306,7 @@ def reproduce_command(argv: Sequence[str]) -> None:
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
     options = _analysis_options(parser, args)
+    _check_env_kwargs(parser, args)
     reserved = [name for name, _ in args.algo_kwargs if name in RUNNER_ARGUMENTS]
     if reserved:
         parser.error("--algo-kwargs cannot set " + "; ".join(f"{name}: {RUNNER_ARGUMENTS[name]}" for name in reserved))

@@ -297,12 +297,51 @@ def _with_defaults(argv: Sequence[str], command: str) -> list[str]:
     return arguments
 
 
-def _run_zoo_script(script: Callable[[], None], program: str, argv: Sequence[str]) -> None:
-    register_algorithms()
+def _check_env_kwargs(program: str, env_id: str | None, argv: Sequence[str]) -> None:
+    """Exit with one message before rl_zoo3 starts when ``--env-kwargs`` or ``--eval-env-kwargs`` (read as rl_zoo3
+    reads them: each value a Python expression) do not make the env (:func:`sb3_er.common.env_ids.check_env_kwargs`).
+
+    :param program: the command's name, for the message.
+    :param env_id: the ``--env`` given (None: rl_zoo3 reports it missing).
+    :param argv: the command's arguments.
+    """
+    from rl_zoo3.utils import StoreDict
+
+    from sb3_er.common.env_ids import check_env_kwargs
+
+    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)  # --env is not --env-kwargs
+    for option in ("--env-kwargs", "--eval-env-kwargs"):
+        parser.add_argument(option, type=str, nargs="+", action=StoreDict, default=None)
+    try:
+        known, _ = parser.parse_known_args(argv)
+    except Exception as error:  # StoreDict evaluates each value as Python: NameError, SyntaxError, ...
+        raise SystemExit(
+            f"{program}: error: --env-kwargs: rl_zoo3 reads each NAME:VALUE's value as a Python expression ({error}); "
+            "write a string quoted, e.g. --env-kwargs \"fall:'angles'\""
+        ) from None
+    for option, env_kwargs in (("--env-kwargs", known.env_kwargs), ("--eval-env-kwargs", known.eval_env_kwargs)):
+        if env_kwargs and env_id is not None:
+            try:
+                check_env_kwargs(env_id, env_kwargs, given_as=option)
+            except ValueError as error:
+                raise SystemExit(f"{program}: error: {error}") from None
+
+
+def _env_id(argv: Sequence[str]) -> str | None:
     parser = argparse.ArgumentParser(add_help=False)
     parser.add_argument("--env", default=None)
     known, _ = parser.parse_known_args(argv)
-    register_env_id(known.env)  # sb3_er/ and shimmy's dm_control/ ids, in this process, before rl_zoo3 makes it
+    return known.env
+
+
+def _run_zoo_script(
+    script: Callable[[], None], program: str, argv: Sequence[str], check_env_kwargs: bool = True
+) -> None:
+    register_algorithms()
+    env_id = _env_id(argv)
+    register_env_id(env_id)  # sb3_er/ and shimmy's dm_control/ ids, in this process, before rl_zoo3 makes it
+    if check_env_kwargs:
+        _check_env_kwargs(program, env_id, argv)  # one message, before any env or run exists
     saved = sys.argv
     sys.argv = [program, *argv]
     try:
@@ -407,8 +446,11 @@ def enjoy(argv: Sequence[str]) -> None:
     arguments = _with_defaults(argv, "enjoy")
     if not _has_option(arguments, "-h", "--help"):
         register_algorithms()
+        env_id = _env_id(arguments)
+        register_env_id(env_id)
+        _check_env_kwargs("sb3-er enjoy", env_id, arguments)  # the user's settings first, then where the model is
         find_trained_model(arguments)
-    _run_zoo_script(zoo_enjoy, "sb3-er enjoy", arguments)
+    _run_zoo_script(zoo_enjoy, "sb3-er enjoy", arguments, check_env_kwargs=False)
 
 
 COMMANDS = {"train": train, "enjoy": enjoy, "optimize": optimize}

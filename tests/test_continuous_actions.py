@@ -102,6 +102,56 @@ def test_explicit_action_values_are_the_levels_the_env_receives(bound):
     )
 
 
+def test_a_flat_list_of_action_values_gives_every_dimension_those_levels():
+    """As one int of action_bins gives every dimension that many levels, one flat list of numbers gives every
+    dimension those levels: [0, 1] on a 2-D Box is the 4 joint actions of {0, 1}^2, not a single action."""
+    policy = policy_for(spaces.Box(-1.0, 1.0, (2,), dtype=np.float32), action_values=[0.0, 1.0])
+    np.testing.assert_array_equal(all_env_actions(policy), np.array([[0, 0], [0, 1], [1, 0], [1, 1]], dtype=np.float32))
+    model = SarsaLambda(
+        "TileQ", BoxActionEnv(spaces.Box(-1.0, 1.0, (2,))), policy_kwargs=dict(**SMALL, action_values=[-1.0, 1.0])
+    )
+    assert model.policy.tile_coder.n_actions == 4
+
+
+def test_a_flat_list_of_action_values_names_each_discrete_actions_value():
+    """The sibling for Discrete and MultiDiscrete action tiling: a flat list is the values of the one dimension (or of
+    every dimension), not one value per dimension."""
+    discrete = TileQPolicy(
+        spaces.Box(0.0, 10.0, (1,)),
+        spaces.Discrete(3),
+        tile_widths=[1.0],
+        **SMALL,
+        action_values=[0.0, 0.5, 1.0],
+        action_tile_widths=[0.6],
+    )
+    assert [v.tolist() for v in discrete.tile_coder.action_values] == [[0.0, 0.5, 1.0]]
+    multi = TileQPolicy(
+        spaces.Box(0.0, 10.0, (1,)),
+        spaces.MultiDiscrete([2, 2]),
+        tile_widths=[1.0],
+        **SMALL,
+        action_values=[-1.0, 1.0],
+        action_tile_widths=[1.5, 1.5],
+    )
+    assert [v.tolist() for v in multi.tile_coder.action_values] == [[-1.0, 1.0], [-1.0, 1.0]]
+
+
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ([0.0, [1.0]], "one list of numbers per action dimension, or one flat list"),
+        ("01", "one list of numbers per action dimension, or one flat list"),
+        (0.5, "one list of numbers per action dimension, or one flat list"),
+        ([["a"], [1.0]], "one list of numbers per action dimension, or one flat list"),
+        ([[0.0], [1.0], [0.5]], "3 lists for an action space of 2 dimensions"),
+        ([0.0, 2.0], r"action_values\[0\] = \[0.0, 2.0\] leave the action space's bounds"),
+    ],
+)
+def test_malformed_action_values_are_refused_by_name(values, message):
+    with pytest.raises(ValueError, match=message):
+        policy_for(spaces.Box(-1.0, 1.0, (2,), dtype=np.float32), action_values=values)
+
+
 def test_unbounded_actions_learn_with_action_values():
     big = np.finfo(np.float32).max  # SB3 refuses infinite Box bounds; float32's maximum stands for unbounded
     env = BoxActionEnv(spaces.Box(-big, big, (1,), dtype=np.float32))

@@ -7,6 +7,7 @@ import pickle
 import subprocess
 import sys
 import tempfile
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -322,9 +323,9 @@ def test_a_model_zip_runs_code_only_when_pickles_are_allowed(tmp_path):
     model = ER("TileQ", LineWalkEnv(), **KWARGS)
     model.learning_rate = _Payload()  # saved as a ":serialized:" entry, as a crafted schedule would be
     model.save(tmp_path / "payload")
-    with pytest.raises(ValueError, match=r"payload.zip: data entry 'learning_rate' can only be restored by unpickling"):
-        ER.load(tmp_path / "payload.zip", allow_pickle=False)
-    assert RAN == []
+    with pytest.warns(UserWarning, match=r"Could not deserialize object learning_rate(?s:.*)allow_pickle=False"):
+        refused = ER.load(tmp_path / "payload.zip", allow_pickle=False)
+    assert refused.learning_rate == 0.2 and RAN == []  # the class's default, as SB3 leaves an entry it cannot restore
     loaded = ER.load(tmp_path / "payload.zip", allow_pickle=False, custom_objects={"learning_rate": 0.3})
     assert loaded.learning_rate == 0.3 and RAN == []
     assert ER.load(tmp_path / "payload.zip").learning_rate == 0.1  # SB3's default unpickles: the code ran
@@ -410,9 +411,9 @@ def _rewrite_data(path: Path, change) -> None:
             archive.writestr(name, content)
 
 
-def test_an_entry_that_cannot_be_unpickled_is_an_error_not_a_default(tmp_path):
-    """SB3's test_load_invalid_object: SB3 warns and silently keeps the constructor's learning rate; sb3-er refuses,
-    naming the entry, and loads once custom_objects supplies it."""
+def test_an_entry_that_cannot_be_unpickled_is_left_at_its_default_with_sb3s_warning(tmp_path):
+    """SB3's test_load_invalid_object: an entry that cannot be unpickled is left at the class's default with a warning
+    pointing to custom_objects, which replaces it without a warning."""
     import base64
 
     path = tmp_path / "model.zip"
@@ -424,10 +425,40 @@ def test_an_entry_that_cannot_be_unpickled_is_an_error_not_a_default(tmp_path):
         entry[":serialized:"] = base64.b64encode(raw).decode()
 
     _rewrite_data(path, corrupt)
-    with pytest.raises(ValueError, match=r"model.zip: data entry 'learning_rate' cannot be unpickled.*custom_objects"):
-        SarsaLambda.load(path)
-    loaded = SarsaLambda.load(path, custom_objects={"learning_rate": 0.3})
+    with pytest.warns(UserWarning, match=r"Could not deserialize object learning_rate.*custom_objects"):
+        loaded = SarsaLambda.load(path)
+    assert loaded.learning_rate == 0.2 and loaded.current_learning_rate == 0.2  # SarsaLambda's default
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        loaded = SarsaLambda.load(path, custom_objects={"learning_rate": 0.3})
     assert loaded.learning_rate == 0.3
+
+
+@pytest.mark.parametrize("entry", ["observation_space", "action_space", "policy_class", "policy_kwargs"])
+def test_an_entry_the_weights_or_tiling_need_is_refused_when_it_cannot_be_restored(entry, tmp_path):
+    """The spaces, the tiling settings and the policy class lay out the weights and the buffer: an entry of them that
+    neither its pickle nor its plain copy restores is refused by name (custom_objects still replaces it)."""
+    import base64
+
+    path = tmp_path / "model.zip"
+    model = SarsaLambda("TileQ", LineWalkEnv(), **KWARGS)
+    model.save(path)
+
+    def break_entry(data):
+        # a pickle that cannot be loaded here (a module this environment lacks), and no plain copy
+        data[entry] = {":serialized:": base64.b64encode(b"cmodule_of_another_environment\nSpace\n.").decode()}
+        data["_plain_state"].pop(entry, None)
+
+    _rewrite_data(path, break_entry)
+    with pytest.raises(ValueError, match=rf"model.zip: data entry '{entry}' cannot be restored.*custom_objects"):
+        SarsaLambda.load(path)
+    replacement = {
+        "observation_space": model.observation_space,
+        "action_space": model.action_space,
+        "policy_class": type(model.policy),
+        "policy_kwargs": model.policy_kwargs,
+    }[entry]
+    SarsaLambda.load(path, custom_objects={entry: replacement})
 
 
 def test_a_plain_copy_that_disagrees_with_its_type_is_refused(tmp_path):

@@ -116,3 +116,61 @@ def test_er_models_take_initial_values_through_policy_kwargs():
     sigma = model((-1.0, 0.0), algo=ERSigma, n_replays=5).learn(300)
     assert np.isfinite(sigma.policy.theta_array).all()
     assert N_TILINGS == 2  # the hand cases above use the 2-tiling coder of test_updates
+
+
+# --- the draw's seed: the seed's, whatever else uses NumPy's global generator (issue 37) ------------------------------
+
+
+def test_a_seeded_draw_is_the_one_sb3s_seeding_gave_the_global_generator():
+    """SB3's set_random_seed(seed) seeds NumPy's global generator; the policy's seed is its first randint(0, 2^62) after
+    that (the value every seeded model drew so far, so seeded runs keep their weights)."""
+    for seed in (0, 1, 4, 2**32 - 1):
+        np.random.seed(seed)  # noqa: NPY002 (the global generator, as SB3 seeds it)
+        expected = int(np.random.randint(0, 2**62))  # noqa: NPY002
+        assert model((0.0, 1.0), seed=seed).policy.initial_value_seed == expected
+
+
+class _BusyEnv(LineWalkEnv):
+    """An env whose wrap periods, read while the model is built (after SB3 seeds NumPy's global generator and before
+    the policy exists), draw from the global generator, as another thread building a model at that moment would."""
+
+    @property
+    def wrap_periods(self):
+        np.random.random(3)  # noqa: NPY002
+        return None
+
+
+def test_the_seeded_draw_ignores_other_users_of_the_global_generator():
+    kwargs = dict(seed=3, policy_kwargs=dict(n_tilings=4, memory_size=2**12, initial_value=(0.0, 1.0)))
+    busy = SarsaLambda("TileQ", _BusyEnv(), **kwargs)
+    quiet = SarsaLambda("TileQ", LineWalkEnv(), **kwargs)
+    np.testing.assert_array_equal(busy.policy.theta_array, quiet.policy.theta_array)
+
+
+def test_models_built_at_once_in_threads_with_one_seed_start_alike():
+    import threading
+
+    n_threads = 6
+    barrier = threading.Barrier(n_threads)
+    weights = [None] * n_threads
+
+    def build(index):
+        barrier.wait()
+        weights[index] = model((0.0, 1.0), seed=11).policy.theta_array.copy()
+
+    threads = [threading.Thread(target=build, args=(i,)) for i in range(n_threads)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for other in weights[1:]:
+        np.testing.assert_array_equal(other, weights[0])
+    np.testing.assert_array_equal(weights[0], model((0.0, 1.0), seed=11).policy.theta_array)
+
+
+def test_unseeded_models_draw_fresh_seeds_whatever_the_global_generator_holds():
+    seeds = set()
+    for _ in range(3):
+        np.random.seed(0)  # noqa: NPY002 (a user's global seeding does not fix an unseeded model's start)
+        seeds.add(model((0.0, 1.0), seed=None).policy.initial_value_seed)
+    assert len(seeds) == 3

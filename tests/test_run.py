@@ -6,12 +6,14 @@ import pytest
 from conftest import LineWalkEnv
 from gymnasium import spaces
 from gymnasium.envs.classic_control import CartPoleEnv
+from sb3_cases import ALGOS as EVERY_ALGO
+from sb3_cases import ENV_IDS, model
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback, StopTrainingOnRewardThreshold
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.monitor import Monitor
 
-from sb3_er import ER, DivergenceError, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
+from sb3_er import ER, FQI, LSPI, DivergenceError, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
 
 ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma]
 SMALL = dict(policy_kwargs=dict(n_tilings=4, memory_size=2**14))
@@ -228,3 +230,63 @@ def test_divergence_is_reported_with_step_and_td_error(algo):
 def test_bad_hyperparameters_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ER("TileQ", LineWalkEnv(), **kwargs)
+
+
+# --- SB3's test_run, for every algorithm (docs/sb3_tests.md) ------------------------------------------------------
+
+#: Each algorithm's schedule of learning, the counterpart of SB3's train_freq: a value and a value it refuses.
+SCHEDULES = {
+    SarsaLambda: ("trace_lambda", 0.5, 1.5),
+    ER: ("n_replays", 3, -1),
+    ERSigma: ("replay_every", 2, 0),
+    ResidualER: ("replay_unit", "segment", "step"),
+    ResidualERSigma: ("replays_per_stored_trajectory", 2, -1),
+    Dyna: ("planning_steps", 3, -1),
+    FQI: ("fit_every", 2, 0),
+    LSPI: ("n_iterations", 3, 0),
+}
+
+
+@pytest.mark.parametrize("kind", list(ENV_IDS))
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_run_verbose(algo, kind, capsys):
+    """SB3's test_dqn, test_a2c, test_ppo, test_sac: a short verbose run on CartPole-v1 and Pendulum-v1 prints SB3's
+    log table."""
+    model(algo, ENV_IDS[kind], verbose=1, seed=0).learn(300, log_interval=1)
+    assert "time/" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_schedule_survives_save_load_and_a_new_value_at_load(algo, tmp_path):
+    """SB3's test_train_freq: learn, save, load with the env and learn on; load again overriding the schedule and
+    learn on with it."""
+    name, value, _ = SCHEDULES[algo]
+    agent = model(algo, "Pendulum-v1", seed=0, **{name: value}).learn(150)
+    agent.save(tmp_path / "test_save.zip")
+    env = agent.get_env()
+    loaded = algo.load(tmp_path / "test_save.zip", env=env)
+    assert getattr(loaded, name) == value
+    loaded.learn(150)
+    other = algo.load(tmp_path / "test_save.zip", env=env, **{name: value})
+    other.learn(150)
+    assert getattr(other, name) == value
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_bad_schedules_are_refused(algo, tmp_path):
+    """SB3's test_train_freq_fail: a schedule setting out of range is a ValueError naming it, when the model is built
+    and when it is loaded with it."""
+    name, _, bad = SCHEDULES[algo]
+    with pytest.raises(ValueError, match=name):
+        model(algo, "Pendulum-v1", **{name: bad})
+    model(algo, "Pendulum-v1").save(tmp_path / "model.zip")
+    with pytest.raises(ValueError, match=name):
+        algo.load(tmp_path / "model.zip", **{name: bad})
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_offpolicy_multi_env(algo):
+    """SB3's test_offpolicy_multi_env: two envs under a time limit of 50 steps, each counted."""
+    env = make_vec_env(lambda: gym.wrappers.TimeLimit(gym.make("Pendulum-v1"), 50), n_envs=2)
+    agent = model(algo, env, seed=0).learn(150)
+    assert agent.num_timesteps >= 150 and agent._episode_num >= 2

@@ -1,14 +1,22 @@
 """Saving and loading lose nothing: weights, tile coding, hyperparameters, generators, the replay buffer and w."""
 
 import copy
+import io
 import pickle
+import tempfile
+import warnings
+from collections import OrderedDict
 
 import numpy as np
 import pytest
 import torch as th
 from conftest import LineWalkEnv
+from sb3_cases import ENVS, model
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.utils import get_device
+from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda
+from sb3_er import ER, FQI, LSPI, Dyna, ERSigma, ResidualER, ResidualERSigma, SarsaLambda, TileQPolicy
 
 ALGOS = [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma]
 KWARGS = dict(policy_kwargs=dict(n_tilings=8, memory_size=2**15, tile_widths=[0.7]), exploration_rate=0.1)
@@ -214,3 +222,298 @@ def test_a_model_that_logged_to_tensorboard_can_be_copied(tmp_path, capsys):
         copied.learn(100)  # a new TensorBoard run, as a new learn() of the original would start
         assert copied.logger.dir != model.logger.dir and copied.logger is not model.logger
     assert sorted(p.name for p in (tmp_path / "tb").iterdir()) == ["ER_1", "ER_2", "ER_3"]
+
+
+# --- SB3's test_save_load, for every algorithm on a discrete- and a Box-action env (docs/sb3_tests.md) ----------------
+
+
+CASES = [(algo, kind) for algo in EVERY_ALGO for kind in ENVS]
+CASE_IDS = [f"{algo.__name__}-{kind}" for algo, kind in CASES]
+
+
+def _observations(env, n=10):
+    env.reset()
+    return np.concatenate([env.step([env.action_space.sample()])[0] for _ in range(n)], axis=0)
+
+
+@pytest.mark.parametrize("algo, kind", CASES, ids=CASE_IDS)
+def test_sb3_save_load_and_set_parameters(algo, kind, tmp_path):
+    """SB3's test_save_load: set_parameters refuses unknown and missing objects and missing tensors, takes part of
+    them with exact_match=False; a saved model predicts the same on every device and goes on learning."""
+    env = DummyVecEnv([ENVS[kind]])
+    agent = model(algo, env, learning_rate=0.1).learn(128)
+    observations = _observations(env)
+    original = copy.deepcopy(agent.get_parameters())
+    invalid = {**copy.deepcopy(original), "I_should_not_be_a_valid_object": "and_I_am_an_invalid_tensor"}
+    for exact_match in (True, False):
+        with pytest.raises(ValueError):
+            agent.set_parameters(invalid, exact_match=exact_match)
+    with pytest.raises(ValueError):
+        agent.set_parameters({}, exact_match=True)  # the policy's object is missing
+    with pytest.raises(RuntimeError):
+        agent.set_parameters({"policy": OrderedDict()}, exact_match=True)  # its tensor theta is missing
+    agent.set_parameters({"policy": OrderedDict()}, exact_match=False)  # nothing given, nothing changed
+    np.testing.assert_array_equal(agent.policy.theta_array, original["policy"]["theta"].numpy())
+    randomised = {"policy": {"theta": th.rand_like(original["policy"]["theta"])}}
+    agent.set_parameters(randomised, exact_match=False)
+    np.testing.assert_array_equal(agent.policy.theta_array, randomised["policy"]["theta"].numpy())
+
+    actions, _ = agent.predict(observations, deterministic=True)
+    agent.save(tmp_path / "test_save.zip")
+    for device in ("auto", "cpu", "cuda"):
+        loaded = algo.load(str(tmp_path / "test_save.zip"), env=env, device=device)
+        assert loaded.device.type == get_device(device).type
+        np.testing.assert_array_equal(loaded.get_parameters()["policy"]["theta"], randomised["policy"]["theta"])
+        np.testing.assert_array_equal(loaded.predict(observations, deterministic=True)[0], actions)
+        loaded.learn(128)
+    compiled = algo.load(tmp_path / "test_save.zip")
+    compiled.policy = th.compile(compiled.policy)  # SB3 saves and loads a compiled policy too
+    compiled.save(tmp_path / "test_save.zip")
+    np.testing.assert_array_equal(
+        algo.load(tmp_path / "test_save.zip").predict(observations, deterministic=True)[0], actions
+    )
+
+
+@pytest.mark.parametrize("algo, kind", CASES, ids=CASE_IDS)
+def test_sb3_set_env(algo, kind, tmp_path):
+    """SB3's test_set_env: set_env with and without a reset, load with and without force_reset, and the step counts
+    of each learn(); then a VecEnv of another size, which SB3 refuses and sb3-er takes."""
+    env, env2, env3 = DummyVecEnv([ENVS[kind]]), DummyVecEnv([ENVS[kind]]), ENVS[kind]()
+    agent = model(algo, env).learn(64)
+    agent.set_env(env2, force_reset=True)
+    assert agent._last_obs is None
+    agent.learn(64, reset_num_timesteps=True)
+    assert agent.num_timesteps == 64
+    agent.set_env(env3)
+    agent.learn(64)
+    agent.set_env(agent.get_env(), force_reset=False)
+    assert agent._last_obs is not None
+    agent.learn(64, reset_num_timesteps=False)
+    assert agent.num_timesteps == 2 * 64
+    current = agent.get_env()
+    agent.save(tmp_path / "test_save.zip")
+    loaded = algo.load(tmp_path / "test_save.zip", env=current, force_reset=False)
+    assert loaded._last_obs is not None
+    loaded.learn(64, reset_num_timesteps=False)
+    assert loaded.num_timesteps == 3 * 64
+    loaded = algo.load(tmp_path / "test_save.zip", env=env3, force_reset=True)
+    assert loaded._last_obs is None
+    loaded.learn(64, reset_num_timesteps=False)
+    assert loaded.num_timesteps == 3 * 64
+    # SB3's set_env asserts the same number of envs; sb3-er's takes another (docs/guide/sb3.md, several envs)
+    loaded.set_env(DummyVecEnv([ENVS[kind]] * 2))
+    assert loaded.n_envs == 2 and loaded._last_obs is None
+    loaded.learn(64, reset_num_timesteps=False)
+    assert loaded.num_timesteps >= 4 * 64
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_load_onto_several_envs(algo, tmp_path):
+    """The end of SB3's test_set_env: a model saved with one env loads onto a VecEnv of two and learns on."""
+    model(algo, ENVS["discrete"]()).save(tmp_path / "test_save.zip")
+    loaded = algo.load(tmp_path / "test_save.zip", env=DummyVecEnv([ENVS["discrete"]] * 2)).learn(64)
+    assert loaded.n_envs == 2 and loaded.num_timesteps >= 64
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_exclude_include_and_custom_objects(algo, tmp_path):
+    """SB3's test_exclude_include_saved_params: exclude leaves an attribute at its default, include overrides
+    exclude, custom_objects replaces a saved entry and ignores a key that is no attribute."""
+    agent = model(algo, ENVS["box"](), verbose=2)
+    agent.save(tmp_path / "test_save", exclude=["verbose"])
+    assert algo.load(str(tmp_path / "test_save.zip")).verbose != 2
+    agent.save(tmp_path / "test_save", exclude=["verbose"], include=["verbose"])
+    custom_objects = dict(learning_rate=2e-5, dummy=1.0)
+    loaded = algo.load(str(tmp_path / "test_save.zip"), custom_objects=custom_objects, print_system_info=True)
+    assert loaded.verbose == 2 and loaded.learning_rate == 2e-5 and not hasattr(loaded, "dummy")
+
+
+BUFFERED = [algo for algo in EVERY_ALGO if algo is not SarsaLambda]
+
+
+@pytest.mark.parametrize("algo", BUFFERED)
+def test_sb3_save_load_replay_buffer(algo, tmp_path):
+    """SB3's test_save_load_replay_buffer: into an existing folder without a warning, every stored array back, and
+    the loaded buffer takes new transitions."""
+    path = tmp_path / "logs" / "replay_buffer.pkl"
+    path.parent.mkdir(parents=True)
+    agent = model(algo, ENVS["box"](), seed=0).learn(150)
+    old = copy.deepcopy(agent.replay_buffer)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        agent.save_replay_buffer(path)
+        agent.replay_buffer = None
+        agent.load_replay_buffer(path, truncate_last_traj=False)
+    for name in ("observations", "actions", "rewards", "slots", "visits", "trajectory_length"):
+        np.testing.assert_array_equal(getattr(agent.replay_buffer, name), getattr(old, name), err_msg=name)
+    assert agent.replay_buffer.n_transitions == old.n_transitions
+    agent.learn(100, reset_num_timesteps=False)
+    assert agent.replay_buffer.n_transitions == old.n_transitions + 100
+
+
+@pytest.mark.parametrize("algo", BUFFERED)
+def test_sb3_warn_buffer_not_on_learn(algo, recwarn):
+    """SB3's test_warn_buffer (a buffer that is not memory-optimised): learn, continue, learn again, no warning; the
+    episode a new learn() cuts off is stored as truncated."""
+    agent = model(algo, ENVS["discrete"](), seed=0)
+    agent.learn(50)
+    agent.learn(50, reset_num_timesteps=False)
+    agent.learn(50)
+    assert [str(w.message) for w in recwarn] == []
+
+
+@pytest.mark.parametrize("algo", BUFFERED)
+def test_load_replay_buffer_warns_as_sb3_when_it_truncates(algo, tmp_path):
+    """SB3's HerReplayBuffer (its buffer of whole episodes) warns when load_replay_buffer(truncate_last_traj=True)
+    closes an episode that was in progress; so does ours, and not when nothing was open or truncate_last_traj=False."""
+    agent = model(algo, ENVS["box"](), seed=0).learn(150)  # 100-step episodes: 50 steps of one in progress
+    assert agent.replay_buffer.open_length == 50
+    agent.save_replay_buffer(tmp_path / "open")
+    with pytest.warns(
+        UserWarning, match=r"last trajectory in the replay buffer will be truncated(?s:.*)truncate_last_traj=False"
+    ):
+        agent.load_replay_buffer(tmp_path / "open.pkl")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        agent.load_replay_buffer(tmp_path / "open.pkl", truncate_last_traj=False)
+        agent.learn(50, reset_num_timesteps=False)  # the episode ends: nothing open
+        agent.save_replay_buffer(tmp_path / "closed")
+        agent.load_replay_buffer(tmp_path / "closed.pkl")
+
+
+@pytest.mark.parametrize("algo, kind", CASES, ids=CASE_IDS)
+def test_a_model_saved_to_a_stream_loads_without_a_seek(algo, kind):
+    """SB3's DQN loads from a BytesIO it was just saved to (zipfile finds the archive from the end, wherever the
+    stream stands); every load path that reads a zip does too: load and set_parameters."""
+    agent = model(algo, ENVS[kind](), seed=0).learn(100)
+    stream = io.BytesIO()
+    agent.save(stream)
+    loaded = algo.load(stream)
+    np.testing.assert_array_equal(loaded.policy.theta_array, agent.policy.theta_array)
+    loaded = algo.load(stream, allow_pickle=False)  # again, from wherever the first load left the stream
+    np.testing.assert_array_equal(loaded.policy.theta_array, agent.policy.theta_array)
+    other = model(algo, ENVS[kind](), seed=1)
+    other.set_parameters(stream)
+    np.testing.assert_array_equal(other.policy.theta_array, agent.policy.theta_array)
+    assert not stream.closed
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_no_resource_warning_and_open_files_stay_open(algo, tmp_path):
+    """SB3's test_no_resource_warning: saving and loading by path, str and open file leaves no file open and no
+    warning, and leaves the caller's file open; the replay buffer's the same (a buffer file is read where it stands)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        agent = model(algo, ENVS["discrete"](), seed=0).learn(100)
+        for path in (tmp_path / "model", str(tmp_path / "model")):
+            agent.save(path)
+            algo.load(path)
+        with tempfile.TemporaryFile() as stream:
+            agent.save(stream)
+            algo.load(stream)
+            assert not stream.closed
+        with open(tmp_path / "opened.zip", "wb") as stream:
+            agent.save(stream)
+        with open(tmp_path / "opened.zip", "rb") as stream:
+            algo.load(stream)
+            assert not stream.closed
+        if algo in BUFFERED:
+            for path in (tmp_path / "replay", str(tmp_path / "replay")):
+                agent.save_replay_buffer(path)
+                agent.load_replay_buffer(path, truncate_last_traj=False)
+            with tempfile.TemporaryFile() as stream:
+                agent.save_replay_buffer(stream)
+                stream.seek(0)
+                agent.load_replay_buffer(stream, truncate_last_traj=False)
+                assert not stream.closed
+
+
+def test_sb3_file_objects_are_checked_as_sb3_checks_them(tmp_path):
+    """SB3's test_open_file: anything but a binary file is a TypeError; a closed file, or one of the wrong mode, a
+    ValueError, for save and load, the replay buffer's too."""
+    agent = model(ER, ENVS["discrete"](), seed=0)
+    agent.save(tmp_path / "model.zip")
+    with open(tmp_path / "text.txt", "w") as text:
+        for call in (lambda: agent.save(text), lambda: ER.load(text), lambda: agent.save_replay_buffer(text)):
+            with pytest.raises(TypeError):
+                call()
+    with pytest.raises(TypeError):
+        agent.load_replay_buffer(123)
+    with open(tmp_path / "write_only.zip", "wb") as write_only:
+        with pytest.raises(ValueError, match="readable"):
+            ER.load(write_only)
+        with pytest.raises(ValueError, match="readable"):
+            agent.load_replay_buffer(write_only)
+    with open(tmp_path / "model.zip", "rb") as read_only:
+        with pytest.raises(ValueError, match="writable"):
+            agent.save(read_only)
+    closed = io.BytesIO()
+    closed.close()
+    for call in (lambda: agent.save(closed), lambda: ER.load(closed), lambda: agent.load_replay_buffer(closed)):
+        with pytest.raises(ValueError, match="closed"):
+            call()
+
+
+def test_sb3_paths_suffixes_and_their_warnings(tmp_path):
+    """SB3's path conventions (test_open_file_str_pathlib): .zip (model) and .pkl (buffer) added to a path without a
+    suffix, another suffix kept, a path read with the suffix added when it does not exist (reported at verbose 2 for a
+    buffer), a missing folder created and a folder's name turned into <name>_2, with SB3's warnings."""
+    agent = model(ER, ENVS["discrete"](), seed=0).learn(50)
+    agent.save(tmp_path / "t1")
+    assert (tmp_path / "t1.zip").is_file()
+    ER.load(tmp_path / "t1")
+    agent.save(tmp_path / "t1.custom_ext")
+    assert (tmp_path / "t1.custom_ext").is_file()
+    ER.load(tmp_path / "t1.custom_ext")
+    with pytest.warns(UserWarning, match=r"does not exist\. Will create it"):
+        agent.save(tmp_path / "new_folder" / "model")
+    (tmp_path / "folder.zip").mkdir()
+    with pytest.warns(UserWarning, match=r"is a folder\. Will save instead to .*folder\.zip_2"):
+        agent.save(tmp_path / "folder.zip")
+    ER.load(tmp_path / "folder.zip_2")
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        agent.save_replay_buffer(tmp_path / "b1")
+        agent.load_replay_buffer(tmp_path / "b1", truncate_last_traj=False)  # b1.pkl, silently at verbose 0
+    assert (tmp_path / "b1.pkl").is_file()
+    agent.verbose = 2
+    with pytest.warns(UserWarning, match=r"not found\. Attempting .*b1\.pkl"):
+        agent.load_replay_buffer(tmp_path / "b1", truncate_last_traj=False)
+    with pytest.warns(UserWarning, match=r"exists, will overwrite it"):
+        agent.save_replay_buffer(tmp_path / "b1")
+    with pytest.warns(UserWarning, match=r"does not exist\. Will create it"):
+        agent.save_replay_buffer(tmp_path / "new_buffers" / "b2.npz")
+    agent.load_replay_buffer(tmp_path / "new_buffers" / "b2.npz", truncate_last_traj=False)
+
+
+@pytest.mark.parametrize("algo", EVERY_ALGO)
+def test_sb3_learning_rate_schedules_survive_save_and_load(algo, tmp_path):
+    """SB3's test_cast_lr_schedule and test_save_load_backward_compatible: a callable learning rate's schedule returns
+    a float, and the callable itself comes back from the file."""
+    agent = model(algo, ENVS["box"](), learning_rate=lambda progress: progress * np.sin(1.0))
+    assert type(agent.lr_schedule(1.0)) is float
+    assert agent.lr_schedule(0.5) == pytest.approx(0.5 * np.sin(1.0))
+    agent.save(tmp_path / "model.zip")
+    loaded = algo.load(tmp_path / "model.zip")
+    assert type(loaded.lr_schedule(1.0)) is float
+    assert loaded.lr_schedule(0.5) == pytest.approx(0.5 * np.sin(1.0))
+    assert loaded.learning_rate.__name__ == "<lambda>" and loaded.learning_rate(1.0) == pytest.approx(np.sin(1.0))
+
+
+@pytest.mark.parametrize("kind", list(ENVS))
+def test_a_policy_file_is_read_where_the_stream_stands(kind):
+    """TileQPolicy.load reads from the stream's position, as SB3's BasePolicy.load (torch.load) does, in the plain
+    format and in SB3's own (pickled) one, which is retried from that same position."""
+    agent = model(ER, ENVS[kind](), seed=0).learn(100)
+    stream = io.BytesIO(b"header")
+    stream.seek(0, io.SEEK_END)
+    agent.policy.save(stream)
+    stream.seek(len(b"header"))
+    np.testing.assert_array_equal(TileQPolicy.load(stream).theta_array, agent.policy.theta_array)
+    sb3_format = io.BytesIO(b"header")
+    sb3_format.seek(0, io.SEEK_END)
+    data = {**BasePolicy._get_constructor_parameters(agent.policy), **agent.policy._get_constructor_parameters()}
+    th.save({"state_dict": agent.policy.state_dict(), "data": data}, sb3_format)
+    sb3_format.seek(len(b"header"))
+    np.testing.assert_array_equal(TileQPolicy.load(sb3_format).theta_array, agent.policy.theta_array)

@@ -42,8 +42,9 @@ def box_action_levels(
     :param action_space: a Box of a floating-point dtype.
     :param action_bins: levels per dimension, one int for all or one per dimension; each dimension's levels are
         ``linspace(low, high, bins)``, both bounds included (one level, the midpoint, for ``bins=1``).
-    :param action_values: explicit levels per dimension, each inside the Box's bounds, distinct; the only way to
-        discretise a dimension with infinite bounds.
+    :param action_values: explicit levels, each inside the Box's bounds, distinct: one list per dimension, or one
+        flat list of numbers for every dimension (``[0.0, 1.0]`` gives each dimension the levels 0 and 1); the only
+        way to discretise a dimension with infinite bounds.
     Neither given: ``DEFAULT_ACTION_BINS`` per dimension, if the joint actions stay within
     ``MAX_DEFAULT_JOINT_ACTIONS``. ValueError naming the problem otherwise.
     """
@@ -116,16 +117,45 @@ def _check_bins(action_bins, n_dims: int, low: np.ndarray, high: np.ndarray) -> 
     return bins
 
 
-def _explicit_levels(action_values, low: np.ndarray, high: np.ndarray, dtype) -> list[np.ndarray]:
-    n_dims = low.size
+def levels_per_dimension(action_values, n_dims: int) -> list[np.ndarray]:
+    """``action_values`` as one float64 array of levels per action dimension: a list of lists gives each dimension
+    its own levels, a flat list of numbers the same levels to every dimension (as one int of ``action_bins`` gives
+    every dimension that many levels). ValueError naming the problem for anything else (a mix of numbers and lists,
+    non-numbers, or a list of lists whose count differs from ``n_dims``).
+
+    :param action_values: a flat list of numbers, or one list of numbers per action dimension.
+    :param n_dims: the number of action dimensions.
+    """
+    usage = "one list of numbers per action dimension, or one flat list of numbers for every dimension"
+    problem = ValueError(f"action_values must be {usage}, got {action_values!r}")
+    sequence = isinstance(action_values, (list, tuple)) or (
+        isinstance(action_values, np.ndarray) and action_values.ndim >= 1
+    )
+    if not sequence:
+        raise problem
+    entries = list(action_values)
+    is_number = [not isinstance(v, (list, tuple, np.ndarray, str, bytes)) for v in entries]
     try:
-        values = [np.asarray(v, dtype=np.float64).reshape(-1) for v in action_values]
+        if entries and all(is_number):
+            shared = np.asarray(entries, dtype=np.float64)
+            return [shared.copy() for _ in range(n_dims)]
+        if any(is_number):
+            raise problem
+        values = [np.asarray(v, dtype=np.float64) for v in entries]
     except (TypeError, ValueError):
-        raise ValueError(
-            f"action_values must be one list of numbers per action dimension, got {action_values!r}"
-        ) from None
+        raise problem from None
+    if any(v.ndim != 1 for v in values):
+        raise problem
     if len(values) != n_dims:
-        raise ValueError(f"action_values has {len(values)} lists for a Box action space of {n_dims} dimensions")
+        raise ValueError(
+            f"action_values has {len(values)} lists for an action space of {n_dims} dimensions (give one list per "
+            "dimension, or one flat list for every dimension)"
+        )
+    return values
+
+
+def _explicit_levels(action_values, low: np.ndarray, high: np.ndarray, dtype) -> list[np.ndarray]:
+    values = levels_per_dimension(action_values, low.size)
     levels = []
     for j, v in enumerate(values):
         if v.size == 0 or not np.all(np.isfinite(v)):

@@ -3,7 +3,6 @@
 import io
 import math
 import pathlib
-import re
 import sys
 import time
 import warnings
@@ -30,16 +29,18 @@ from sb3_er.common.dict_observations import (
     vec_observation_keys,
 )
 from sb3_er.common.env_ids import register_env_id
-from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec
+from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec, initial_value_seed_of
 from sb3_er.common.serialization import (
     PLAIN_STATE_KEY,
-    REBUILT_ON_LOAD,
     atomic_path,
+    check_file_object,
     check_rng_state,
-    custom_objects_without_pickle,
     plain_state,
     read_zip_data,
     resolve_zip_path,
+    restore_entries,
+    sb3_write_path,
+    zip_without_entries,
 )
 from sb3_er.common.tile_coding import resolve_tiling
 from sb3_er.common.value_bounds import (
@@ -285,9 +286,10 @@ class TileQAlgorithm(BaseAlgorithm):
         self._setup_lr_schedule()
         BaseAlgorithm.set_random_seed(self, self.seed)  # not ours: load() has just restored their states
         self.policy_kwargs = self._resolve_policy_kwargs()
-        self.policy = self.policy_class(
-            self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs
-        )
+        policy_kwargs = dict(self.policy_kwargs)
+        if self.seed is not None and policy_kwargs.get("initial_value_seed") is None:
+            policy_kwargs["initial_value_seed"] = initial_value_seed_of(self.seed)  # not NumPy's shared global stream
+        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **policy_kwargs)
         if self.policy.initial_value_seed is not None:  # keep the drawn seed: a reloaded model rebuilds the same start
             self.policy_kwargs["initial_value_seed"] = self.policy.initial_value_seed
         coder = self.policy.tile_coder
@@ -658,15 +660,21 @@ class TileQAlgorithm(BaseAlgorithm):
         include: Iterable[str] | None = None,
     ) -> None:
         """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
-        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling.
+        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling. Paths
+        are taken as SB3 takes them: ``.zip`` added when there is no suffix, a missing folder created and a folder's
+        name turned into ``<name>_2``, each with SB3's warning. A file object is written where it stands and left open.
 
         :param path: the zip file (a path, ``.zip`` added when missing, or an open binary file).
         :param exclude: attribute names not to save, besides SB3's defaults (default None).
         :param include: attribute names to save that SB3 leaves out by default (default None).
         """
+        if isinstance(path, (str, pathlib.Path)):
+            path = sb3_write_path(path, "zip")
+        else:
+            check_file_object(path, "w")
         self.__dict__[PLAIN_STATE_KEY] = plain_state(self, exclude, include)
         try:
-            if isinstance(path, (str, pathlib.Path)):
+            if isinstance(path, pathlib.Path):
                 with atomic_path(path, ".zip") as partial:
                     super().save(partial, exclude, include)
             else:
@@ -688,14 +696,22 @@ class TileQAlgorithm(BaseAlgorithm):
     ) -> SelfTileQAlgorithm:
         """SB3's ``load``, with every field checked (hyperparameters, generator states, counters, the last
         observation, the weights' shape and finiteness): a corrupt or crafted file is a ValueError naming the file and
-        the field. An entry SB3 cannot unpickle is an error too (SB3 only warns and leaves the attribute at its
-        default), except ``lr_schedule``, which is rebuilt from ``learning_rate``.
+        the field.
+
+        An entry that cannot be unpickled here (a learning-rate schedule saved under another Python version, a class
+        this environment cannot import) is restored from the plain copy sb3-er saves beside it where there is one;
+        a function's bytecode saved under another Python minor version counts as such (it would unpickle, and then
+        compute something else);
+        otherwise it gets SB3's warning and keeps the class's default, as in SB3, and ``custom_objects`` replaces it.
+        The spaces, the tiling settings and the policy class cannot be left out: the weights and the replay buffer are
+        laid out by them, so a file whose copies of them cannot be restored is refused, naming the entry.
 
         :param allow_pickle: True (SB3's behaviour) unpickles the zip's ``":serialized:"`` entries, which runs any code
             a crafted file names. False unpickles nothing: those entries are rebuilt from the plain copies sb3-er saves
-            beside them (spaces, generators, arrays, the policy class), ``custom_objects`` supplies any other, and a
-            file that needs more is refused with the entry named.
-        :param path: the zip file written by ``save`` (a path or an open binary file).
+            beside them (spaces, generators, arrays, the policy class) and ``custom_objects`` supplies any other; one
+            without either is handled as an entry that cannot be unpickled.
+        :param path: the zip file written by ``save`` (a path, tried with ``.zip`` added if it does not exist, or an
+            open binary file, read wherever it stands and left open, as SB3 does).
         :param env: the environment to attach (default None: set one later with ``set_env``).
         :param device: torch device of the policy's buffers (default "auto"; sb3-er computes on the CPU).
         :param custom_objects: values replacing saved entries by name, as in SB3 (default None).
@@ -704,19 +720,15 @@ class TileQAlgorithm(BaseAlgorithm):
         """
         if isinstance(path, (str, pathlib.Path)):
             path = resolve_zip_path(path)  # so that errors name the file read
+        else:
+            check_file_object(path, "r")  # SB3's TypeError or ValueError for what is not an open binary file
         try:
-            data, source = read_zip_data(path)
-            if not allow_pickle:
-                classes = {f"{c.__module__}:{c.__qualname__}": c for c in cls.policy_aliases.values()}
-                custom_objects = custom_objects_without_pickle(data, classes, custom_objects)
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                model = super().load(source, env, device, custom_objects, print_system_info, force_reset, **kwargs)
-            for warning in caught:
-                lost = re.match(r"Could not deserialize object (\S+)\.", str(warning.message))
-                if lost and lost.group(1) not in REBUILT_ON_LOAD:
-                    raise ValueError(f"data entry {lost.group(1)!r} cannot be unpickled here: {warning.message}")
-                warnings.warn(warning.message, warning.category, stacklevel=2)
+            data, source, saved_python = read_zip_data(path)
+            classes = {f"{c.__module__}:{c.__qualname__}": c for c in cls.policy_aliases.values()}
+            custom_objects, left_out = restore_entries(data, classes, custom_objects, allow_pickle, saved_python)
+            if left_out:
+                source = zip_without_entries(source, left_out)
+            model = super().load(source, env, device, custom_objects, print_system_info, force_reset, **kwargs)
             model.__dict__.pop(PLAIN_STATE_KEY, None)
             model._check_loaded_state()
         except FileNotFoundError:

@@ -24,9 +24,10 @@ from sb3_er.common.docstrings import inherit_parameters
 from sb3_er.common.tile_coding import TileCoder
 
 try:
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import ThreadpoolController
 except ImportError:  # optional: without it, BLAS keeps its own thread count
-    threadpool_limits = None
+    ThreadpoolController = None
+_blas_controller = None  # made at the first fit: finding the loaded BLAS libraries costs milliseconds each time
 
 
 class Transitions(NamedTuple):
@@ -99,10 +100,16 @@ def single_threaded_blas() -> contextlib.AbstractContextManager:
     The fits' vector operations are memory-bound, and OpenBLAS's thread synchronisation made them 10-30 times slower on
     a loaded 2-core machine (a dot product of 383,000 numbers: 7.7 ms of CPU against 0.28 ms single-threaded). One
     thread also keeps the summation order, and so the results, independent of the machine's core count.
+
+    The BLAS libraries are found once, at the first call: threadpoolctl's ``threadpool_limits`` searched the process's
+    loaded libraries at every fit (1-3 ms, as long as a small FQI fit itself).
     """
-    if threadpool_limits is None:
+    global _blas_controller
+    if ThreadpoolController is None:
         return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    if _blas_controller is None:
+        _blas_controller = ThreadpoolController()
+    return _blas_controller.limit(limits=1, user_api="blas")
 
 
 def weight_indices(coder: TileCoder, slots: np.ndarray, actions: np.ndarray) -> np.ndarray:

@@ -911,10 +911,16 @@ class TrajectoryBufferIO:
 
     def save_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
         """Save the trajectories and the visit vector w: an .npz archive of plain arrays if ``path`` ends in .npz
-        (loadable without unpickling), else a pickle (SB3's format; .pkl is added to a path without suffix).
+        (loadable without unpickling), else a pickle (SB3's format). Paths are taken as SB3 takes them, with its
+        warnings: .pkl added to a path without suffix, a missing folder created, a folder's name turned into
+        ``<name>_2``, and at ``verbose >= 2`` an existing file reported.
 
         :param path: the file (.npz for plain arrays, else a pickle), or an open binary file.
         """
+        from sb3_er.common.serialization import sb3_write_path
+
+        if isinstance(path, (str, pathlib.Path)):
+            path = sb3_write_path(path, "pkl", self.verbose)
         save_buffer(self.replay_buffer, path, self.verbose)
 
     def load_replay_buffer(
@@ -929,16 +935,35 @@ class TrajectoryBufferIO:
 
         :param truncate_last_traj: as in SB3: if True (the default, which rl-zoo always passes), the episode that was
             in progress when the buffer was saved is over: its open trajectory is closed as truncated at its last
-            s_{t+1}. If False, it stays open, to be continued by ``learn(reset_num_timesteps=False)`` on an env that
-            was not reset since; any env reset (a ``learn()`` that resets, ``set_env``, a freshly loaded model) closes
-            it as truncated all the same, so it is never joined to another episode.
+            s_{t+1}, with the warning SB3's HerReplayBuffer gives then. If False, it stays open, to be continued by
+            ``learn(reset_num_timesteps=False)`` on an env that was not reset since; any env reset (a ``learn()`` that
+            resets, ``set_env``, a freshly loaded model) closes it as truncated all the same, so it is never joined
+            to another episode.
         :param allow_pickle: unpickle .pkl files (True, SB3's behaviour). Unpickling a crafted file runs code from
             it; with False only .npz buffers load.
-        :param path: the file written by ``save_replay_buffer``, or an open binary file.
+        :param path: the file written by ``save_replay_buffer`` (a path that does not exist is tried with .pkl, then
+            .npz appended, reported at ``verbose >= 2`` as SB3 does), or an open binary file, read from where it
+            stands.
         """
+        import warnings
+
+        from sb3_er.common.serialization import check_file_object, sb3_read_path
+
+        if isinstance(path, (str, pathlib.Path)):
+            path = sb3_read_path(path, ("pkl", "npz"), self.verbose)
+        else:
+            check_file_object(path, "r")  # SB3's TypeError or ValueError for what is not an open binary file
         buffer = load_buffer(path, self.policy.tile_coder, allow_pickle)
+        in_progress = buffer.open_length + sum(buffer.staged_length(env) for env in range(buffer.n_envs))
         if truncate_last_traj:
             buffer.truncate_open_trajectory()
+            if in_progress:
+                warnings.warn(  # SB3's HerReplayBuffer.truncate_last_trajectory, the buffer of SB3 that keeps episodes
+                    "The last trajectory in the replay buffer will be truncated.\n"
+                    "If you are in the same episode as when the replay buffer was saved,\n"
+                    "you should use `truncate_last_traj=False` to avoid that issue.",
+                    stacklevel=2,
+                )
         buffer.set_n_envs(self.n_envs or 1)  # saved by a model of another number of envs: its open stretches close
         self.replay_buffer = buffer
         self._on_buffer_replaced()

@@ -3,6 +3,7 @@
 import io
 import pathlib
 import pickle
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -15,7 +16,7 @@ from stable_baselines3.common.utils import is_vectorized_observation
 from sb3_er.common import kernels
 from sb3_er.common.action_levels import box_action_levels
 from sb3_er.common.serialization import atomic_path, decode_plain, encode_plain
-from sb3_er.common.tile_coding import TileCoder
+from sb3_er.common.tile_coding import HashCollisionWarning, TileCoder, collision_warning
 
 
 def action_start(action_space: spaces.Space) -> np.ndarray:
@@ -40,6 +41,17 @@ def action_nvec(action_space: spaces.Space) -> list[int]:
             )
         return [int(n) for n in action_space.nvec]
     raise ValueError(f"Tile-coded Q-learning needs a Discrete, MultiDiscrete or Box action space, got {action_space}")
+
+
+def initial_value_seed_of(seed: int) -> int:
+    """The seed of the initial weights' draw of a model seeded with ``seed``: the first ``randint(0, 2^62)`` of NumPy's
+    legacy generator seeded with ``seed``, as NumPy's global generator gave it right after SB3's
+    ``set_random_seed(seed)``, drawn from a private generator so that models built at the same time in threads (rl-zoo's
+    ``optimize --n-jobs``) do not draw from one another's stream.
+
+    :param seed: the algorithm's seed (0 to 2^32 - 1, as NumPy's legacy seeding takes).
+    """
+    return int(np.random.RandomState(seed).randint(0, 2**62))
 
 
 def _initial_range(initial_value) -> tuple[float, float]:
@@ -81,7 +93,11 @@ class TileQPolicy(BasePolicy):
     :param lr_schedule: unused (SB3 interface); the algorithm applies the learning rate.
     :param tile_widths: tile width per observation dimension.
     :param n_tilings: number of tilings N.
-    :param memory_size: upper bound on the number of weights.
+    :param memory_size: upper bound on the number of weights (default 2^22, 32 MiB). The table holds memory_size //
+        stride state-tile slots (rounded down to a power of two), the stride being the actions' row rounded up to
+        whole cache lines: many actions leave few slots. Building the policy warns (HashCollisionWarning) when the
+        actions leave so few slots that more than half of the state tiles a run would visit are expected to share
+        one, with the memory_size that avoids it; the table never grows past memory_size on its own.
     :param wrap_periods: per observation dimension a period or None.
     :param action_values: per action dimension the value of each choice (for action tiling); for a Box action space
         the levels the env receives, each inside the bounds (needed where a bound is infinite).
@@ -94,9 +110,9 @@ class TileQPolicy(BasePolicy):
         its averaged weights from U[0, 1]: ``initial_value=(0, 1)`` here). Default 0, the thesis's Alg. 2-14 line 1.
         Optimistic values explore; pessimistic ones (thesis Figure 5.5) trust only visited features. ER-sigma
         replaces the initial values of unvisited features by sigma(s') (Eq. 5.4).
-    :param initial_value_seed: seed of the draw of (low, high) initial weights; None draws one from NumPy's global
-        generator (which the algorithm seeds with its ``seed``). The resolved seed is kept, so a reloaded model knows
-        every weight's initial value.
+    :param initial_value_seed: seed of the draw of (low, high) initial weights; None draws one from fresh entropy. An
+        algorithm with a ``seed`` passes :func:`initial_value_seed_of` its seed. The resolved seed is kept, so a
+        reloaded model knows every weight's initial value.
     """
 
     def __init__(
@@ -137,9 +153,13 @@ class TileQPolicy(BasePolicy):
                 f"tile_widths has {self.tile_coder.n_dims} entries for an observation of shape "
                 f"{observation_space.shape}"
             )
+        if isinstance(observation_space, spaces.Box):
+            crowded = collision_warning(self.tile_coder, observation_space)
+            if crowded is not None:
+                warnings.warn(crowded, HashCollisionWarning, stacklevel=2)
         low, high = _initial_range(initial_value)
         if low != high and initial_value_seed is None:
-            initial_value_seed = int(np.random.randint(0, 2**62))  # noqa: NPY002 (seeded by SB3's set_random_seed)
+            initial_value_seed = int(np.random.default_rng().integers(0, 2**62))  # fresh entropy
         self.initial_value = initial_value if low != high else low
         self.initial_value_seed = None if low == high else int(initial_value_seed)
         n = self.tile_coder.n_tilings
@@ -281,6 +301,7 @@ class TileQPolicy(BasePolicy):
         :param path: the file written by ``save`` (a path or an open binary file).
         :param allow_pickle: read a policy file of SB3's own format, whose spaces are pickled (default True, as in SB3).
         """
+        start = path.tell() if hasattr(path, "seek") and hasattr(path, "tell") else None
         try:
             try:
                 saved = th.load(path, map_location="cpu", weights_only=True)
@@ -288,8 +309,8 @@ class TileQPolicy(BasePolicy):
             except pickle.UnpicklingError:
                 if not allow_pickle:
                     raise ValueError("a policy file with pickled settings, refused with allow_pickle=False") from None
-                if hasattr(path, "seek"):
-                    path.seek(0)
+                if start is not None:
+                    path.seek(start)  # where the stream stood: torch read it from there, as SB3's load does
                 saved = th.load(path, map_location="cpu", weights_only=False)
                 plain = False
             if not (isinstance(saved, dict) and set(saved) == {"state_dict", "data"}):

@@ -8,19 +8,25 @@ rebuilds those attributes from it through SB3's ``custom_objects`` and refuses a
 the file's pickles are never read. The weights are read by SB3 with ``torch.load(weights_only=True)`` either way.
 """
 
+import base64
 import io
 import json
 import pathlib
+import pickletools
+import re
+import sys
+import warnings
 import zipfile
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import cloudpickle
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.save_util import is_json_serializable
+from stable_baselines3.common.save_util import is_json_serializable, open_path
 
 from sb3_er.common.atomic import atomic_output
 
@@ -28,6 +34,10 @@ from sb3_er.common.atomic import atomic_output
 PLAIN_STATE_KEY = "_plain_state"
 #: Pickled entries that loading rebuilds from other settings (``_setup_model`` makes lr_schedule from learning_rate).
 REBUILT_ON_LOAD = ("lr_schedule",)
+#: Entries a model cannot be rebuilt without: the spaces and the tiling settings, on which the weights' layout and the
+#: replay buffer's stored tiles depend, and the policy class. Any other entry that cannot be restored is left at the
+#: class's default with SB3's warning, as SB3 does.
+REQUIRED_ENTRIES = ("observation_space", "action_space", "policy_class", "policy_kwargs")
 NUMERIC_KINDS = "biuf"
 BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
 
@@ -201,30 +211,50 @@ def plain_state(model, exclude: list[str] | None = None, include: list[str] | No
 
 
 def resolve_zip_path(path: str | pathlib.Path) -> pathlib.Path:
-    """SB3's convention: a path without suffix that does not exist is read with .zip added.
+    """SB3's convention (``open_path`` for reading with suffix "zip"): a path that does not exist is read with ".zip"
+    appended, if that exists.
 
     :param path: the path as given to ``load``.
     """
     path = pathlib.Path(path)
-    if not path.exists() and not path.suffix and path.with_suffix(".zip").exists():
-        return path.with_suffix(".zip")
+    with_suffix = pathlib.Path(f"{path}.zip")
+    if not path.exists() and with_suffix.exists():
+        return with_suffix
     return path
 
 
-def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[str, Any], Any]:
-    """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC, and a path
-    or buffer to pass on to SB3.
+def check_file_object(stream: Any, mode: str) -> None:
+    """SB3's checks of a file object given instead of a path (``save_util.open_path``): TypeError unless it is a binary
+    file or buffer (BufferedReader, BufferedWriter, BufferedRandom, BytesIO), ValueError if it is closed or cannot be
+    read ("r") or written ("w").
+
+    :param stream: the file object.
+    :param mode: "r" or "w".
+    """
+    open_path(stream, mode)
+
+
+def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[str, Any], Any, tuple[int, int] | None]:
+    """The JSON ``data`` entry of a model zip (parsed, never unpickled), after checking every member's CRC; the path or
+    file object to pass on to SB3; and the (major, minor) version of the Python that saved it, from the system
+    information SB3 writes into the zip (None if absent). A file object is read as SB3 reads it: the zip is found from
+    the end of the file, wherever the stream stands (a BytesIO just written needs no seek), and the stream is left
+    open.
 
     :param path: the model's file (a path or an open binary file).
     """
-    source = resolve_zip_path(path) if isinstance(path, (str, pathlib.Path)) else io.BytesIO(path.read())
+    source = resolve_zip_path(path) if isinstance(path, (str, pathlib.Path)) else path
     try:
         with zipfile.ZipFile(source) as archive:
             corrupt = archive.testzip()  # every member's CRC, also those SB3 never reads
             raw = archive.read("data") if corrupt is None else b""
+            names = archive.namelist()
+            system = archive.read("system_info.txt") if corrupt is None and "system_info.txt" in names else b""
     except KeyError:
         raise ValueError("the zip has no data entry") from None
     except (zipfile.BadZipFile, ValueError, EOFError, OSError) as error:
+        if isinstance(error, FileNotFoundError):
+            raise
         raise ValueError(f"not a readable model zip ({type(error).__name__}: {error})") from None
     if corrupt is not None:
         raise ValueError(f"member {corrupt!r} of the zip fails its CRC check: the file is corrupt")
@@ -232,43 +262,164 @@ def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[st
         data = json.loads(raw.decode())
     except ValueError as error:
         raise ValueError(f"the data entry is not JSON ({error})") from None
-    if isinstance(source, io.BytesIO):
-        source.seek(0)
     if not isinstance(data, dict):
         raise ValueError("the data entry is not a JSON object")
-    return data, source
+    found = re.search(rb"Python: (\d+)\.(\d+)", system)
+    return data, source, (int(found.group(1)), int(found.group(2))) if found else None
 
 
-def custom_objects_without_pickle(
-    data: dict[str, Any], classes: dict[str, type], custom_objects: dict[str, Any] | None
-) -> dict[str, Any]:
-    """SB3 ``custom_objects`` that replace every pickled entry of ``data`` by its plain copy, so that SB3 unpickles
-    none; ValueError naming an entry that only its pickle holds.
+def holds_bytecode(pickled: bytes) -> bool:
+    """Whether a cloudpickle string rebuilds a code object (a lambda, a function defined in ``__main__``, a closure),
+    read from its opcodes without unpickling: bytecode runs only under the Python minor version that compiled it.
+
+    :param pickled: the pickle's bytes.
+    """
+    try:
+        return any(arg == "CodeType" for _, arg, _ in pickletools.genops(pickled))
+    except Exception:  # a malformed pickle: unpickling it will say what is wrong
+        return False
+
+
+def _is_pickled(item: Any) -> bool:
+    return isinstance(item, dict) and ":serialized:" in item
+
+
+def restore_entries(
+    data: dict[str, Any],
+    classes: dict[str, type],
+    custom_objects: dict[str, Any] | None,
+    allow_pickle: bool,
+    saved_python: tuple[int, int] | None = None,
+) -> tuple[dict[str, Any], list[str]]:
+    """SB3 ``custom_objects`` restoring every pickled entry of ``data``, and the entries that cannot be restored.
+
+    Each pickled entry (``":serialized:"``) the caller does not replace is restored by the first that works of: its
+    pickle (only with ``allow_pickle``; SB3's own unpickling, cloudpickle); its plain copy (:data:`PLAIN_STATE_KEY`);
+    for ``lr_schedule``, nothing (loading rebuilds it from ``learning_rate``). An entry none restores (a schedule saved
+    under another Python version, a class that cannot be imported here, a pickle refused by ``allow_pickle=False``)
+    gets SB3's warning and is left out, so the model keeps the class's default for it, as SB3 does; unless it is one of
+    :data:`REQUIRED_ENTRIES`, which is a ValueError naming it. A malformed plain copy (a crafted or corrupt file) is a
+    ValueError too. SB3 then unpickles nothing itself.
 
     :param data: the zip's parsed ``data`` entry.
     :param classes: the classes a plain form may name, by "module:name".
     :param custom_objects: the caller's own replacements, which win (default None).
+    :param allow_pickle: unpickle the entries (SB3's behaviour) before falling back on the plain copies.
+    :param saved_python: the (major, minor) version of the Python that saved the file (default None: unknown). An
+        entry holding bytecode saved under another minor version is not unpickled: code objects of one version
+        unpickle under another without an error and then compute something else, or crash.
     """
-    custom_objects = dict(custom_objects or {})
+    here = sys.version_info[:2]
+    foreign = saved_python is not None and tuple(saved_python) != here
+    restored = dict(custom_objects or {})
     plain = data.get(PLAIN_STATE_KEY, {})
     if not isinstance(plain, dict):
         raise ValueError(f"data entry {PLAIN_STATE_KEY!r} is not a JSON object")
+    left_out = []
     for key, item in data.items():
-        if key in custom_objects or not (isinstance(item, dict) and ":serialized:" in item):
+        if key in restored or not _is_pickled(item):
             continue
+        if key in REBUILT_ON_LOAD:
+            restored[key] = None
+            continue
+        problem = "allow_pickle=False refuses to unpickle it"
+        if allow_pickle:
+            try:
+                pickled = base64.b64decode(str(item[":serialized:"]).encode())
+                if foreign and holds_bytecode(pickled):
+                    problem = (
+                        f"it holds Python {saved_python[0]}.{saved_python[1]} bytecode, which Python "
+                        f"{here[0]}.{here[1]} cannot run"
+                    )
+                else:
+                    restored[key] = cloudpickle.loads(pickled)
+                    continue
+            except Exception as error:  # anything a pickle of another Python, or a missing module, raises
+                problem = f"{type(error).__name__}: {error}"
         if key in plain:
             try:
-                custom_objects[key] = decode_plain(plain[key], classes)
-            except ValueError as error:
+                restored[key] = decode_plain(plain[key], classes)
+            except ValueError as error:  # written by save, so a crafted or corrupt file
                 raise ValueError(f"data entry {key!r}: {error}") from None
-        elif key in REBUILT_ON_LOAD:
-            custom_objects[key] = None
-        else:
+            continue
+        if key in REQUIRED_ENTRIES:
             raise ValueError(
-                f"data entry {key!r} can only be restored by unpickling it, which allow_pickle=False refuses: pass "
-                f"custom_objects={{{key!r}: ...}}, or load with allow_pickle=True if you trust the file"
+                f"data entry {key!r} cannot be restored ({problem}), and the model cannot be rebuilt without it: "
+                f"pass custom_objects={{{key!r}: ...}}"
             )
-    return custom_objects
+        warnings.warn(  # SB3's message (save_util.json_to_data), naming the entry left at its default
+            f"Could not deserialize object {key}. Consider using `custom_objects` argument to replace this object.\n"
+            f"Exception: {problem}",
+            stacklevel=3,
+        )
+        left_out.append(key)
+    return restored, left_out
+
+
+def zip_without_entries(source: Any, left_out: list[str]) -> io.BytesIO:
+    """A copy of the model zip ``source`` in memory whose ``data`` entry lacks the keys ``left_out``, so that SB3's load
+    leaves those attributes at the class's defaults (as it does for an entry it cannot unpickle).
+
+    :param source: the model's zip (a path or an open binary file).
+    :param left_out: the data keys to drop.
+    """
+    out = io.BytesIO()
+    with zipfile.ZipFile(source) as archive, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as copy:
+        for info in archive.infolist():
+            content = archive.read(info)
+            if info.filename == "data":
+                data = json.loads(content.decode())
+                content = json.dumps({k: v for k, v in data.items() if k not in left_out}, indent=4).encode()
+            copy.writestr(info, content)
+    out.seek(0)
+    return out
+
+
+def sb3_write_path(path: str | pathlib.Path, suffix: str, verbose: int = 0) -> pathlib.Path:
+    """The file SB3's ``open_path`` would write for ``path``, with its warnings: ``suffix`` appended to a path without
+    one; a path that is a folder becomes ``<path>_2`` ("Path ... is a folder. Will save instead to ..."); a missing
+    parent folder is created ("Path ... does not exist. Will create it."); at ``verbose >= 2`` an existing file is
+    reported ("Path ... exists, will overwrite it.").
+
+    :param path: the path given to save.
+    :param suffix: the suffix without its dot ("zip", "pkl").
+    :param verbose: the verbosity SB3 passes (0 for a model's zip, the model's for a replay buffer).
+    """
+    path = pathlib.Path(path)
+    if path.suffix == "" and suffix:
+        path = pathlib.Path(f"{path}.{suffix}")
+    while True:
+        if path.is_file() and verbose >= 2:
+            warnings.warn(f"Path '{path}' exists, will overwrite it.", stacklevel=3)
+        if path.is_dir():
+            warnings.warn(f"Path '{path}' is a folder. Will save instead to {path}_2", stacklevel=3)
+            path = pathlib.Path(f"{path}_2")
+            continue
+        if not path.parent.exists():
+            warnings.warn(f"Path '{path.parent}' does not exist. Will create it.", stacklevel=3)
+            path.parent.mkdir(parents=True, exist_ok=True)
+        return path
+
+
+def sb3_read_path(path: str | pathlib.Path, suffixes: tuple[str, ...], verbose: int = 0) -> pathlib.Path:
+    """The file SB3's ``open_path`` would read for ``path``: ``path`` if it exists, else ``path`` with a suffix
+    appended (the first of ``suffixes`` that exists), with SB3's warning at ``verbose >= 2`` ("Path ... not found.
+    Attempting ..."); ``path`` itself when none exists (the caller's open then names it).
+
+    :param path: the path given to load.
+    :param suffixes: the suffixes to try, without their dots ("pkl", then "npz" for a replay buffer).
+    :param verbose: the verbosity SB3 passes (the model's for a replay buffer).
+    """
+    path = pathlib.Path(path)
+    if path.exists():
+        return path
+    for suffix in suffixes:
+        candidate = pathlib.Path(f"{path}.{suffix}")
+        if candidate.exists():
+            if verbose >= 2:
+                warnings.warn(f"Path '{path}' not found. Attempting {candidate}.", stacklevel=3)
+            return candidate
+    return path
 
 
 @contextmanager

@@ -13,6 +13,7 @@ import yaml
 from gymnasium import spaces
 
 from sb3_er.common import kernels
+from sb3_er.common.action_levels import levels_per_dimension
 
 #: The generic rule: at most this many tiles per bounded dimension (the rule of sb3-er before budgets), at least 2.
 DEFAULT_TILES_PER_DIMENSION = 10
@@ -30,6 +31,22 @@ PACKAGE_TILINGS = ("sb3_er", "data/tilings.yml")
 PLACEHOLDER_BOUND = 1e10
 
 WEIGHTS_PER_CACHE_LINE = 8  # float64 weights in a 64-byte cache line: a state tile's row starts on a line boundary
+#: The distinct state tiles per tiling a run is assumed to visit when the observation space holds more (or is
+#: unbounded), for the expected collision rate of a table: 4,096 per tiling, 65,536 at 16 tilings. sb3-er's thesis runs
+#: visit about as many: 64,982 on the pendulum, 29,569 to 46,347 on the simplest walker (16 tilings;
+#: ``results/measured/table_size``).
+REFERENCE_TILES_PER_TILING = 4096
+#: Above this expected collision rate at the reference tile count, building a policy warns. In the measurements of
+#: ``results/measured/table_size`` the pendulum and the walker learned as well at 53 % and 63 % collisions as at 6 %,
+#: and worse at 87 % and 91 %.
+COLLISION_WARNING_RATE = 0.5
+#: The collision rate the warning's suggested memory_size keeps under (the default table's on the pendulum: 6 %).
+SUGGESTED_COLLISION_RATE = 0.1
+
+
+class HashCollisionWarning(UserWarning):
+    """The hashed weight table has too few state-tile slots for the tiles a run is likely to visit: different states
+    would share weights (see :meth:`TileCoder.expected_collision_rate`)."""
 
 
 def tiling_offsets(n_tilings: int, n_dims: int) -> np.ndarray:
@@ -63,7 +80,8 @@ class TileCoder:
     :param memory_size: upper bound on the number of weights; the table uses the largest power of two of state-tile
         slots that fits.
     :param wrap_periods: per dimension a period (e.g. 2 pi for an angle) or None.
-    :param action_values: per action dimension the value of each choice (defaults to the choice index).
+    :param action_values: per action dimension the value of each choice (defaults to the choice index); one flat list
+        gives every dimension the same values.
     :param action_tile_widths: per action dimension a tile width over ``action_values``; None keeps actions apart.
     """
 
@@ -152,7 +170,7 @@ class TileCoder:
     def _check_action_values(self, action_values) -> list[np.ndarray]:
         if action_values is None:
             return [np.arange(n, dtype=np.float64) for n in self.action_nvec]
-        values = [np.asarray(v, dtype=np.float64).reshape(-1) for v in action_values]
+        values = levels_per_dimension(action_values, len(self.action_nvec))
         if [len(v) for v in values] != self.action_nvec.tolist():
             raise ValueError(
                 f"action_values sizes {[len(v) for v in values]} do not match the action space {self.action_nvec}"
@@ -270,11 +288,110 @@ class TileCoder:
             "fill": len(slots) / self.n_slots,
         }
 
+    def expected_collision_rate(self, n_tiles: float) -> float:
+        """The collision rate :meth:`memory_report` would measure after ``n_tiles`` distinct state tiles, hashed
+        uniformly into the table's S slots: 1 - E[slots used] / n_tiles, with E[slots used] = S (1 - (1 - 1/S)^n_tiles)
+        (the share of tiles that find their slot taken by another).
+
+        :param n_tiles: the number of distinct (tiling, state tile) pairs, at least 1.
+        """
+        if not n_tiles >= 1:
+            raise ValueError(f"n_tiles must be at least 1, got {n_tiles!r}")
+        return expected_collision_rate(float(n_tiles), self.n_slots)
+
+    def state_tiles_in_box(self, low: Sequence[float], high: Sequence[float]) -> float:
+        """The number of distinct (tiling, state tile) pairs that cover the box [low, high] of observations: per
+        tiling the product over dimensions of the tiles spanned between the bounds (at most the period's tiles for a
+        wrapped dimension), summed over the tilings; infinity when a bound is infinite.
+
+        :param low: the lower bound of each observation dimension.
+        :param high: the upper bound of each observation dimension.
+        """
+        low = np.asarray(low, dtype=np.float64).reshape(self.n_dims)
+        high = np.asarray(high, dtype=np.float64).reshape(self.n_dims)
+        total = 0.0
+        with np.errstate(invalid="ignore", over="ignore"):
+            spans = np.floor(high * self.inv_widths + self.offsets) - np.floor(low * self.inv_widths + self.offsets) + 1
+        wrapped = self.wrap_tiles > 0
+        spans[:, wrapped] = np.fmin(spans[:, wrapped], self.wrap_tiles[wrapped])  # any bounds: one period's tiles
+        if not np.all(np.isfinite(spans[:, ~wrapped])):
+            return math.inf
+        for row in spans:
+            total += math.prod(float(count) for count in row)
+        return total
+
+    def slots_for(self, n_tiles: float, collision_rate: float) -> int:
+        """The fewest state-tile slots (a power of two) whose expected collision rate after ``n_tiles`` distinct state
+        tiles is at most ``collision_rate``; ``slots_for(...) * stride`` is the memory_size that gives them.
+
+        :param n_tiles: the number of distinct state tiles, at least 1.
+        :param collision_rate: the largest acceptable expected collision rate, in (0, 1).
+        """
+        if not 0.0 < collision_rate < 1.0:
+            raise ValueError(f"collision_rate must lie in (0, 1), got {collision_rate!r}")
+        slots = 1
+        while expected_collision_rate(float(n_tiles), slots) > collision_rate:
+            slots *= 2
+        return slots
+
     def __repr__(self) -> str:
         return (
             f"TileCoder(n_tilings={self.n_tilings}, tile_widths={self.tile_widths.tolist()}, "
             f"actions={self.n_actions}, stride={self.stride}, slots={self.n_slots}, weights={self.n_weights})"
         )
+
+
+def expected_collision_rate(n_tiles: float, n_slots: int) -> float:
+    """1 - E[slots used] / n_tiles for ``n_tiles`` distinct keys hashed uniformly into ``n_slots`` slots, with
+    E[slots used] = n_slots (1 - (1 - 1 / n_slots)^n_tiles): the share of keys that find their slot taken.
+
+    :param n_tiles: the number of distinct keys, at least 1.
+    :param n_slots: the number of slots, at least 1.
+    """
+    used = -n_slots * math.expm1(n_tiles * math.log1p(-1.0 / n_slots)) if n_slots > 1 else 1.0
+    return max(0.0, 1.0 - used / n_tiles)
+
+
+def collision_warning(coder: TileCoder, observation_space: spaces.Box) -> str | None:
+    """The message of a :class:`HashCollisionWarning` when ``coder``'s actions leave its table too few state-tile rows
+    for the state tiles a run on ``observation_space`` is likely to visit, else None.
+
+    It speaks when more than ``COLLISION_WARNING_RATE`` of those tiles are expected to share a row, and rows of one
+    cache line (at most 8 action columns) would have kept under it: a long row is what a user may not see coming. A
+    memory_size too small for any action set is left to the user who chose it (``memory_report`` measures it).
+
+    The tiles counted are those covering the observation space (:meth:`TileCoder.state_tiles_in_box`), at most
+    ``REFERENCE_TILES_PER_TILING`` per tiling; the message gives the expected collision rate at that count, the
+    memory_size that would keep it under ``SUGGESTED_COLLISION_RATE`` and the ways to shorten a state tile's row.
+
+    :param coder: the tile coder of a policy.
+    :param observation_space: the policy's (flat) Box observation space.
+    """
+    reference = REFERENCE_TILES_PER_TILING * coder.n_tilings
+    n_tiles = min(coder.state_tiles_in_box(observation_space.low, observation_space.high), reference)
+    n_tiles = max(n_tiles, 1.0)
+    rate = coder.expected_collision_rate(n_tiles)
+    one_line_slots = 1 << int(np.floor(np.log2(max(coder.memory_size // WEIGHTS_PER_CACHE_LINE, 1))))
+    if rate <= COLLISION_WARNING_RATE or expected_collision_rate(n_tiles, one_line_slots) > COLLISION_WARNING_RATE:
+        return None  # enough rows, or a memory_size too small for any action set: the user's choice, not the actions'
+    slots = coder.slots_for(n_tiles, SUGGESTED_COLLISION_RATE)
+    memory = slots * coder.stride
+    counted = (
+        "the state tiles covering the observation space"
+        if n_tiles < reference
+        else f"{REFERENCE_TILES_PER_TILING:,} per tiling, about what sb3-er's pendulum and walker runs visit"
+    )
+    mebibytes = memory * 8 / 2**20
+    size = f"{mebibytes / 1024:,.1f} GiB" if mebibytes >= 1024 else f"{mebibytes:,.0f} MiB"
+    return (
+        f"The weight table holds {coder.n_slots:,} state-tile slots: memory_size={coder.memory_size} weights in rows "
+        f"of {coder.stride:,} (one weight per action column; {coder.n_actions:,} actions). A run that visits "
+        f"{n_tiles:,.0f} distinct state tiles ({counted}) would find about {100 * rate:.0f} % of them sharing a slot, "
+        f"and so weights, with another state. memory_size={memory} ({slots:,} slots, {size} of float64 weights) "
+        f"keeps this under {100 * SUGGESTED_COLLISION_RATE:.0f} %; or use fewer actions (action_bins, action_values) "
+        "or tile the actions (action_tile_widths), which shortens the rows. TileCoder.memory_report(observations) "
+        "measures the rate on the observations of a run."
+    )
 
 
 def default_tiles_per_dimension(n_dims: int, cell_budget: int = DEFAULT_CELL_BUDGET) -> int:

@@ -154,7 +154,8 @@ def replay_model(algo: str, env, policy_kwargs: dict, seed: int, buffer_path: Pa
     :param buffer_path: the saved replay buffer.
     """
     model = _new_model(algo, env, policy_kwargs, seed)
-    model.load_replay_buffer(buffer_path)
+    model.load_replay_buffer(buffer_path, truncate_last_traj=False)
+    model.replay_buffer.truncate_open_trajectory()  # the step the collector took into its next episode ends there
     model.seed_replay(seed)
     return model
 

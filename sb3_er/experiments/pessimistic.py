@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from sb3_er.common.env_ids import check_env_kwargs
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
@@ -332,6 +333,7 @@ def reproduce_pessimistic(
         raise ValueError(f"the pessimistic initial value must be finite, got {initial_value}")
     experiment = base.with_settings(initial_value=initial_value)
     env_kwargs = dict(env_kwargs or {})
+    check_env_kwargs(experiment.env_id, env_kwargs)  # once, before any run: not one failure per run
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
     settings = {
         "experiment": experiment.name,

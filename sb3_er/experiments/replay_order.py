@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from sb3_er.common.env_ids import check_env_kwargs
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
@@ -160,7 +161,8 @@ def fresh_replay_model(job: RunJob, env, order: str, buffer_path: Path):
     from sb3_er import ER
 
     model = ER("TileQ", env, seed=job.seed, **{**job_model_kwargs(job), "replay_order": order})
-    model.load_replay_buffer(buffer_path)
+    model.load_replay_buffer(buffer_path, truncate_last_traj=False)
+    model.replay_buffer.truncate_open_trajectory()  # the collector's run is over: an unfinished episode ends there
     model.seed_replay(job.seed)
     return model
 
@@ -420,6 +422,7 @@ def reproduce_replay_order(
         )
     experiment = base.with_settings(database_episodes=database_episodes, eval_every=eval_every)
     env_kwargs = dict(env_kwargs or {})
+    check_env_kwargs(experiment.env_id, env_kwargs)  # once, before any run: not one failure per run
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
     settings = {
         "experiment": experiment.name,

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from sb3_er.common.env_ids import check_env_kwargs
 from sb3_er.experiments import files, records
 from sb3_er.experiments.runner import BACKENDS, RunJob, plan_jobs, read_run_csv, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
@@ -145,6 +146,7 @@ def reproduce(
     if address is not None and backend != "ray":
         raise ValueError(f"an address ({address!r}) is for the Ray backend only; add --backend ray")
     env_kwargs, algo_kwargs = dict(env_kwargs or {}), dict(algo_kwargs or {})
+    check_env_kwargs(experiment.env_id, env_kwargs)  # once, before any run: not one failure per run
     _check_algo_kwargs(algos, algo_kwargs)
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
     files.lock_folder(out_dir)  # one writer per folder, until this function returns

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from sb3_er.common.env_ids import check_env_kwargs
 from sb3_er.experiments import files
 from sb3_er.experiments.analyses import check_request, check_settings, code_line, env_reading, run_analysis_jobs
 from sb3_er.experiments.metrics import mean_confidence_interval
@@ -249,6 +250,7 @@ def reproduce_sigma(
         raise ValueError(f"unknown sigma definitions {unknown}; choose from {', '.join(DEFINITIONS)}")
     definitions = [name for name in DEFINITIONS if name in definitions]  # worst case to best case
     algo_kwargs, env_kwargs = dict(algo_kwargs or {}), dict(env_kwargs or {})
+    check_env_kwargs(experiment.env_id, env_kwargs)  # once, before any run: not one failure per run
     if "sigma" in algo_kwargs:
         raise ValueError("the sigma study sets sigma itself; choose definitions with sigmas (--sigmas)")
     check_algo_kwargs([ERSigma], algo_kwargs, who="ER-sigma")
