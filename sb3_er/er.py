@@ -1,6 +1,6 @@
 """Experience replay of whole trajectories on tile-coded Q (thesis Alg. 7-14): one implementation, four presets."""
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
@@ -143,6 +143,9 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
     _trace_lambda_parameter = "online_lambda"
 
+    #: Files saved before presets existed replayed with the thesis's algorithm.
+    older_file_values: ClassVar[dict[str, Any]] = {"preset": "thesis"}
+
     def __init__(
         self,
         policy: str | type[TileQPolicy] = "TileQ",
@@ -199,9 +202,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self.max_predecessors = max_predecessors
         self.prioritized_updates = prioritized_updates
         self.replay_buffer_kwargs = replay_buffer_kwargs
-        # a model being loaded (SB3's load builds it with _init_setup_model=False, then restores the file's values)
-        # starts from the thesis's preset: a file saved before presets existed keeps the thesis's algorithm
-        self.preset = preset if _init_setup_model else "thesis"
+        self.preset = preset
         self.truncate_targets = truncate_targets
         self.target_copy = target_copy
         self.step_size_bound = step_size_bound

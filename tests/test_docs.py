@@ -298,7 +298,7 @@ NOT_MEASURED = {
         "1.33": "a torque level",
         "1.71": "the outermost bin centre of 7 bins of [-2, 2]",
         "-1627.4": "Pendulum-v1's return bound, computed",
-        "105.5": "MountainCarContinuous-v0's watch limit, 100 + 5 % of 110, computed",
+        "105": "MountainCarContinuous-v0's watch limit, 100 + 5 % of its largest reward (100), computed",
     },
     "docs/envs/dm_control.md": {"1801.00690": "the arXiv number of Tassa et al. 2018"},
     "docs/envs/leo.md": {"0.167": "the RX-28 motor's torque constant", "0.320": "its back-EMF constant"},

@@ -37,4 +37,4 @@ def test_the_default_tilings_live_in_the_tile_coding_module():
         assert getattr(tile_coding, name).__module__ == "sb3_er.common.tile_coding"
     source = (PACKAGE / "common" / "base_class.py").read_text(encoding="utf-8")
     assert "def default_tile_widths" not in source and "yaml" not in source
-    assert base_class.default_tile_widths is tile_coding.default_tile_widths  # what the algorithms use
+    assert base_class.resolve_tiling is tile_coding.resolve_tiling  # what the algorithms use

@@ -6,6 +6,7 @@ test_sb3_contract.py; TensorBoard scalars: test_run.py.)"""
 import time
 from unittest import mock
 
+import numpy as np
 import pytest
 from sb3_cases import ALGOS, FQI, LSPI, InMemoryLogger, OneStepEnv, model
 
@@ -69,12 +70,6 @@ def test_episode_buffers_hold_stats_window_size_episodes(algo, stats_window_size
     assert agent.ep_success_buffer.maxlen == stats_window_size
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="dump_logs scans the whole weight table at every dump (kernels.weight_statistics for train/memory_fill and "
-    "train/weights_abs_mean: about 40 ms at the default 2^22 weights), so with SB3's one-step episodes and "
-    "log_interval=1 the logging, not the env, sets fps (about 20); the fix belongs to the learn loop's logging",
-)
 def test_fps_at_the_default_table_is_set_by_the_env():
     """SB3's test_fps_logger exactly: the model's defaults, a 1 ms env, a dump per one-step episode."""
     env = OneStepEnv(delay=0.001)
@@ -83,3 +78,36 @@ def test_fps_at_the_default_table_is_set_by_the_env():
     agent.set_logger(logger)
     agent.learn(100, log_interval=1)
     assert 100 <= logger.name_to_value["time/fps"] <= 1000
+
+
+def test_the_table_statistics_are_scanned_at_most_once_per_n_weights_over_4096_steps():
+    """train/weights_abs_mean and train/memory_fill scan every weight, so a dump after every one-step episode records
+    them at the first dump and then once per n_weights / 4096 steps (16 at 2^16 weights): at steps 1, 17, ..., 97 of
+    100; each recorded value is the table's at that dump (NumPy over theta)."""
+
+    class Clearing(InMemoryLogger):
+        def dump(self, step: int = 0) -> None:
+            theta = agent.policy.weights.theta
+            touched = theta != 0.0
+            self.dumped.append(
+                (
+                    agent.num_timesteps,
+                    dict(self.name_to_value),
+                    np.abs(theta[touched]).mean() if touched.any() else 0.0,
+                    touched.mean(),
+                )
+            )
+            self.name_to_value.clear()
+
+    agent = SarsaLambda("TileQ", OneStepEnv(delay=0.0), seed=0, policy_kwargs=dict(memory_size=2**16))
+    logger = Clearing()
+    agent.set_logger(logger)
+    agent.learn(100, log_interval=1)
+    scanned = [
+        (step, values, mean, fill) for step, values, mean, fill in logger.dumped if "train/memory_fill" in values
+    ]
+    assert [step for step, *_ in scanned] == list(range(1, 101, 16))
+    for _, values, mean, fill in scanned:
+        assert values["train/weights_abs_mean"] == pytest.approx(mean, rel=1e-12)
+        assert values["train/memory_fill"] == fill
+    assert len(logger.dumped) == 100

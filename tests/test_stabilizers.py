@@ -160,3 +160,12 @@ def test_a_model_saved_before_presets_loads_with_the_thesis_algorithm(tmp_path):
     model.save(tmp_path / "old")
     old = ERSigma.load(tmp_path / "old")
     assert old.preset == "thesis" and old.stabilizers == PRESETS["thesis"]
+
+    class StableByDefault(ERSigma):  # a later version whose default preset is "stable"
+        def __init__(self, *args, preset="stable", **kwargs):
+            super().__init__(*args, preset=preset, **kwargs)
+
+    assert StableByDefault("TileQ", "CartPole-v1", _init_setup_model=False).preset == "stable"
+    old = StableByDefault.load(tmp_path / "old")
+    assert old.preset == "thesis" and old.stabilizers == PRESETS["thesis"]
+    assert StableByDefault.load(tmp_path / "m").stabilizers == loaded.stabilizers

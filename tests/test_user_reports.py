@@ -14,6 +14,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
 from sb3_er import ER, ERSigma, SarsaLambda, zoo
+from sb3_er.common.kernels import Trace
 
 SMALL = dict(policy_kwargs=dict(n_tilings=4, memory_size=2**14))
 
@@ -144,13 +145,13 @@ def test_load_set_env_and_loaded_buffer_do_not_glue_episodes(tmp_path):
 def test_sarsa_lambda_starts_a_reset_episode_with_an_empty_trace():
     class TraceAtStart(BaseCallback):
         def _on_training_start(self):
-            self.length = int(self.model._trace_length[0])
+            self.length = sum(int(Trace(*trace).length[0]) for trace in self.model._traces)
 
         def _on_step(self):
             return True
 
     model = SarsaLambda("TileQ", CounterEnv(), seed=0, **SMALL).learn(15)
-    assert model._trace_length[0] > 0
+    assert Trace(*model._traces[0]).length[0] > 0
     probe = TraceAtStart()
     model.learn(5, callback=probe)
     assert probe.length == 0

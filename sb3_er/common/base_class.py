@@ -128,6 +128,9 @@ class TileQAlgorithm(BaseAlgorithm):
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"TileQ": TileQPolicy, "TileQPolicy": TileQPolicy}
+    #: Parameters added after files were first saved, with the value that reproduces a file saved without them
+    #: (``load`` sets it; a parameter's default may change, what an old file learned with does not).
+    older_file_values: ClassVar[dict[str, Any]] = {}
     policy: TileQPolicy
     #: The name users give lambda of online Sarsa(lambda) (ER calls it online_lambda), for error messages.
     _trace_lambda_parameter: ClassVar[str] = "trace_lambda"
@@ -481,6 +484,7 @@ class TileQAlgorithm(BaseAlgorithm):
             "_next_actions",
             "_direct_envs",
             "_watch",
+            "_weights_scanned_at",  # the logging's own schedule: a loaded model scans at its first dump
             "_watch_array",
             "_target_copy",
         ]
@@ -728,7 +732,12 @@ class TileQAlgorithm(BaseAlgorithm):
             custom_objects, left_out = restore_entries(data, classes, custom_objects, allow_pickle, saved_python)
             if left_out:
                 source = zip_without_entries(source, left_out)
-            model = super().load(source, env, device, custom_objects, print_system_info, force_reset, **kwargs)
+            # a file saved before a parameter existed gets the value that reproduces what it was saved with, which
+            # need not be the parameter's default now (SB3's load sets kwargs before _setup_model reads them)
+            older = {name: value for name, value in cls.older_file_values.items() if name not in data}
+            model = super().load(
+                source, env, device, custom_objects, print_system_info, force_reset, **{**older, **kwargs}
+            )
             model.__dict__.pop(PLAIN_STATE_KEY, None)
             model._check_loaded_state()
         except FileNotFoundError:
@@ -990,9 +999,15 @@ class TileQAlgorithm(BaseAlgorithm):
         if self._td_error_count:
             self.logger.record("train/td_error", self._td_error_sum / self._td_error_count)
             self._td_error_sum, self._td_error_count = 0.0, 0
-        weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.weights)
-        self.logger.record("train/weights_abs_mean", weights_abs_mean)
-        self.logger.record("train/memory_fill", memory_fill)
+        # the two table statistics scan every weight (about 10 ms at the default 2^22): at most once per
+        # n_weights / 4096 env steps (1,024 there), so that dumps at every one-step episode do not set the fps
+        scanned_at = getattr(self, "_weights_scanned_at", None)
+        every = max(1, self.policy.tile_coder.n_weights >> 12)
+        if scanned_at is None or not 0 <= self.num_timesteps - scanned_at < every:
+            self._weights_scanned_at = self.num_timesteps
+            weights_abs_mean, memory_fill = kernels.weight_statistics(self.policy.weights)
+            self.logger.record("train/weights_abs_mean", weights_abs_mean)
+            self.logger.record("train/memory_fill", memory_fill)
         self.logger.record("train/learning_rate", self.current_learning_rate)
         if self._watch is not None:
             for name, value in self._watch.period_figures().items():

@@ -344,10 +344,17 @@ def weight_statistics(weights):
     theta = weights.theta
     total = 0.0
     touched = 0
-    for i in range(theta.shape[0]):
-        if theta[i] != initial_weight(i, weights.initial_low, weights.initial_span, weights.initial_seed):
-            total += abs(theta[i])
-            touched += 1
+    if weights.initial_span == 0.0:  # every weight starts at initial_low: a branch-free pass the compiler vectorises
+        low = weights.initial_low
+        for i in range(theta.shape[0]):
+            changed = theta[i] != low
+            total += abs(theta[i]) * changed
+            touched += changed
+    else:
+        for i in range(theta.shape[0]):
+            if theta[i] != initial_weight(i, weights.initial_low, weights.initial_span, weights.initial_seed):
+                total += abs(theta[i])
+                touched += 1
     if touched == 0:
         return 0.0, 0.0
     return total / touched, touched / theta.shape[0]
