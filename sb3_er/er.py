@@ -109,7 +109,8 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         4), after the trajectory's own the newest stored first; bounds the cost of an update, as each predecessor
         costs a |delta| evaluation (about 1 + max_predecessors evaluations per update).
     :param prioritized_updates: updates per prioritized phase; None (default) matches the other orders' budget,
-        the trajectories to replay times the mean length of a stored trajectory.
+        the trajectories to replay times the mean length of a stored trajectory, or with ``replay_ratio`` the
+        ratio's budget of the phase (the two cannot both be given).
     :param target: "sarsa" (default, the thesis's), "q_learning" or "expected_sarsa" (thesis 7.2, future work).
     :param sigma: ER-sigma's sigma(s') (Appendix B): "worst", "average", "best", "average_worst" (definition 4, the
         thesis's choice), "average_best"; None (default) is vanilla ER.
@@ -266,6 +267,11 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self._check_hyperparameters()
         given = {name: getattr(self, name) for name in (*STABILIZERS, "replays_per_stored_trajectory")}
         self.stabilizers = resolve_preset(self.preset, given)
+        if self.prioritized_updates is not None and self.stabilizers["replay_ratio"] is not None:
+            raise ValueError(
+                f"prioritized_updates={self.prioritized_updates} and replay_ratio={self.stabilizers['replay_ratio']} "
+                "both set a prioritized phase's updates: give one"
+            )
         super()._setup_model()
         self.replay_buffer = TrajectoryReplayBuffer(
             self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {}), n_envs=self.n_envs or 1
@@ -343,7 +349,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     def _replay_at_trigger(self) -> None:
         """One replay phase at a trigger: ``n_replays`` (or ``replays_per_stored_trajectory`` times the stored)
         trajectories, or with ``replay_ratio`` whole trajectories until the phase has made ratio x (the transitions
-        stored since the last phase) updates, the shortfall or excess carried to the next phase."""
+        stored since the last phase) updates, the excess carried to the next phase."""
         ratio = self.stabilizers["replay_ratio"]
         if ratio is None:
             self.replay(self._replays_per_phase())
@@ -354,7 +360,9 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             self._ratio_carry = max(budget, 0.0)
             return
         updates = self.replay(UNLIMITED, max_updates=int(budget))["updates"]
-        self._ratio_carry = budget - updates if updates else 0.0
+        # a phase of trajectories ends by its budget, at most one trajectory beyond it: that excess is carried; a phase
+        # that ends short (nothing stored, or prioritized sweeping with no |delta| above its threshold) carries nothing
+        self._ratio_carry = budget - updates if updates >= int(budget) else 0.0
 
     def replay(self, n_trajectories: int, max_updates: int | None = None) -> dict[str, float]:
         """One replay phase of n_trajectories on the stored data (one kernel call); returns its update count and mean
@@ -381,9 +389,12 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             residual_next_action=self.residual_action == "next",
         )
         weights, data, layout = self._weights(), buffer.replay_data(), self.policy.tile_coder.layout
-        if self.replay_order == "prioritized":
-            n_updates = self.prioritized_updates
-            if n_updates is None:
+        if self.replay_order == "prioritized":  # single transitions: a budget of updates is the phase's length
+            if max_updates is not None:
+                n_updates = max_updates
+            elif self.prioritized_updates is not None:
+                n_updates = self.prioritized_updates
+            else:
                 n_updates = round(n_trajectories * buffer.n_transitions / buffer.n_stored_trajectories)
             sweep = kernels.make(
                 kernels.Sweep,

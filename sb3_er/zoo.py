@@ -119,6 +119,23 @@ def _sample_common(trial) -> dict[str, Any]:
     }
 
 
+def _sample_stabilizers(trial) -> dict[str, Any]:
+    """The replay stabilizers every ER class takes (ER's ``preset``, ``truncate_targets``, ``target_copy``,
+    ``step_size_bound`` and ``replay_ratio``): each one on or off, and the replay volume as a ratio of updates per new
+    transition (None: the volume of the config or the preset). A sampled ratio replaces the config's volume, which
+    rl-zoo merges under the sampled values (the grid world's replays_per_stored_trajectory, the walker's n_replays)."""
+    sampled = {
+        "preset": trial.suggest_categorical("preset", ["thesis", "stable"]),
+        "truncate_targets": trial.suggest_categorical("truncate_targets", [False, True]),
+        "target_copy": trial.suggest_categorical("target_copy", [False, True]),
+        "step_size_bound": trial.suggest_categorical("step_size_bound", [False, True]),
+        "replay_ratio": trial.suggest_categorical("replay_ratio", [None, 1, 4, 16, 64, 256]),
+    }
+    if sampled["replay_ratio"] is not None:
+        sampled.update(n_replays=None, replays_per_stored_trajectory=None)
+    return sampled
+
+
 def sample_sarsa_lambda_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
     """Optuna search space of Sarsa(lambda): alpha, gamma, epsilon and the trace decay lambda.
 
@@ -131,8 +148,8 @@ def sample_sarsa_lambda_params(trial, n_actions: int, n_envs: int, additional_ar
 
 
 def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of vanilla ER: alpha, gamma, epsilon and the replay order: every order ER has (reversed,
-    forward and uniform of thesis Appendix A, and prioritized sweeping of section 3.2).
+    """Optuna search space of vanilla ER: alpha, gamma, epsilon, the replay order (every order ER has: reversed,
+    forward and uniform of thesis Appendix A, and prioritized sweeping of section 3.2) and the replay stabilizers.
 
     :param trial: the optuna trial that suggests the values.
     :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
@@ -142,33 +159,44 @@ def sample_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) 
     return {
         **_sample_common(trial),
         "replay_order": trial.suggest_categorical("replay_order", list(replay_orders())),
+        **_sample_stabilizers(trial),
     }
 
 
 def sample_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of ER-sigma: alpha, gamma, epsilon and the definition of sigma (thesis Appendix B).
+    """Optuna search space of ER-sigma: alpha, gamma, epsilon, the definition of sigma (thesis Appendix B) and the
+    replay stabilizers.
 
     :param trial: the optuna trial that suggests the values.
     :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
     :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
     :param additional_args: rl_zoo3's extra sampler arguments (unused).
     """
-    return {**_sample_common(trial), "sigma": trial.suggest_categorical("sigma", list(sigma_definitions()))}
+    return {
+        **_sample_common(trial),
+        "sigma": trial.suggest_categorical("sigma", list(sigma_definitions())),
+        **_sample_stabilizers(trial),
+    }
 
 
 def sample_residual_er_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of residual ER: alpha, gamma, epsilon and the residual weight zeta (thesis Eq. 5.9).
+    """Optuna search space of residual ER: alpha, gamma, epsilon, the residual weight zeta (thesis Eq. 5.9) and the
+    replay stabilizers.
 
     :param trial: the optuna trial that suggests the values.
     :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).
     :param n_envs: parallel envs of the run (rl_zoo3's sampler signature; unused).
     :param additional_args: rl_zoo3's extra sampler arguments (unused).
     """
-    return {**_sample_common(trial), "residual_zeta": trial.suggest_float("residual_zeta", 0.0, 1.0)}
+    return {
+        **_sample_common(trial),
+        "residual_zeta": trial.suggest_float("residual_zeta", 0.0, 1.0),
+        **_sample_stabilizers(trial),
+    }
 
 
 def sample_residual_er_sigma_params(trial, n_actions: int, n_envs: int, additional_args: dict) -> dict[str, Any]:
-    """Optuna search space of residual ER-sigma: both the sigma definition and zeta.
+    """Optuna search space of residual ER-sigma: the sigma definition, zeta and the replay stabilizers.
 
     :param trial: the optuna trial that suggests the values.
     :param n_actions: actions of the env (rl_zoo3's sampler signature; unused).

@@ -127,6 +127,32 @@ def test_the_replay_ratio_bounds_updates_per_new_sample(algo):
     assert literal.replay_updates > 5 * model.replay_updates
 
 
+@pytest.mark.parametrize("replay_order", ["reversed", "forward", "uniform", "prioritized"])
+def test_every_replay_order_takes_every_stabilizer(replay_order):
+    """The stabilizers and the replay ratio with each order ER has: prioritized sweeping replays single transitions,
+    so the ratio's budget is its phase's length (at most r x the transitions stored; fewer only where no |delta|
+    exceeds the threshold)."""
+    model = ER(
+        "TileQ",
+        "sb3_er/WindyCliff-v0",
+        seed=0,
+        replay_order=replay_order,
+        preset="stable",
+        truncate_targets=True,
+        target_copy=True,
+        step_size_bound=True,
+        replay_ratio=4.0,
+    ).learn(600)
+    longest = max(model.replay_buffer.trajectory_length[: model.replay_buffer.n_trajectories])
+    assert 0 < model.replay_updates <= 4.0 * 600 + (0 if replay_order == "prioritized" else longest)
+    assert model.values_out_of_range == 0
+
+
+def test_prioritized_updates_and_a_replay_ratio_are_one_setting_twice():
+    with pytest.raises(ValueError, match="prioritized_updates=5 and replay_ratio=3.0 both set"):
+        ER("TileQ", "sb3_er/WindyCliff-v0", replay_order="prioritized", prioritized_updates=5, replay_ratio=3.0)
+
+
 def test_presets_resolve_with_explicit_arguments_winning():
     none = dict.fromkeys(
         (

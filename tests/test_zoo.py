@@ -105,6 +105,18 @@ def test_train_then_enjoy_round_trip(tmp_path, capsys):
     assert "Mean reward" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("algo, vec_env", [("sarsa_lambda", "dummy"), ("er_sigma", "subproc")])
+def test_train_honours_n_envs(tmp_path, algo, vec_env):
+    """rl-zoo's n_envs (here from -params) reaches the model: n envs step together, so 1,600 steps are 400 of each."""
+    zoo.train(
+        ["--algo", algo, "--env", "CartPole-v1", "-n", "1600", "-f", str(tmp_path), "--seed", "1"]
+        + ["--eval-freq", "-1", "--verbose", "0", "--vec-env", vec_env, "-params", "n_envs:4"]
+    )
+    run_dir = tmp_path / algo / "CartPole-v1_1"
+    model = zoo.algorithm_classes()[algo].load(run_dir / "CartPole-v1.zip")
+    assert model.n_envs == 4 and model.num_timesteps == 1600
+
+
 GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "zoo.md"
 
 
@@ -241,6 +253,17 @@ def test_every_choice_of_the_search_space_builds_a_model(algo):
     for name, choices in trial.spaces.items():
         for choice in choices:
             algorithm("TileQ", "sb3_er/WindyCliff-v0", **{name: choice})
+    if algo in ("er", "er_sigma", "residual_er", "residual_er_sigma"):  # the stabilizers, with every config's volume
+        assert trial.spaces["preset"] == ["thesis", "stable"] and None in trial.spaces["replay_ratio"]
+        for env_id in ENV_IDS:
+            config = zoo.model_kwargs(algo, env_id)
+            for ratio in trial.spaces["replay_ratio"]:
+                ratio_trial = _EveryChoiceTrial()
+                ratio_trial.suggest_categorical = lambda name, choices, ratio=ratio: (
+                    ratio if name == "replay_ratio" else choices[-1]
+                )
+                sampled = hyperparams_opt.HYPERPARAMS_SAMPLER[algo](ratio_trial, 3, 1, {})
+                algorithm("TileQ", env_id, **{**config, **sampled}, _init_setup_model=False)._setup_model()
     if algo == "er":  # every replay order ER has, prioritized sweeping included
         assert trial.spaces["replay_order"] == ["reversed", "forward", "uniform", "prioritized"]
     if algo in ("er_sigma", "residual_er_sigma"):
