@@ -321,21 +321,7 @@ def sarsa_lambda_steps_per_second(coder, n_steps, rounds=5) -> tuple[float, floa
     states = np.cumsum(rng.normal(0.0, 1.0 / 3.0, (n_steps + 1, coder.n_dims)) * coder.tile_widths, axis=0)
     capacity = coder.n_tilings * 120
     make = kernels.make
-    rule = make(
-        kernels.UpdateRule,
-        target_kind=kernels.TARGET_SARSA,
-        sigma_kind=kernels.SIGMA_NONE,
-        residual_zeta=0.0,
-        residual_next_action=False,
-        step_size=ALPHA / coder.n_tilings,
-        gamma=GAMMA,
-        epsilon=EPSILON,
-        truncate=False,
-        value_low=-np.inf,
-        value_high=np.inf,
-        step_bound=False,
-        step_cap=np.full(1, np.inf),
-    )
+    rule = kernels.update_rule(ALPHA / coder.n_tilings, GAMMA, EPSILON)
     scratch = (np.zeros(coder.n_actions), np.zeros(coder.n_actions))
 
     def run(steps, watch):

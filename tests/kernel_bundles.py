@@ -24,20 +24,19 @@ def rule(
 ) -> kernels.UpdateRule:
     """An UpdateRule; ``truncate`` is None (off) or the (low, high) of the possible returns."""
     low, high = (-np.inf, np.inf) if truncate is None else truncate
-    return kernels.make(
-        kernels.UpdateRule,
+    return kernels.update_rule(
+        step_size,
+        gamma,
+        epsilon,
         target_kind=target,
         sigma_kind=sigma,
         residual_zeta=zeta,
         residual_next_action=residual_next_action,
-        step_size=step_size,
-        gamma=gamma,
-        epsilon=epsilon,
         truncate=truncate is not None,
         value_low=low,
         value_high=high,
         step_bound=step_bound,
-        step_cap=np.full(1, np.inf) if step_cap is None else step_cap,
+        step_cap=step_cap,
     )
 
 

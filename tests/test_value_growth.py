@@ -177,8 +177,12 @@ def test_the_value_watch_sees_figure_5_6_leave_the_possible_returns():
     sample = vg.self_affecting_model("ER", "b")
     model = sample.model
     assert model.value_bounds == pytest.approx((-50.0, -5.0))
-    vg.replay_values(sample, 5)
+    vg.replay_values(sample, 2)
     assert model.values_out_of_range == 0  # -10 rising towards -5: still possible
+    vg.replay_values(sample, 1)  # the third phase bootstraps from a shared tile already past -5
+    first = model.value_excursion
+    assert model.values_out_of_range > 0 and first["value"] > first["high"] + first["margin"]
+    assert first["where"].endswith("replay phase 3")
     vg.replay_values(sample, 100)
     assert sample.q_state() > 0 and model.values_out_of_range > 0
     seen = model.values_out_of_range

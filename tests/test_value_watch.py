@@ -1,7 +1,9 @@
 """The value watch: the possible returns of each env, the kernels' figures, and what learn does when values leave
 them."""
 
+import functools
 import math
+import operator
 import warnings
 
 import gymnasium as gym
@@ -483,3 +485,70 @@ def test_a_buffer_assigned_directly_is_observed_before_it_is_replayed(algo):
     model.replay_buffer.stored_rewards = lambda: reads.append(1) or original()
     model.replay(5)
     assert reads == []
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    env_id=st.sampled_from(["CartPole-v1", "sb3_er/PendulumSwingup-v0", "sb3_er/WindyCliff-v0", None]),
+    wrappers=st.lists(
+        st.sampled_from(["Monitor", "TimeLimit", "TransformReward", "ClipAction", "RecordEpisodeStatistics"]),
+        max_size=3,
+    ),
+)
+def test_the_wrapper_chain_is_read_from_the_envs_description(env_id, wrappers):
+    """What a subprocess worker reports (``str(env)``) gives the wrapper classes and the env's class, never a piece of
+    the id (``sb3_er/...``, ``CartPole-v1``), with or without a spec."""
+    from gymnasium.envs.classic_control import CartPoleEnv
+    from stable_baselines3.common.monitor import Monitor
+
+    from sb3_er.common.value_bounds import _wrapper_names
+
+    env = CartPoleEnv() if env_id is None else gym.make(env_id)
+    for name in wrappers:
+        if name == "ClipAction" and not isinstance(env.action_space, gym.spaces.Box):
+            continue
+        env = {
+            "Monitor": lambda e: Monitor(e),
+            "TimeLimit": lambda e: gym.wrappers.TimeLimit(e, 50),
+            "TransformReward": lambda e: gym.wrappers.TransformReward(e, lambda r: 2 * r),
+            "ClipAction": lambda e: gym.wrappers.ClipAction(e),
+            "RecordEpisodeStatistics": lambda e: gym.wrappers.RecordEpisodeStatistics(e),
+        }[name](env)
+    chain, level = [], env
+    while True:
+        chain.append(type(level).__name__)
+        if not hasattr(level, "env") or level is level.unwrapped:
+            break
+        level = level.env
+    assert _wrapper_names(str(env)) == chain
+
+
+def test_a_subprocess_envs_declared_bounds_reach_the_watch_and_a_reward_wrapper_is_seen():
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    from sb3_er.common.value_bounds import vec_reward_changer
+
+    plain = make_vec_env("sb3_er/WindyCliff-v0", n_envs=1, vec_env_cls=SubprocVecEnv)
+    scaled = make_vec_env(
+        "sb3_er/WindyCliff-v0",
+        n_envs=1,
+        vec_env_cls=SubprocVecEnv,
+        wrapper_class=gym.wrappers.TransformReward,
+        wrapper_kwargs=dict(func=functools.partial(operator.mul, 10.0)),  # picklable for the worker
+    )
+    # an observation wrapper off the allow-list keeps the rewards, in a worker as in this process
+    observed = make_vec_env(
+        "sb3_er/WindyCliff-v0",
+        n_envs=1,
+        vec_env_cls=SubprocVecEnv,
+        wrapper_class=gym.wrappers.TransformObservation,
+        wrapper_kwargs=dict(func=functools.partial(operator.add, 0), observation_space=None),
+    )
+    try:
+        assert vec_reward_changer(plain) is None
+        assert vec_reward_changer(scaled) == "TransformReward"
+        assert vec_reward_changer(observed) is None
+    finally:
+        for vec in (plain, scaled, observed):
+            vec.close()

@@ -435,22 +435,9 @@ class TileQAlgorithm(BaseAlgorithm):
 
         :param options: UpdateRule fields to set besides step_size, gamma and epsilon.
         """
-        fields = dict(
-            target_kind=kernels.TARGET_SARSA,
-            sigma_kind=kernels.SIGMA_NONE,
-            residual_zeta=0.0,
-            residual_next_action=False,
-            truncate=False,
-            value_low=-math.inf,
-            value_high=math.inf,
-            step_bound=False,
-            step_cap=self._step_cap,
-        )
-        fields.update(self._stabilizer_options())
+        fields = dict(step_cap=self._step_cap, **self._stabilizer_options())
         fields.update(options)
-        return kernels.make(
-            kernels.UpdateRule, step_size=self.step_size, gamma=self.gamma, epsilon=self.exploration_rate, **fields
-        )
+        return kernels.update_rule(self.step_size, self.gamma, self.exploration_rate, **fields)
 
     def _check_status(self, status: int, where: str, delta: float = math.nan, obs: np.ndarray | None = None) -> None:
         """React to what a kernel reported: the first value outside the possible returns (warn or raise, as asked),

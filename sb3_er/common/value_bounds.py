@@ -184,10 +184,7 @@ def reward_changing_wrapper(env: gym.Env) -> str | None:
     :param env: the (possibly wrapped) Gymnasium env.
     """
     while isinstance(env, gym.Wrapper):
-        if not (
-            isinstance(env, (gym.ObservationWrapper, gym.ActionWrapper))
-            or type(env).__name__ in REWARD_PRESERVING_WRAPPERS
-        ):
+        if _changes_rewards(env):
             return type(env).__name__
         env = env.env
     return None
@@ -205,16 +202,46 @@ REWARD_PRESERVING_VEC_WRAPPERS = (
 
 
 def _wrapper_names(description: str) -> list[str]:
-    """The class names in Gymnasium's ``str(env)`` of a wrapped env, outermost first: ``<TimeLimit<Monitor<...>>>``."""
-    return re.findall(r"<(\w+)", description)
+    """The class names in Gymnasium's ``str(env)`` of a wrapped env, outermost first, the env's own class last.
+
+    Gymnasium prints a wrapper as ``<Name`` + its env + ``>``, and the env as ``<EnvClass<env id>>`` (with a spec) or
+    ``<EnvClass instance>``, so ``<TimeLimit<Monitor<CartPoleEnv<CartPole-v1>>>>`` gives TimeLimit, Monitor,
+    CartPoleEnv: the id, whatever characters it holds (``dm_control/cartpole-swingup-v0``), is not a class.
+    """
+    segments = re.findall(r"<([^<>]*)", description)
+    if not segments:
+        return []
+    if segments[-1].endswith(" instance"):
+        return [*segments[:-1], segments[-1].removesuffix(" instance")]
+    return segments[:-1]  # the last segment is the env id
+
+
+def _changes_rewards(level) -> bool:
+    """Whether one level of a wrapped env may change the rewards: a Gymnasium wrapper that is neither an observation
+    or action wrapper nor one of :data:`REWARD_PRESERVING_WRAPPERS` (the env itself does not count)."""
+    return isinstance(level, gym.Wrapper) and not (
+        isinstance(level, (gym.ObservationWrapper, gym.ActionWrapper))
+        or type(level).__name__ in REWARD_PRESERVING_WRAPPERS
+    )
+
+
+class _RewardChangingMeta(type):
+    def __instancecheck__(cls, instance) -> bool:
+        return _changes_rewards(instance)
+
+
+class RewardChangingWrapper(metaclass=_RewardChangingMeta):
+    """Matches (``isinstance``) any wrapper that may change the rewards (:func:`_changes_rewards`), so that
+    ``VecEnv.env_is_wrapped(RewardChangingWrapper)`` asks each env, in its own process, the question
+    :func:`reward_changing_wrapper` answers in this one. It is sent to subprocess workers by reference (by name)."""
 
 
 def vec_reward_changer(vec_env) -> str | None:
     """The wrapper that may change the rewards a VecEnv's envs declare, at any level, or None: a VecNormalize that
     normalises rewards, a VecEnv wrapper off the allow-list :data:`REWARD_PRESERVING_VEC_WRAPPERS`, or a Gymnasium
     wrapper of the (first) env off :data:`REWARD_PRESERVING_WRAPPERS` (:func:`reward_changing_wrapper`). Envs in
-    subprocesses are read through their ``str`` (Gymnasium prints the wrapper chain), where an observation or action
-    wrapper that is not on the allow-list cannot be told from a reward wrapper and counts as one.
+    subprocesses answer the same question in their own process (``env_is_wrapped`` with
+    :class:`RewardChangingWrapper`); the name reported comes from their ``str`` (Gymnasium prints the wrapper chain).
 
     :param vec_env: the VecEnv, possibly wrapped.
     """
@@ -230,15 +257,18 @@ def vec_reward_changer(vec_env) -> str | None:
         level = level.venv
     if isinstance(level, DummyVecEnv):
         return reward_changing_wrapper(level.envs[0])
-    try:
-        description = level.env_method("__str__", indices=0)[0]
-    except Exception:  # a VecEnv that cannot describe its envs: assume the worst
+    try:  # asked in the env's own process: the same test as reward_changing_wrapper, level by level
+        changed = level.env_is_wrapped(RewardChangingWrapper, indices=0)[0]
+    except Exception:  # a VecEnv that cannot inspect its envs: assume the worst
         return f"an env of {type(level).__name__} that cannot be inspected"
-    names = _wrapper_names(description)
-    for name in names[:-1]:  # the last is the env itself
-        if name not in REWARD_PRESERVING_WRAPPERS:
-            return name
-    return None
+    if not changed:
+        return None
+    try:  # the wrapper's name, for the message, from Gymnasium's description of the chain
+        names = _wrapper_names(level.env_method("__str__", indices=0)[0])
+    except Exception:
+        names = []
+    unknown = [name for name in names[:-1] if name not in REWARD_PRESERVING_WRAPPERS]
+    return unknown[0] if unknown else "a wrapper of the env"
 
 
 class ValueWatch:

@@ -388,16 +388,7 @@ def target_comparison(model, sigma: str = "average_worst") -> dict[str, np.ndarr
         open_length=0,
         open_next_slots=np.zeros(coder.n_tilings, dtype=np.int64),
     )
-    rule = kernels.make(
-        kernels.UpdateRule,
-        target_kind=kernels.TARGET_Q_LEARNING,
-        sigma_kind=SIGMAS[sigma],
-        residual_zeta=0.0,
-        residual_next_action=False,
-        step_size=0.0,
-        gamma=model.gamma,
-        epsilon=0.0,
-    )
+    rule = kernels.update_rule(0.0, model.gamma, target_kind=kernels.TARGET_Q_LEARNING, sigma_kind=SIGMAS[sigma])
     _compare_targets(policy.weights, data, next_slots, terminal, coder.layout, rule, kernels.Scratch(q, w), out)
     result = {name: out[:, i] for i, name in enumerate(COMPARISON_COLUMNS)}
     result["terminal"] = result["terminal"].astype(bool)
@@ -467,10 +458,10 @@ def replay_gain(
     saved_theta, saved_rewards, saved_sigma = theta.copy(), buffer.rewards.copy(), model.sigma
     saved_replay_rng, saved_action_rng = model.replay_rng.copy(), model.action_rng.copy()
     saved_counts = (model.replay_updates, model.replay_phases, model._td_error_sum, model._td_error_count)
-    saved_watch = model._watch_array
+    watch = model._watch.array
+    saved_watch = watch.copy()  # the value watch does not keep what it sees of these replays
     per_phase = n_trajectories if n_trajectories is not None else model._replays_per_phase()
     try:
-        model._watch_array = np.zeros(0)  # the value watch does not see these replays
         buffer.rewards[:] = 0.0
         if sigma != "keep":
             model.sigma = sigma
@@ -485,5 +476,5 @@ def replay_gain(
         model.sigma = saved_sigma
         model.replay_rng[:], model.action_rng[:] = saved_replay_rng, saved_action_rng
         model.replay_updates, model.replay_phases, model._td_error_sum, model._td_error_count = saved_counts
-        model._watch_array = saved_watch
+        watch[:] = saved_watch
     return (sizes[-1] / sizes[skip - 1]) ** (1.0 / (n_phases - skip))

@@ -57,6 +57,7 @@ from sb3_er.common.kernels.bundles import (
     UpdateRule,
     Weights,
     make,
+    update_rule,
     weights_bundle,
 )
 from sb3_er.common.kernels.dyna import dyna_step

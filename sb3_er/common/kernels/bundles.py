@@ -361,6 +361,40 @@ class TargetCopy:
         self.n_changed = np.zeros(1, dtype=np.int64)
 
 
+def update_rule(
+    step_size: float,
+    gamma: float,
+    epsilon: float = 0.0,
+    *,
+    target_kind: int = TARGET_SARSA,
+    sigma_kind: int = SIGMA_NONE,
+    residual_zeta: float = 0.0,
+    residual_next_action: bool = False,
+    truncate: bool = False,
+    value_low: float = -np.inf,
+    value_high: float = np.inf,
+    step_bound: bool = False,
+    step_cap: np.ndarray | None = None,
+) -> UpdateRule:
+    """An :class:`UpdateRule` with the stabilizers off unless given: the thesis's Sarsa update by default (the
+    fields are documented on the class). ``step_cap`` None gives a fresh bound of +inf."""
+    return make(
+        UpdateRule,
+        target_kind=target_kind,
+        sigma_kind=sigma_kind,
+        residual_zeta=residual_zeta,
+        residual_next_action=residual_next_action,
+        step_size=step_size,
+        gamma=gamma,
+        epsilon=epsilon,
+        truncate=truncate,
+        value_low=value_low,
+        value_high=value_high,
+        step_bound=step_bound,
+        step_cap=np.full(1, np.inf) if step_cap is None else step_cap,
+    )
+
+
 def weights_bundle(
     theta: np.ndarray, initial_low: float, initial_span: float, initial_seed, target: TargetCopy | None = None
 ) -> Weights:
