@@ -120,12 +120,12 @@ def _sample_common(trial) -> dict[str, Any]:
 
 
 def _sample_stabilizers(trial) -> dict[str, Any]:
-    """The replay stabilizers every ER class takes (ER's ``preset``, ``truncate_targets``, ``target_copy``,
-    ``step_size_bound`` and ``replay_ratio``): each one on or off, and the replay volume as a ratio of updates per new
-    transition (None: the volume of the config or the preset). A sampled ratio replaces the config's volume, which
-    rl-zoo merges under the sampled values (the grid world's replays_per_stored_trajectory, the walker's n_replays)."""
+    """The replay stabilizers every ER class takes (``truncate_targets``, ``target_copy``, ``step_size_bound`` and
+    ``replay_ratio``): each one on or off, and the replay volume as a ratio of updates per new transition (None: the
+    volume of the config or the preset). Each is sampled explicitly, so ``preset``, which only fills what is not
+    given, is not searched. A sampled ratio replaces the config's volume, which rl-zoo merges under the sampled values
+    (the grid world's replays_per_stored_trajectory, the walker's n_replays)."""
     sampled = {
-        "preset": trial.suggest_categorical("preset", ["thesis", "stable"]),
         "truncate_targets": trial.suggest_categorical("truncate_targets", [False, True]),
         "target_copy": trial.suggest_categorical("target_copy", [False, True]),
         "step_size_bound": trial.suggest_categorical("step_size_bound", [False, True]),

@@ -11,6 +11,8 @@ from stable_baselines3.common.envs import IdentityEnv, IdentityEnvBox, IdentityE
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import DummyVecEnv
 
+from sb3_er import SarsaLambda
+
 DIM = 4
 ENVS = {
     "discrete": (lambda: FlattenObservation(IdentityEnv(DIM)), 1200),
@@ -52,3 +54,24 @@ def test_sb3_identity(algo, kind):
 def test_spaces_tile_coding_cannot_take_are_refused_by_name(algo, env, message):
     with pytest.raises(ValueError, match=message):
         model(algo, env)
+
+
+@pytest.mark.parametrize(
+    "kind, make, steps",
+    [("discrete", lambda: IdentityEnv(DIM), 1200), ("multidiscrete", lambda: IdentityEnvMultiDiscrete(DIM), 3000)],
+)
+def test_the_refusal_of_table_indices_gives_code_that_learns(kind, make, steps):
+    """The error for a Discrete or MultiDiscrete observation suggests a wrapper and tile widths; run exactly the code it
+    gives: each state gets a tile of its own, and the identity is learnt as well as under the one-hot encoding."""
+    import re
+
+    import gymnasium
+
+    with pytest.raises(ValueError) as refusal:
+        model(SarsaLambda, make())
+    message = str(refusal.value)
+    wrapper, policy_kwargs = re.search(r"e\.g\. env = (.+) and policy_kwargs=(dict\(.+\))\.$", message).groups()
+    env = eval(wrapper, {"gymnasium": gymnasium, "np": np, "env": make()})
+    kwargs = dict(KWARGS, policy_kwargs={**KWARGS["policy_kwargs"], **eval(policy_kwargs)})
+    agent = model(SarsaLambda, DummyVecEnv([lambda: env]), **kwargs).learn(steps)
+    evaluate_policy(agent, agent.get_env(), n_eval_episodes=20, reward_threshold=90, warn=False)

@@ -254,7 +254,10 @@ def test_every_choice_of_the_search_space_builds_a_model(algo):
         for choice in choices:
             algorithm("TileQ", "sb3_er/WindyCliff-v0", **{name: choice})
     if algo in ("er", "er_sigma", "residual_er", "residual_er_sigma"):  # the stabilizers, with every config's volume
-        assert trial.spaces["preset"] == ["thesis", "stable"] and None in trial.spaces["replay_ratio"]
+        assert "preset" not in trial.spaces  # every stabilizer is sampled explicitly: the preset would decide nothing
+        for name in ("truncate_targets", "target_copy", "step_size_bound"):
+            assert trial.spaces[name] == [False, True]
+        assert None in trial.spaces["replay_ratio"]
         for env_id in ENV_IDS:
             config = zoo.model_kwargs(algo, env_id)
             for ratio in trial.spaces["replay_ratio"]:
@@ -319,9 +322,13 @@ def test_two_optimize_workers_share_one_sqlite_study(tmp_path):
     outputs = [worker.communicate(timeout=300)[0] for worker in workers]
     assert [worker.returncode for worker in workers] == [0, 0], "\n".join(outputs)
     trials = optuna.load_study(study_name="windy-er", storage=storage).get_trials()
-    # each worker runs its own 2 trials into the shared study: 4 in all, with our sampler's parameters
-    assert len(trials) == 4 and all(trial.state == optuna.trial.TrialState.COMPLETE for trial in trials)
-    assert all(set(trial.params) == {"learning_rate", "gamma", "exploration_rate", "replay_order"} for trial in trials)
+    # each worker runs its own 2 trials into the shared study: 4 in all, with our sampler's parameters (ER's: the
+    # common ones, the replay order and the stabilizers)
+    assert len(trials) == 4, [trial.state for trial in trials]
+    assert all(trial.state == optuna.trial.TrialState.COMPLETE for trial in trials), [t.state for t in trials]
+    expected = {"learning_rate", "gamma", "exploration_rate", "replay_order"}
+    expected |= {"truncate_targets", "target_copy", "step_size_bound", "replay_ratio"}
+    assert all(set(trial.params) == expected for trial in trials), [sorted(trial.params) for trial in trials]
     # every worker's report lists the study's trials when it finished: the later one all 4
     reports = [pd.read_csv(next((tmp_path / f"worker_{index}" / "er").glob("report_*.csv"))) for index in range(2)]
     assert sorted(len(report) for report in reports)[-1] == 4

@@ -85,6 +85,32 @@ class ValueBoundWarning(RuntimeWarning):
     """A learner's value (a target or Q(s, a)) left the possible returns (``value_bound_action="warn"``)."""
 
 
+def _observation_space_advice(observation_space: spaces.Space) -> str:
+    """What to do with an observation space tile coding cannot read (a sentence for the error)."""
+    if isinstance(observation_space, (spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)):
+        if isinstance(observation_space, spaces.Discrete):
+            start = int(observation_space.start)
+            k, low, high = 1, f"{start}", f"{start + int(observation_space.n) - 1}"
+        elif isinstance(observation_space, spaces.MultiDiscrete):
+            k, low, high = (
+                int(observation_space.nvec.size),
+                "0",
+                f"np.array({(observation_space.nvec - 1).ravel().tolist()})",
+            )
+        else:
+            k, low, high = int(np.prod(observation_space.shape)), "0", "1"
+        return (
+            "Its values are table indices: give them as a Box and tile each with width 1, so that every value has a "
+            "tile of its own (a table), e.g. env = gymnasium.wrappers.TransformObservation(env, lambda s: "
+            f"np.asarray(s, np.float32).reshape(-1), gymnasium.spaces.Box({low}, {high}, ({k},), np.float32)) and "
+            f"policy_kwargs=dict(tile_widths=[1.0] * {k})."
+        )
+    return (
+        "Flatten it into a vector (gymnasium.wrappers.FlattenObservation) and give tile widths in the flat vector's "
+        "units (policy_kwargs=dict(tile_widths=...)), or pick the low-dimensional features to tile."
+    )
+
+
 class TileQAlgorithm(BaseAlgorithm):
     """Base of the tile-coded algorithms: epsilon-greedy acting on TileQ and, optionally, online Sarsa(lambda).
 
@@ -244,7 +270,10 @@ class TileQAlgorithm(BaseAlgorithm):
         if isinstance(observation_space, spaces.Dict):
             raise ValueError(dict_vec_env_message(observation_space))
         if not isinstance(observation_space, spaces.Box):
-            raise ValueError(f"Tile coding needs a flat Box observation space, got {observation_space}")
+            raise ValueError(
+                f"Tile coding needs a flat Box observation space, got {observation_space}. "
+                + _observation_space_advice(observation_space)
+            )
         if len(observation_space.shape) != 1:
             kind = "image" if len(observation_space.shape) == 3 else "multi-dimensional"
             raise ValueError(

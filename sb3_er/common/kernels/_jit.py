@@ -1,4 +1,4 @@
-"""The two numba decorators every kernel uses.
+"""The numba decorators of every kernel and helper.
 
 - ``cache``: compiled once per machine.
 - ``nogil``: no kernel touches a Python object, so models learning in threads (``sb3-er optimize --n-jobs``) run their
@@ -9,6 +9,14 @@
   time, which made a replayed update of the walker setup take twice as long as the same arithmetic on plain arrays
   (``benchmarks/replay_throughput.py``). It also makes the rule "no allocation inside a kernel" a compile error: a
   kernel that calls ``np.empty`` or returns a new array no longer compiles.
+
+``inline`` and ``helper`` trade compile time against speed. numba inlines at the level of its own IR and types the
+inlined code again at every call site, so helpers inlined into helpers inlined into each phase kernel multiply: with
+every helper inlined, a fresh install's first ``ERSigma(...).learn()`` compiled for 150 s and prioritized sweeping's
+for 127 s. With each update rule a helper of its own (its TD error and step inlined into it), the first learns take
+50 s and 30 s, and replay keeps 0.94-1.04x the all-inlined rate on the walker and LEO setups
+(``benchmarks/compile_time.py``, ``benchmarks/replay_throughput.py --baseline``; the figures are in the docs'
+implementation page).
 """
 
 import numba as nb
@@ -16,5 +24,11 @@ import numba as nb
 #: A kernel called from Python.
 kernel = nb.njit(cache=True, nogil=True, _nrt=False)
 
-#: A helper inlined into the kernels that call it (no call overhead inside the hot loops).
+#: A small helper inlined into its callers by numba (no call inside the hot loops): a few lines of arithmetic, the
+#: random numbers, the tile hashing, the TD errors and steps.
 inline = nb.njit(inline="always", cache=True, nogil=True, _nrt=False)
+
+#: A helper compiled once as a function of its own and called: each update rule (ER, ER-sigma and their residual
+#: forms, with their TD error and step inlined), and the paths off the hot loop (the alpha-bound, the watch's target
+#: shift, Sarsa(lambda)'s bounded step, prioritized sweeping's requeue, Dyna's model update).
+helper = nb.njit(cache=True, nogil=True, _nrt=False)

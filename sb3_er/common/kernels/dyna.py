@@ -3,7 +3,7 @@ the model's predicted transitions, in one kernel call."""
 
 import numpy as np
 
-from sb3_er.common.kernels._jit import inline, kernel
+from sb3_er.common.kernels._jit import helper, kernel
 from sb3_er.common.kernels.bundles import (
     STATUS_BAD_OBSERVATION,
     STATUS_DIVERGED,
@@ -21,7 +21,7 @@ from sb3_er.common.kernels.tiles import add_to_features, all_q_values, q_value, 
 from sb3_er.common.kernels.watch import watch_update
 
 
-@inline
+@helper
 def one_step_update(weights, slots, action, reward, continuation, next_slots, layout, rule, rng, q, watch):
     """One single-sample update (thesis Eq. 3.10, Alg. 5 line 4) on (s, a, r, s'); returns (delta, whether the value
     watch saw its first value outside the bounds).

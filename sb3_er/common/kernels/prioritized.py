@@ -5,7 +5,7 @@ re-queued. The queue is a binary max-heap in the preallocated arrays of a
 
 import numpy as np
 
-from sb3_er.common.kernels._jit import inline, kernel
+from sb3_er.common.kernels._jit import helper, inline, kernel
 from sb3_er.common.kernels.bundles import (
     PREDECESSORS_TILES,
     PREDECESSORS_TRAJECTORY,
@@ -186,7 +186,7 @@ def build_predecessor_index(data, queue):
     index_start[0] = 0
 
 
-@inline
+@helper
 def transition_priority(weights, data, p, layout, priority_rule, rng, scratch, no_watch):
     """|delta| of stored transition p under the current theta, without an update: the priority of prioritized
     sweeping, from the TD error of the rule's algorithm (ER's or ER-sigma's; the residual direction does not change
@@ -212,7 +212,7 @@ def transition_priority(weights, data, p, layout, priority_rule, rng, scratch, n
     return abs(delta)
 
 
-@inline
+@helper
 def _requeue(weights, data, q_row, layout, priority_rule, rng, scratch, no_watch, threshold, queue):
     """Recompute the |delta| of predecessor q_row and queue it, re-prioritise it, or take it out of the queue when it
     no longer exceeds the threshold."""

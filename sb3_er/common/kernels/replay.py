@@ -10,7 +10,7 @@ transition (:func:`er_sigma_td_error`).
 
 import numpy as np
 
-from sb3_er.common.kernels._jit import inline, kernel
+from sb3_er.common.kernels._jit import helper, inline, kernel
 from sb3_er.common.kernels.bundles import (
     ORDER_REVERSED,
     ORDER_UNIFORM,
@@ -218,7 +218,7 @@ def er_sigma_td_error(weights, data, p, next_slots, terminal, layout, rule, rng,
     return used - q_sa, target, q_sa, next_action
 
 
-@inline
+@helper
 def _value_without_sigma(theta, next_slots, layout, rule, has_initial, q, w, sigma, next_action, explored):
     """Vanilla ER's bootstrap value at s' with ER-sigma's random numbers, for the watch's target shift: Q(s', a') of
     the same exploratory a' when the draw explored, else the greedy value (Expected Sarsa's expectation on Q).
@@ -264,6 +264,12 @@ def step_size(weights, layout, rule, slots, action, next_slots, next_action, ter
     """
     if not rule.step_bound:
         return rule.step_size
+    return _bounded_step_size(weights, layout, rule, slots, action, next_slots, next_action, terminal, residual_action)
+
+
+@helper
+def _bounded_step_size(weights, layout, rule, slots, action, next_slots, next_action, terminal, residual_action):
+    """:func:`step_size` with ``rule.step_bound``: the bound's arithmetic, a call of its own off the hot path."""
     # (gamma phi' - phi)^T d with d = phi - zeta gamma phi_r (phi = phi(s_t, a_t), phi_r = phi(s_{t+1}, a_residual),
     # phi' = phi(s_{t+1}, a_{t+1})); the phi' terms only where the update moves the bootstrap (no target copy)
     zeta_gamma = 0.0 if terminal else rule.residual_zeta * rule.gamma
@@ -339,7 +345,7 @@ def residual_step(weights, slots, action, next_slots, next_action, terminal, lay
     return delta, flagged
 
 
-@inline
+@helper
 def er_update(weights, data, p, next_slots, terminal, layout, rule, rng, scratch, watch):
     """Vanilla ER's update of stored transition p (Alg. 8 lines 5-7): :func:`er_td_error`, then
     theta <- theta + alpha delta phi(s_t, a_t). Returns (delta, whether the watch saw its first value out of bounds).
@@ -374,7 +380,7 @@ def er_update(weights, data, p, next_slots, terminal, layout, rule, rng, scratch
     )
 
 
-@inline
+@helper
 def er_sigma_update(weights, data, p, next_slots, terminal, layout, rule, rng, scratch, watch):
     """ER-sigma's update of stored transition p (Alg. 10 lines 5-9): :func:`er_sigma_td_error`, then
     theta <- theta + alpha delta phi(s_t, a_t). Returns (delta, whether the watch saw its first value out of bounds).
@@ -409,7 +415,7 @@ def er_sigma_update(weights, data, p, next_slots, terminal, layout, rule, rng, s
     )
 
 
-@inline
+@helper
 def residual_er_update(weights, data, p, next_slots, terminal, layout, rule, rng, scratch, watch):
     """Residual-gradient ER's update of stored transition p (Alg. 12 lines 5-7): vanilla ER's TD error
     (:func:`er_td_error`; Alg. 12 line 6's s_t is read as s_{t+1}, a typo) along the residual direction
@@ -445,7 +451,7 @@ def residual_er_update(weights, data, p, next_slots, terminal, layout, rule, rng
     )
 
 
-@inline
+@helper
 def residual_er_sigma_update(weights, data, p, next_slots, terminal, layout, rule, rng, scratch, watch):
     """Residual ER-sigma's update of stored transition p (Alg. 14 lines 5-9): ER-sigma's TD error
     (:func:`er_sigma_td_error`; line 8's s_t read as s_{t+1}) along the residual direction (:func:`residual_step`).

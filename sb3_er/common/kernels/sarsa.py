@@ -3,7 +3,7 @@ online learning between LEO's replay phases."""
 
 import numpy as np
 
-from sb3_er.common.kernels._jit import inline, kernel
+from sb3_er.common.kernels._jit import helper, kernel
 from sb3_er.common.kernels.bundles import (
     STATUS_BAD_OBSERVATION,
     STATUS_OK,
@@ -109,7 +109,7 @@ def sarsa_lambda_step(weights, trace, layout, rule, transition, rng, scratch, wa
     return next_action, delta, status
 
 
-@inline
+@helper
 def _bounded_step(weights, trace, layout, rule, slots, action, transition, next_action):
     """Dabney and Barto's (2012) alpha-bound on the step per weight: step_cap <- min(step_cap, 1 / |e^T (gamma phi' -
     phi)|), with e the trace after line 9, phi = phi(s_k, a_k) and phi' = phi(s_{k+1}, a_{k+1}) (left out at a terminal
