@@ -16,10 +16,13 @@ in the bundle's field order (``tuple(bundle)``) and name them again on entry (``
 from __future__ import annotations
 
 import functools
+import inspect
 import typing
 from typing import NamedTuple
 
 import numpy as np
+
+from sb3_er.common.docstrings import parameter_fields
 
 # --- enumerations the bundles carry ----------------------------------------------------------------------------------
 ORDER_REVERSED, ORDER_FORWARD, ORDER_UNIFORM, ORDER_PRIORITIZED = 0, 1, 2, 3
@@ -393,6 +396,14 @@ def update_rule(
         step_bound=step_bound,
         step_cap=np.full(1, np.inf) if step_cap is None else step_cap,
     )
+
+
+# each argument is the UpdateRule field of its name: its documentation is the class's, shown by help() and the API pages
+update_rule.__doc__ = (
+    inspect.cleandoc(update_rule.__doc__)
+    + "\n\n"
+    + "\n".join(parameter_fields(UpdateRule.__doc__)[name] for name in inspect.signature(update_rule).parameters)
+)
 
 
 def weights_bundle(
