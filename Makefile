@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test test-versions lint demo docs install clean
+.PHONY: test test-slow test-versions lint demo docs install clean
 
 install: $(STAMP)
 
@@ -15,8 +15,13 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e ".[all]"
 	touch $(STAMP)
 
+# The default suite leaves out the tests marked slow (whole learning runs, the wheel, the docs build, the benchmarks'
+# end-to-end runs: pyproject.toml's addopts); `make test-slow` runs them, and .ci/run runs both.
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadfile -q
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -n 2 --dist loadfile -q -m slow
 
 # Models must move between Python versions: the save/load tests again under each of OTHER_PYTHONS (interpreters, by
 # name or path; .ci/run passes the oldest supported Python and the newest installed), each in its own venv

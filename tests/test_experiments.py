@@ -79,6 +79,7 @@ def test_gridworld_reproduction_with_value_maps(tmp_path):
     assert "Tables 5.1-5.2" in markdown and "| Values outside the possible returns |" in markdown
 
 
+@pytest.mark.slow
 def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
     algos = ["er", "residual_er_sigma"]
     result = reproduce("pendulum", n_seeds=2, algos=algos, out_dir=tmp_path, budget=2, n_workers=2, show_progress=False)
@@ -100,6 +101,7 @@ def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
 EARLIER_WALKER = {"fall": "angles", "observation": "grl", "start": "grl"}
 
 
+@pytest.mark.slow
 def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
     algos = ["sarsa_lambda", "er_sigma"]
     first = reproduce(
@@ -168,6 +170,7 @@ def test_walker_reproduction_and_resume_skips_finished_runs(tmp_path):
         )
 
 
+@pytest.mark.slow
 def test_leo_reproduction(tmp_path):
     pytest.importorskip("sb3_er_envs.leo.leo", reason="LEO needs the dmc extra")
     algos = ["sarsa_lambda", "residual_er_sigma"]

@@ -108,6 +108,7 @@ def _finish(driver: subprocess.Popen, timeout: float = 120) -> tuple[str, str]:
 # --- killed processes ---
 
 
+@pytest.mark.slow
 def test_a_killed_worker_fails_no_run_and_the_others_go_on(tmp_path, uninterrupted):
     driver = _start_driver(tmp_path / "out", "--jobs", "2")
     seen = {}
@@ -126,6 +127,7 @@ def test_a_killed_worker_fails_no_run_and_the_others_go_on(tmp_path, uninterrupt
     assert wait_for(lambda: not alive(seen) or None, "the command's processes to end", 10) is True
 
 
+@pytest.mark.slow
 def test_a_killed_driver_leaves_no_process_and_the_rerun_completes(tmp_path, uninterrupted):
     folder = tmp_path / "out"
     driver = _start_driver(folder, "--jobs", "2")
@@ -142,6 +144,7 @@ def test_a_killed_driver_leaves_no_process_and_the_rerun_completes(tmp_path, uni
     _assert_same_files(folder, uninterrupted)
 
 
+@pytest.mark.slow
 def test_sigterm_ends_the_driver_and_its_workers(tmp_path):
     driver = _start_driver(tmp_path / "out", "--jobs", "2")
     wait_for(lambda: len(_workers(driver)) == 2 or None, "two worker processes")
@@ -155,6 +158,7 @@ def test_sigterm_ends_the_driver_and_its_workers(tmp_path):
 # --- two drivers on one folder ---
 
 
+@pytest.mark.slow
 def test_a_second_driver_is_refused_and_changes_nothing(tmp_path, uninterrupted, capsys):
     folder = tmp_path / "out"
     first = _start_driver(folder, "--jobs", "1")

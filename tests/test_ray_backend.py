@@ -31,6 +31,7 @@ def local_ray():
     ray.shutdown()
 
 
+@pytest.mark.slow
 def test_ray_runs_equal_local_runs_and_resume(tmp_path, local_ray):
     local = reproduce("gridworld", out_dir=tmp_path / "local", n_workers=1, **SETTINGS)
     on_ray = reproduce("gridworld", out_dir=tmp_path / "ray", backend="ray", **SETTINGS)
@@ -57,6 +58,7 @@ def test_ray_runs_equal_local_runs_and_resume(tmp_path, local_ray):
     pd.testing.assert_frame_equal(pd.read_csv(resumed.table_csv), table)
 
 
+@pytest.mark.slow
 def test_a_failing_ray_task_is_reported_and_the_others_are_written(tmp_path, local_ray):
     jobs, _ = plan_jobs(EXPERIMENTS["gridworld"], ["er"], SEEDS, 3, tmp_path)
     # zero episodes: the worker's EpisodeReturnProtocol refuses the run
@@ -84,6 +86,7 @@ def test_ray_usage_statistics_stay_off(monkeypatch):
     assert not usage_lib.usage_stats_enabled()
 
 
+@pytest.mark.slow
 def test_a_killed_driver_leaves_no_ray_process_behind(tmp_path):
     """SIGKILL of a driver that started its own local Ray instance: Ray's agents, which outlive a killed driver on
     their own, are ended by the driver's reaper, and nothing of the instance is left."""

@@ -263,6 +263,7 @@ def test_analysis_options_are_checked(tmp_path, capsys):
     ]
 
 
+@pytest.mark.slow
 def test_replay_order_on_ray_equals_local(tmp_path):
     ray = pytest.importorskip("ray")
     from sb3_er.experiments.runner import RAY_ENV_VARS

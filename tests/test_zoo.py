@@ -273,6 +273,7 @@ def test_every_choice_of_the_search_space_builds_a_model(algo):
         assert sorted(trial.spaces["sigma"]) == sorted(["worst", "average_worst", "average", "average_best", "best"])
 
 
+@pytest.mark.slow
 def test_two_optimize_workers_share_one_sqlite_study(tmp_path):
     optuna = pytest.importorskip("optuna")
     storage = f"sqlite:///{tmp_path / 'study.db'}"
