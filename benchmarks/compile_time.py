@@ -2,6 +2,7 @@
 keeps them in its cache, so the first process pays once per machine and every later one loads them.
 
     python benchmarks/compile_time.py [--repeats 1] [--algos SarsaLambda ERSigma ...]
+    python benchmarks/compile_time.py --baseline-python OTHER/.venv/bin/python   # beside another checkout's
 
 For each algorithm, two fresh interpreters in turn, both with ``NUMBA_CACHE_DIR`` set to the same new empty folder:
 the first compiles every kernel its ``learn`` calls (a cold start, what a fresh install meets), the second loads them
@@ -9,7 +10,9 @@ the first compiles every kernel its ``learn`` calls (a cold start, what a fresh 
 ``time.perf_counter`` after the imports, and the figures printed are seconds of wall time and of this process's CPU
 time (CPU time is what other load on the machine does not inflate). Prioritized sweeping is ER with
 ``replay_order="prioritized"``, whose phase kernel is a kernel of its own. Run on a quiet machine: the load average
-is printed before and after.
+is printed before and after. ``--baseline-python`` also times the same first learns under another Python
+(another checkout's venv, which imports that checkout's package), alternating with this one's, and prints the cold
+CPU seconds of both and their ratio.
 """
 
 from __future__ import annotations
@@ -45,12 +48,13 @@ print(json.dumps({"wall": time.perf_counter() - wall, "cpu": time.process_time()
 """
 
 
-def first_learn(name: str, kwargs: dict, cache: str) -> dict[str, float]:
+def first_learn(name: str, kwargs: dict, cache: str, python: str = sys.executable) -> dict[str, float]:
     """Wall and CPU seconds of the first ``learn`` in a fresh interpreter whose numba cache is ``cache``."""
     environment = dict(os.environ, NUMBA_CACHE_DIR=cache)
     out = subprocess.run(
-        [sys.executable, "-c", FIRST_LEARN, name, json.dumps(kwargs)],
+        [python, "-c", FIRST_LEARN, name, json.dumps(kwargs)],
         env=environment,
+        cwd=cache,  # not the current folder: `python -c` puts it first on sys.path, where a checkout would win
         capture_output=True,
         text=True,
         check=True,
@@ -62,18 +66,27 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=1, help="cold and warm pairs per algorithm (median printed)")
     parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=list(ALGOS), metavar="ALGO")
+    parser.add_argument("--baseline-python", default=None, help="another checkout's Python, timed beside this one")
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()[0]:.2f}")
-    print(f"{'algorithm':28s} {'cold wall s':>11s} {'cold CPU s':>10s} {'warm wall s':>11s} {'warm CPU s':>10s}")
+    header = f"{'algorithm':28s} {'cold wall s':>11s} {'cold CPU s':>10s} {'warm wall s':>11s} {'warm CPU s':>10s}"
+    print(header + (f" {'baseline cold CPU s':>19s} {'vs baseline':>11s}" if args.baseline_python else ""))
     for label in args.algos:
         name, kwargs = ALGOS[label]
-        cold, warm = [], []
+        cold, warm, baseline = [], [], []
         for _ in range(args.repeats):
             with tempfile.TemporaryDirectory(prefix="numba_cache_") as cache:
                 cold.append(first_learn(name, kwargs, cache))
                 warm.append(first_learn(name, kwargs, cache))
+            if args.baseline_python:
+                with tempfile.TemporaryDirectory(prefix="numba_cache_") as cache:
+                    baseline.append(first_learn(name, kwargs, cache, args.baseline_python))
         figures = [statistics.median(run[key] for run in runs) for runs in (cold, warm) for key in ("wall", "cpu")]
-        print(f"{label:28s} {figures[0]:11.1f} {figures[1]:10.1f} {figures[2]:11.2f} {figures[3]:10.2f}", flush=True)
+        line = f"{label:28s} {figures[0]:11.1f} {figures[1]:10.1f} {figures[2]:11.2f} {figures[3]:10.2f}"
+        if baseline:
+            before = statistics.median(run["cpu"] for run in baseline)
+            line += f" {before:19.1f} {figures[1] / before:10.2f}x"
+        print(line, flush=True)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

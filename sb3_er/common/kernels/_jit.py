@@ -12,11 +12,10 @@
 
 ``inline`` and ``helper`` trade compile time against speed. numba inlines at the level of its own IR and types the
 inlined code again at every call site, so helpers inlined into helpers inlined into each phase kernel multiply: with
-every helper inlined, a fresh install's first ``ERSigma(...).learn()`` compiled for 150 s and prioritized sweeping's
-for 127 s. With each update rule a helper of its own (its TD error and step inlined into it), the first learns take
-50 s and 30 s, and replay keeps 0.94-1.04x the all-inlined rate on the walker and LEO setups
-(``benchmarks/compile_time.py``, ``benchmarks/replay_throughput.py --baseline``; the figures are in the docs'
-implementation page).
+every helper inlined, a fresh install's first ``ERSigma(...).learn()`` waited minutes for the compiler. Each update
+rule is therefore a helper of its own, with its TD error and step inlined into it, which keeps replay within a few per
+cent of the all-inlined rate (``benchmarks/compile_time.py`` and ``benchmarks/replay_throughput.py --baseline``; the
+measured figures are in the documentation's implementation details).
 """
 
 import numba as nb
