@@ -793,14 +793,14 @@ def update_readme(check: bool = False) -> bool:
 @dataclass(frozen=True)
 class SpaceCase:
     """One cell of an algorithm page's "Can I use?" tables: an env (or VecEnv) of one kind of space, which the
-    algorithm is built on; the cell says ✔️ when the constructor accepts it and ❌ when it refuses it."""
+    algorithm is built on; the cell says ✔️ when the constructor accepts it and ✘ when it refuses it."""
 
     row: str
     column: str  # "action" or "observation" (the spaces table), or "use" (the envs table)
     make: Any  # () -> a Gymnasium env or a VecEnv
     #: shown after ✔️ when accepted
     note: str = ""
-    #: shown after ❌ when refused
+    #: shown after ✘ when refused
     refused_note: str = ""
 
 
@@ -928,7 +928,7 @@ def accepts(algorithm: type, case: SpaceCase) -> bool:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             algorithm("TileQ", env, policy_kwargs=dict(PROBE_POLICY_KWARGS))
-    except Exception:  # noqa: BLE001  (any refusal is a ❌; tests/test_docs.py checks it is a clear ValueError)
+    except Exception:  # noqa: BLE001  (any refusal is a ✘; tests/test_docs.py checks it is a clear ValueError)
         return False
     finally:
         env.close()
@@ -967,12 +967,12 @@ def can_i_use_table(algorithm_names: list[str] | None = None) -> str:
             return "✔️" + (f" ({case.note})" if case.note else "")
         if accepted:
             return f"✔️ for {', '.join(f'`{name}`' for name in accepted)} only"
-        return "❌" + (f" ({case.refused_note})" if case.refused_note else "")
+        return "✘" + (f" ({case.refused_note})" if case.refused_note else "")
 
     who = f"`{chosen[0].__name__}`" if len(chosen) == 1 else "each algorithm"
     lines = [
         f"Found when these pages were built, by building {who} on a small env of each kind: ✔️ the constructor takes "
-        "it, ❌ it refuses it with an error naming the problem.",
+        "it, ✘ it refuses it with an error naming the problem.",
         "",
         "| space | action | observation |",
         "|---|---|---|",
