@@ -435,6 +435,8 @@ FIGURE_CAPTIONS = {
     "torques.",
     "figure_5_6.png": "Thesis Figure 5.6: one self-affecting sample (4 tilings; s' shares 3 tiles of s) replayed "
     "alone: Q(s_k, a_k) against replays for each variant; dotted: the closed form.",
+    "samples_to_target.png": "Samples to each task's target, as the median over seeds of each method divided by "
+    "Sarsa(λ)'s, task by task (below 1: fewer samples than Sarsa(λ)).",
     "limit_vs_shared_tiles.png": "The limit of Q(s_k, a_k) when one sample is replayed again and again, against the "
     "tiles s_k shares with s_{k+1} (16 tilings), for each variant.",
 }
