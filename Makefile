@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # The default suite leaves out the tests marked slow (whole learning runs, the wheel, the docs build, the benchmarks'
-# end-to-end runs: pyproject.toml's addopts); `make test-slow` runs them, and .ci/run runs both.
+# end-to-end runs, distributed and killed runs: pyproject.toml's addopts); `make test-slow` runs them, and .ci/run runs both.
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadfile -q
 
