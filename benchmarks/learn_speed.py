@@ -5,6 +5,7 @@ after the other (the kernels release the GIL).
     python benchmarks/learn_speed.py                                   # this checkout only
     python benchmarks/learn_speed.py --baseline-python OTHER/.venv/bin/python --rounds 9
     python benchmarks/learn_speed.py --threads
+    python benchmarks/learn_speed.py --learners SarsaLambda              # only these learners' cases
 
 Each figure is measured in a fresh subprocess of a Python (this one, or the baseline checkout's venv, which imports
 that checkout's package): the model is built and learns a warm-up of 2,000 steps (compilation, caches), then the
@@ -96,10 +97,15 @@ def main() -> None:
     parser.add_argument("--baseline-python", help="the python of another checkout's venv, to alternate with")
     parser.add_argument("--rounds", type=int, default=5, help="alternating rounds per case (default 5)")
     parser.add_argument("--threads", action="store_true", help="also the two-thread figure")
+    parser.add_argument(
+        "--learners", nargs="+", choices=sorted({case[0] for case in CASES}), help="only these learners' cases"
+    )
     args = parser.parse_args()
     header = f"{'learner':12s} {'env':28s} {'steps/CPU s':>12s}"
     print(header + (f" {'baseline':>12s} {'vs baseline':>11s}" if args.baseline_python else ""), flush=True)
     for case in CASES:
+        if args.learners and case[0] not in args.learners:
+            continue
         current, baseline, ratios = [], [], []
         for _ in range(args.rounds):
             current.append(rate(sys.executable, case))

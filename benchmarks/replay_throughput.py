@@ -20,6 +20,7 @@ the machine's drift affects far less. Use it to check that a change keeps the re
 
 import argparse
 import importlib.util
+import shutil
 import sys
 import tempfile
 import time
@@ -93,10 +94,11 @@ def _alternate(rate, size, watch, rounds) -> tuple[float, float]:
 
 
 def load_kernels(checkout: str):
-    """The kernels of another checkout, loaded beside the current ones under their own module name (numba caches
-    them next to their files): a checkout's ``sb3_er/common/kernels.py`` (the single module of earlier versions, which
-    took positional arguments) or its ``sb3_er/common/kernels/`` package (argument bundles), copied into a temporary
-    folder as the package ``baseline_kernels`` with its imports pointed at itself.
+    """The kernels of another checkout, loaded beside the current ones under their own module name, from a copy in a
+    temporary folder (numba caches kernels next to their files, under the module's name): a checkout's
+    ``sb3_er/common/kernels.py`` (the single module of earlier versions, which took positional arguments) as the
+    module ``baseline_kernels``, or its ``sb3_er/common/kernels/`` package (argument bundles) as the package
+    ``baseline_kernels`` with its imports pointed at itself.
 
     :param checkout: a checkout of this repository, or its kernels module or package folder.
     """
@@ -122,11 +124,12 @@ def load_kernels(checkout: str):
             (folder / "baseline_kernels" / source.name).write_text(text, encoding="utf-8")
         sys.path.insert(0, str(folder))
         return importlib.import_module("baseline_kernels")
-    spec = importlib.util.spec_from_file_location("baseline_kernels", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # numba's cache finds a module by name when it loads a cached kernel
-    spec.loader.exec_module(module)
-    return module
+    # a copy, never the checkout's own file: numba caches a kernel next to its source under the module's name, and a
+    # "baseline_kernels" entry in the checkout's __pycache__ would break that checkout's own imports of its kernels
+    folder = Path(tempfile.mkdtemp(prefix="baseline_kernels_"))
+    shutil.copyfile(path, folder / "baseline_kernels.py")
+    sys.path.insert(0, str(folder))
+    return importlib.import_module("baseline_kernels")
 
 
 def bundled(module) -> bool:

@@ -141,6 +141,102 @@ def test_subprocess_envs(algo):
         env.close()
 
 
+def _learned_on(vec_cls, algo, kwargs, steps=1_500):
+    """theta, the falls and the last observations after ``steps`` on 2 CartPole envs of ``vec_cls``."""
+    env = make_vec_env("CartPole-v1", n_envs=2, seed=0, vec_env_cls=vec_cls)
+    try:
+        model = algo("TileQ", env, seed=0, value_bound_action="ignore", **SMALL, **kwargs).learn(steps)
+        return model.policy.theta_array.copy(), model._episode_num, np.asarray(model._last_obs, dtype=np.float64)
+    finally:
+        env.close()
+
+
+SUBPROCESS_CASES = [(SarsaLambda, {}), (ERSigma, {"online_lambda": 0.9}), (ER, {})]
+
+
+@pytest.mark.parametrize(("algo", "kwargs"), SUBPROCESS_CASES, ids=lambda case: getattr(case, "__name__", str(case)))
+def test_subprocess_envs_learn_exactly_as_envs_in_this_process(algo, kwargs):
+    """Envs in subprocesses and in this process learn the same weights, bit for bit: a SubprocVecEnv goes through its
+    own step, a DummyVecEnv's envs are stepped directly (with the env's float64 reward). Covers an online learner,
+    ER with online Sarsa(lambda) between replays, and ER without."""
+    here = _learned_on(DummyVecEnv, algo, kwargs)
+    there = _learned_on(SubprocVecEnv, algo, kwargs)
+    np.testing.assert_array_equal(here[0], there[0])
+    assert here[1] == there[1] and here[1] > 10
+    np.testing.assert_array_equal(here[2], there[2])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", ALGOS)
+def test_every_algorithm_learns_exactly_as_in_this_process_on_subprocess_envs(algo):
+    here, there = _learned_on(DummyVecEnv, algo, {}, 600), _learned_on(SubprocVecEnv, algo, {}, 600)
+    np.testing.assert_array_equal(here[0], there[0])
+
+
+def _non_finite_reward_once(at_step: int):
+    """An env factory (pickled by value into the subprocess): CartPole whose ``at_step``-th reward is NaN."""
+
+    def make():
+        count = [0]
+
+        def reward(value):
+            count[0] += 1
+            return float("nan") if count[0] == at_step else value
+
+        return gym.wrappers.TransformReward(gym.make("CartPole-v1"), reward)
+
+    return make
+
+
+def test_an_error_while_subprocess_envs_step_ahead_leaves_them_usable():
+    """Env 1's 30th reward is NaN: learn() stops with an error naming the env, the envs in their processes stay
+    usable, and the next learn() resets them and goes on."""
+    env = SubprocVecEnv([lambda: gym.make("CartPole-v1"), _non_finite_reward_once(30)])
+    try:
+        model = SarsaLambda("TileQ", env, seed=0, **SMALL)
+        with pytest.raises(ValueError, match="env 1 returned a non-finite reward"):
+            model.learn(200)
+        assert model.num_timesteps == 60
+        model.learn(200, reset_num_timesteps=False)
+        assert model.num_timesteps == 260
+        obs = env.reset()
+        assert obs.shape == (2, 4)
+    finally:
+        env.close()
+
+
+def _lambda_wrapped(env_id: str):
+    """An env factory: ``env_id`` under TransformReward with a local function, which Gymnasium records in the env's
+    spec, so that the spec of the env cannot be pickled."""
+
+    def make():
+        return gym.wrappers.TransformReward(gym.make(env_id), lambda value: value)
+
+    return make
+
+
+@pytest.mark.parametrize("env_id", ["CartPole-v1", "sb3_er/PendulumSwingup-v0"])
+def test_an_env_whose_spec_cannot_be_pickled_works_in_subprocesses(env_id):
+    """Resolving the tiling asks for env 0's spec (its id chooses a shipped tiling). In a SubprocVecEnv the worker
+    must pickle the answer, and this spec holds a lambda: asked for it, the worker would die. The model takes the id
+    from Gymnasium's description of the env instead, and gets the same tiling as in this process."""
+    here = make_vec_env(
+        env_id,
+        n_envs=2,
+        seed=0,
+        wrapper_class=gym.wrappers.TransformReward,
+        wrapper_kwargs={"func": lambda value: value},
+    )
+    env = SubprocVecEnv([_lambda_wrapped(env_id), _lambda_wrapped(env_id)])
+    try:
+        model = SarsaLambda("TileQ", env, seed=0, value_bound_action="ignore").learn(200)
+        assert model.num_timesteps == 200
+        expected = SarsaLambda("TileQ", here, seed=0).policy.tile_coder
+        np.testing.assert_array_equal(model.policy.tile_coder.tile_widths, expected.tile_widths)
+    finally:
+        env.close()
+
+
 class ScaleRewards(VecEnvWrapper):
     """A user's VecEnv wrapper that multiplies every reward by 10."""
 

@@ -3,6 +3,7 @@
 import io
 import math
 import pathlib
+import re
 import sys
 import time
 import warnings
@@ -18,7 +19,14 @@ from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import check_for_correct_spaces, safe_mean
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize, unwrap_vec_normalize, unwrap_vec_wrapper
+from stable_baselines3.common.vec_env import (
+    DummyVecEnv,
+    VecEnv,
+    VecEnvWrapper,
+    VecNormalize,
+    unwrap_vec_normalize,
+    unwrap_vec_wrapper,
+)
 
 from sb3_er.common import kernels
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
@@ -29,6 +37,7 @@ from sb3_er.common.dict_observations import (
     vec_observation_keys,
 )
 from sb3_er.common.env_ids import register_env_id
+from sb3_er.common.env_stepping import make_stepper
 from sb3_er.common.policies import TileQPolicy, _initial_range, action_nvec, initial_value_seed_of
 from sb3_er.common.serialization import (
     PLAIN_STATE_KEY,
@@ -44,9 +53,11 @@ from sb3_er.common.serialization import (
 )
 from sb3_er.common.tile_coding import resolve_tiling
 from sb3_er.common.value_bounds import (
+    REWARD_PRESERVING_WRAPPERS,
     VALUE_BOUND_ACTIONS,
     ValueBoundError,
     ValueWatch,
+    _wrapper_names,
 )
 
 try:
@@ -55,6 +66,18 @@ except ImportError:  # SB3 before 2.4 builds schedules as closures: read at ever
     ConstantSchedule = FloatSchedule = None
 
 DEFAULT_TOTAL_TIMESTEPS = 100_000
+
+#: Wrappers whose recorded constructor arguments are plain data (no callables), so that the spec of an env wrapped
+#: only in them pickles: an env in a subprocess is asked for its spec only then (TileQAlgorithm._env_spec).
+SPEC_SAFE_WRAPPERS = frozenset(REWARD_PRESERVING_WRAPPERS) - {"RecordVideo"} | {
+    "FlattenSuiteObservation",
+    "RescaleAction",
+    "ClipAction",
+    "RescaleObservation",
+    "DtypeObservation",
+    "ReshapeObservation",
+    "FilterObservation",
+}
 SelfTileQAlgorithm = TypeVar("SelfTileQAlgorithm", bound="TileQAlgorithm")
 
 
@@ -294,10 +317,41 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def _env_attribute(self, name: str) -> Any:
         """An optional attribute of the (first) env, None when absent. Probed with ``has_attr``: a SubprocVecEnv's
-        ``get_attr`` of a missing attribute kills its worker."""
-        if self.env is None or not self.env.has_attr(name):
+        ``get_attr`` of a missing attribute kills its worker. ``spec`` is :meth:`_env_spec`."""
+        if self.env is None:
             return None
-        return self.env.get_attr(name)[0]
+        if name == "spec":
+            return self._env_spec()
+        if not self.env.has_attr(name):
+            return None
+        return self.env.get_attr(name, indices=0)[0]  # env 0 alone: only its answer is read
+
+    def _env_spec(self) -> Any:
+        """The (first) env's ``EnvSpec``, or None. A wrapped env's spec holds its wrappers' constructor arguments, and
+        an env in another process (SubprocVecEnv) must pickle it to answer: a wrapper built with a lambda (e.g.
+        ``TransformReward``) would kill the worker. So such an env's spec is asked for only when every wrapper in
+        Gymnasium's description of the chain is one whose arguments are plain data (SPEC_SAFE_WRAPPERS); otherwise
+        it is the registry's spec of the id in that description (the id decides the tiling; the arguments given to
+        ``make`` are then not known)."""
+        level = self.env
+        while isinstance(level, VecEnvWrapper):
+            level = level.venv
+        if isinstance(level, DummyVecEnv):
+            return self.env.get_attr("spec", indices=0)[0] if self.env.has_attr("spec") else None
+        try:
+            description = self.env.env_method("__str__", indices=0)[0]
+        except Exception:  # a VecEnv that cannot call its envs' methods
+            return None
+        names = _wrapper_names(description)
+        if all(name in SPEC_SAFE_WRAPPERS for name in names[:-1]):
+            return self.env.get_attr("spec", indices=0)[0] if self.env.has_attr("spec") else None
+        segments = re.findall(r"<([^<>]*)", description)
+        if not segments or segments[-1].endswith(" instance"):
+            return None
+        try:
+            return gym.spec(segments[-1])
+        except gym.error.Error:
+            return None
 
     def _resolve_policy_kwargs(self) -> dict[str, Any]:
         """Explicit tile-coding settings (:func:`~sb3_er.common.tile_coding.resolve_tiling`), so that save/load
@@ -346,7 +400,7 @@ class TileQAlgorithm(BaseAlgorithm):
         n_envs = self.n_envs or 1
         self._env_slots = [np.zeros(coder.n_tilings, dtype=np.int64) for _ in range(n_envs)]
         self._env_next_slots = [np.zeros(coder.n_tilings, dtype=np.int64) for _ in range(n_envs)]
-        self._next_actions = np.full(n_envs, -1, dtype=np.int64)
+        self._next_actions = [-1] * n_envs  # a list of ints: read and written per step, where numpy scalars cost
         self._traces = [self._new_trace() for _ in range(n_envs)] if self.trace_lambda is not None else []
 
     # --- the value watch (sb3_er.common.value_bounds) ------------------------------------------------------------
@@ -498,7 +552,6 @@ class TileQAlgorithm(BaseAlgorithm):
             "_plain_layout",
             "_traces",
             "_next_actions",
-            "_direct_envs",
             "_watch",
             "_weights_scanned_at",  # the logging's own schedule: a loaded model scans at its first dump
             "_watch_array",
@@ -588,8 +641,6 @@ class TileQAlgorithm(BaseAlgorithm):
             self.value_excursion = None
             self._watch = None  # a new run: a new watch
         self._setup_value_watch()
-        env = self.env
-        self._direct_envs = env.envs if type(env) is DummyVecEnv else None
         callback.on_training_start(locals(), globals())
         callback.on_rollout_start()
         given = not (isinstance(callback, ConvertCallback) and callback.callback is None)
@@ -605,7 +656,7 @@ class TileQAlgorithm(BaseAlgorithm):
         resumption of an interrupted ``learn``): forget the pending a_{k+1} and the eligibility traces, so nothing of
         the old episodes reaches the new ones. Subclasses close what they store of them (ER: the open trajectories,
         as truncated)."""
-        self._next_actions[:] = -1
+        self._next_actions[:] = [-1] * len(self._next_actions)
         for trace in self._traces:
             kernels.clear_trace(trace)
         self._interrupted = False
@@ -835,12 +886,18 @@ class TileQAlgorithm(BaseAlgorithm):
 
     def _observation(self, obs: Any, env: int, what: str) -> np.ndarray:
         """An observation as it enters, checked once: an array of the observation space's shape, of numbers (a NaN
-        or an infinity is caught where it is tiled). ValueError naming the env, the space and what came.
+        or an infinity is caught where it is tiled), as float64. ValueError naming the env, the space and what came.
 
         :param obs: what the env returned.
         :param env: the env's index.
         :param what: where it came from (e.g. "step", "reset").
         """
+        if type(obs) is np.ndarray and obs.shape == self.observation_space.shape:  # the per-step case, checked cheaply
+            kind = obs.dtype.kind
+            if kind == "f":
+                return obs if obs.dtype.itemsize == 8 else obs.astype(np.float64)
+            if kind in "biu":
+                return obs.astype(np.float64)
         array = np.asarray(obs) if obs is not None else None
         if array is None or array.shape != self.observation_space.shape or array.dtype.kind not in "biuf":
             came = (
@@ -855,31 +912,6 @@ class TileQAlgorithm(BaseAlgorithm):
             )
         return array.astype(np.float64, copy=False)
 
-    def _step_envs(self, actions: np.ndarray, env_actions: list[Any], copy_action: bool):
-        """Step every env with its flat action: (new_obs (N, ...) after the resets of finished envs, rewards float64
-        (N,), dones (N,), infos with "TimeLimit.truncated", and "terminal_observation" where done).
-
-        A plain DummyVecEnv's envs are stepped directly: what its ``step`` does, without its per-step deep copy of
-        ``info`` and with the env's float64 reward (DummyVecEnv's buffer would round it to float32)."""
-        envs = self._direct_envs
-        if envs is None:
-            new_obs, rewards, dones, infos = self.env.step(self.policy.to_env_actions(actions))
-            return new_obs, np.asarray(rewards, dtype=np.float64), np.asarray(dones, dtype=bool), infos
-        observations, rewards, dones, infos = [], np.zeros(len(envs)), np.zeros(len(envs), dtype=bool), []
-        for i, env in enumerate(envs):
-            env_action = env_actions[actions[i]].copy() if copy_action else env_actions[actions[i]]
-            obs, reward, terminated, truncated, info = env.step(env_action)
-            done = bool(terminated or truncated)
-            info["TimeLimit.truncated"] = bool(truncated and not terminated)
-            if done:
-                info["terminal_observation"] = obs
-                obs, self.env.reset_infos[i] = env.reset()
-            observations.append(obs)
-            rewards[i], dones[i] = float(reward), done
-            infos.append(info)
-        new_obs = np.asarray(observations[0])[np.newaxis] if len(envs) == 1 else np.stack(observations)
-        return new_obs, rewards, dones, infos
-
     def _interact(self, total_timesteps: int, callback: BaseCallback | None, log_interval: int | None) -> None:
         """The interaction loop of ``learn()``: steps until ``total_timesteps`` or a callback's on_step returns False.
 
@@ -889,10 +921,16 @@ class TileQAlgorithm(BaseAlgorithm):
         subclass's ``_after_transition`` (storage, replay; only when the subclass has one), the episode's end
         (counters, trace reset, log dump). Each transition is learned and stored even when the callback stops
         training, so that the envs, ``_last_obs`` and the stored trajectories stay in step and a later
-        ``learn(reset_num_timesteps=False)`` continues the episodes exactly where they were.
+        ``learn(reset_num_timesteps=False)`` continues the episodes exactly where they were. The envs are stepped by
+        :func:`~sb3_er.common.env_stepping.make_stepper`'s stepper (a plain DummyVecEnv's envs directly).
+
+        :param total_timesteps: the step count at which to stop.
+        :param callback: SB3's callback, or None when none was given.
+        :param log_interval: episodes between log dumps (None or 0: none).
         """
         n_envs = self.n_envs
         env_actions, copy_action = self._env_action_table()
+        step_envs = make_stepper(self.env, self.policy.to_env_actions, env_actions, copy_action).step
         after_transition = (
             None if type(self)._after_transition is TileQAlgorithm._after_transition else self._after_transition
         )
@@ -915,12 +953,14 @@ class TileQAlgorithm(BaseAlgorithm):
         observe = watch.observe if watch is not None and watch.observing else None
         total = float(total_timesteps)
         observations = [self._observation(self._last_obs[i], i, "reset") for i in range(n_envs)]
-        actions = np.zeros(n_envs, dtype=np.int64)
+        # the per-step check of an observation: an array of the space's shape, float64 as it is, float32 converted
+        shape, float64, float32 = self.observation_space.shape, np.dtype(np.float64), np.dtype(np.float32)
+        actions = [-1] * n_envs
         while self.num_timesteps < total_timesteps:
             for i in range(n_envs):
                 action = next_actions[i]
                 actions[i] = action if action >= 0 else self._select_action(observations[i], i)
-            new_obs, rewards, dones, infos = self._step_envs(actions, env_actions, copy_action)
+            new_obs, env_obs, rewards, dones, infos = step_envs(actions)
             self.num_timesteps += n_envs
             continue_training = True
             if callback is not None:
@@ -930,26 +970,31 @@ class TileQAlgorithm(BaseAlgorithm):
                         "callback": callback,
                         "log_interval": log_interval,
                         "obs": observations[0] if n_envs == 1 else np.stack(observations),
-                        "action": int(actions[0]) if n_envs == 1 else actions.copy(),
-                        "actions": self.policy.to_env_actions(actions.copy()),  # the env's format, as SB3 reads it
+                        "action": actions[0] if n_envs == 1 else np.array(actions),
+                        "actions": self.policy.to_env_actions(np.array(actions)),  # the env's format, as SB3 reads it
                         "new_obs": new_obs,
-                        "rewards": rewards,
-                        "dones": dones,
+                        "rewards": np.array(rewards, dtype=np.float64),
+                        "dones": np.array(dones, dtype=bool),
                         "infos": infos,
                     }
                 )
                 continue_training = callback.on_step()
                 if self.policy.theta_array is not weights[0] or self.action_rng is not action_rng:
                     weights, action_rng = tuple(self._weights()), self.action_rng  # replaced by the callback
-            if any("episode" in info or "is_success" in info for info in infos):
-                self._update_info_buffer(infos, dones)
+            for info in infos:
+                if "episode" in info or "is_success" in info:
+                    self._update_info_buffer(infos, np.array(dones, dtype=bool))
+                    break
             if online and not constant_rate:
                 rule = tuple(self._update_rule())
             for i in range(n_envs):
-                info, done, reward, action = infos[i], bool(dones[i]), float(rewards[i]), int(actions[i])
+                info, done, reward, action = infos[i], dones[i], rewards[i], actions[i]
                 truncated = done and bool(info.get("TimeLimit.truncated", False))
                 terminated = done and not truncated
-                next_obs = self._observation(info["terminal_observation"] if done else new_obs[i], i, "step")
+                next_obs = info["terminal_observation"] if done else env_obs[i]
+                dtype = next_obs.dtype if type(next_obs) is np.ndarray and next_obs.shape == shape else None
+                if dtype is not float64:  # float32 converted here; anything else checked in full
+                    next_obs = next_obs.astype(float64) if dtype is float32 else self._observation(next_obs, i, "step")
                 if not isfinite(reward):
                     raise ValueError(f"env {i} returned a non-finite reward {reward} at step {self.num_timesteps}")
                 if observe is not None and observe(reward, terminated) and online:
@@ -977,7 +1022,7 @@ class TileQAlgorithm(BaseAlgorithm):
                         clear_trace(traces[i])
                     if log_interval and self._episode_num % log_interval == 0:
                         self.dump_logs()
-                    observations[i] = self._observation(new_obs[i], i, "reset")
+                    observations[i] = self._observation(env_obs[i], i, "reset")
                 else:
                     env_slots[i], env_next_slots[i] = env_next_slots[i], env_slots[i]
                     observations[i] = next_obs

@@ -260,9 +260,9 @@ class TrajectoryReplayBuffer:
                 self._counters[index] = length + 1  # counted
                 return False
             return self._commit_stretch(env, next_obs, end, length + 1)  # counted and stored at once
-        counts = self._counters.copy()
+        counts = self._counters.tolist()  # Python ints: read and written a dozen times per step, where numpy's cost
         if counts[N_TRANSITIONS] == self.capacity:
-            counts = self._evict_oldest_trajectory()
+            counts = self._evict_oldest_trajectory().tolist()
         p = (counts[WRITE_ROW] + counts[OPEN_LENGTH]) % self.capacity
         self.observations[p] = obs
         self.slots[p] = slots
@@ -271,7 +271,11 @@ class TrajectoryReplayBuffer:
         self.transition_trajectory[p] = (counts[OLDEST_TRAJECTORY] + counts[N_TRAJECTORIES]) % self.capacity
         spare = 1 - counts[OPEN_NEXT]
         self._open_next[spare] = next_obs
-        self._mark(slots, action, counts)
+        if self.prune:
+            self._mark(slots, action, counts)
+        else:  # _mark's common case, without its call
+            coder = self.tile_coder
+            kernels.mark_visited(self.visits, slots, coder.stride, coder.action_columns, action)
         counts[OPEN_LENGTH] += 1
         counts[N_TRANSITIONS] += 1
         counts[OPEN_NEXT] = spare
@@ -281,7 +285,7 @@ class TrajectoryReplayBuffer:
         self._counters[:] = counts  # counted: the transition (and the close) all at once
         return kept
 
-    def _mark(self, slots: np.ndarray, action: int, counts: np.ndarray) -> None:
+    def _mark(self, slots: np.ndarray, action: int, counts: np.ndarray | list[int]) -> None:
         """w <- w OR phi(s_t, a_t); with pruning, also track the open trajectory's new features and coverage in
         ``counts`` (committed with the transition)."""
         coder = self.tile_coder
@@ -318,7 +322,7 @@ class TrajectoryReplayBuffer:
         self._counters[:] = counts
         return kept
 
-    def _close(self, counts: np.ndarray, next_obs: np.ndarray, terminated: bool) -> bool:
+    def _close(self, counts: np.ndarray | list[int], next_obs: np.ndarray, terminated: bool) -> bool:
         """Close the open trajectory in ``counts`` (the caller commits them): its record is written first, in the
         trajectory slot after the closed ones, which no count covers yet."""
         open_length = int(counts[OPEN_LENGTH])
