@@ -44,7 +44,13 @@ class VecEnvStepper:
 
 
 class DirectStepper(VecEnvStepper):
-    """A plain ``DummyVecEnv``'s envs, stepped directly (one env, the common case, without the loop over envs)."""
+    """A plain ``DummyVecEnv``'s envs, stepped directly (one env, the common case, without the loop over envs).
+
+    :param vec_env: the DummyVecEnv.
+    :param to_env_actions: the policy's map from flat action indices (an array) to the env's actions.
+    :param env_actions: each flat action in the env's format.
+    :param copy_action: whether an env action must be copied before a step (an array an env could change in place).
+    """
 
     def __init__(self, vec_env: DummyVecEnv, to_env_actions, env_actions: list[Any], copy_action: bool) -> None:
         super().__init__(vec_env, to_env_actions, env_actions, copy_action)
@@ -65,6 +71,10 @@ class DirectStepper(VecEnvStepper):
         return np.asarray(obs)[np.newaxis], (obs,), [float(reward)], [done], [info]
 
     def step(self, actions: list[int]) -> tuple[Any, Any, list[float], list[bool], list[dict[str, Any]]]:
+        """Step every env with its flat action (see the module's docstring for what it returns).
+
+        :param actions: each env's flat action index.
+        """
         observations, rewards, dones, infos = [], [], [], []
         env_actions, copy_action, reset_infos = self.env_actions, self.copy_action, self.vec_env.reset_infos
         for i, env in enumerate(self.envs):
