@@ -167,6 +167,8 @@ class ReplayTimer:
                 truncate=False, value_low=-np.inf, value_high=np.inf, step_bound=False, step_cap=np.full(1, np.inf)
             )
             replay.update(max_updates=-1)
+        if "averager" in module.UpdateRule._fields:
+            rule.update(averager=False)
         if hasattr(module, "weights_bundle"):
             weights = module.weights_bundle(self.theta, 0.0, 0.0, 0)
         else:

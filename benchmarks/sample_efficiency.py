@@ -317,6 +317,8 @@ METHODS: dict[str, tuple[str, dict[str, Any]]] = {
         "ERSigma",
         {"preset": "thesis", "truncate_targets": True, "target_copy": True, "replay_ratio": 50.0},
     ),
+    "er_sigma_averager": ("ERSigma", {"preset": "thesis", "averager": True}),
+    "er_sigma_averager_target_copy": ("ERSigma", {"preset": "thesis", "averager": True, "target_copy": True}),
     "dqn": ("DQN", {}),
     "sac": ("SAC", {}),
 }
@@ -341,6 +343,8 @@ LABELS = {
     "er_sigma_ratio_10": "ER-σ + replay ratio 10",
     "er_sigma_truncate_target_copy_ratio_10": "ER-σ + truncation + target copy + ratio 10",
     "er_sigma_truncate_target_copy_ratio_50": "ER-σ + truncation + target copy + ratio 50",
+    "er_sigma_averager": "ER-σ + averager",
+    "er_sigma_averager_target_copy": "ER-σ + averager + target copy",
     "dqn": "DQN (rl-zoo)",
     "sac": "SAC (rl-zoo)",
 }

@@ -37,11 +37,25 @@ SIGMAS = {
 #: the whole sample-efficiency suite (benchmarks/sample_efficiency.py), the same on every task; provisionally
 #: truncation with the target copy.
 PRESETS: dict[str, dict[str, Any]] = {
-    "thesis": dict(n_replays=100, replay_ratio=None, truncate_targets=False, target_copy=False, step_size_bound=False),
-    "stable": dict(n_replays=100, replay_ratio=None, truncate_targets=True, target_copy=True, step_size_bound=False),
+    "thesis": dict(
+        n_replays=100,
+        replay_ratio=None,
+        truncate_targets=False,
+        target_copy=False,
+        step_size_bound=False,
+        averager=False,
+    ),
+    "stable": dict(
+        n_replays=100,
+        replay_ratio=None,
+        truncate_targets=True,
+        target_copy=True,
+        step_size_bound=False,
+        averager=False,
+    ),
 }
 #: What a preset resolves.
-STABILIZERS = ("n_replays", "replay_ratio", "truncate_targets", "target_copy", "step_size_bound")
+STABILIZERS = ("n_replays", "replay_ratio", "truncate_targets", "target_copy", "step_size_bound", "averager")
 REPLAY_VOLUME = ("n_replays", "replays_per_stored_trajectory", "replay_ratio")
 
 
@@ -138,6 +152,15 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         the preset's. With binary tiles and alpha / N per weight it binds in replay only for alpha > 1 / (1 - gamma
         o / N) (o tiles shared by s and s'), so at the thesis's alpha only with traces (online_lambda) and hash
         collisions.
+    :param averager: each replayed update moves every active weight towards its share of the target, theta_i <-
+        theta_i + alpha / N (T - N theta_i), instead of adding alpha delta / N to each (Gordon 1995, "Stable function
+        approximation in dynamic programming": an averager is a max-norm non-expansion, so the fitted Bellman
+        operator stays a contraction); None (default): the preset's. Q(s, a) moves by the same alpha (T - Q(s, a)),
+        but each weight stays a convex combination of its start and the targets / N, so with rewards in [r_min,
+        r_max] and initial values inside the possible returns no replayed value can leave them. Needs a learning
+        rate of at most 1; not with the residual direction (``residual_zeta``), whose update has no averager form (a
+        preset's averager is dropped there). Online Sarsa(lambda) steps between phases (``online_lambda``) keep their
+        trace update.
     :param replay_ratio: replayed updates per new stored transition (D'Oro et al., ICLR 2023): each phase replays
         whole trajectories until it has made this many updates per transition stored since the last phase, instead of
         ``n_replays`` trajectories; None (default): the preset's. The thesis's protocols make about 10^4 updates per
@@ -146,8 +169,8 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
     _trace_lambda_parameter = "online_lambda"
 
-    #: Files saved before presets existed replayed with the thesis's algorithm.
-    older_file_values: ClassVar[dict[str, Any]] = {"preset": "thesis"}
+    #: Files saved before presets (or the averager) existed replayed with the thesis's algorithm.
+    older_file_values: ClassVar[dict[str, Any]] = {"preset": "thesis", "averager": False}
 
     def __init__(
         self,
@@ -174,6 +197,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         truncate_targets: bool | None = None,
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
+        averager: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -209,6 +233,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self.truncate_targets = truncate_targets
         self.target_copy = target_copy
         self.step_size_bound = step_size_bound
+        self.averager = averager
         self.replay_ratio = replay_ratio
         self.stabilizers: dict[str, Any] = {}
         self.priority_evaluations = 0
@@ -253,7 +278,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         check_number("replay_ratio (replayed updates per new sample)", self.replay_ratio, 0.0, optional=True)
         if self.replay_ratio is not None and self.replays_per_stored_trajectory is not None:
             raise ValueError("give either replay_ratio or replays_per_stored_trajectory: both set the replay volume")
-        for name in ("truncate_targets", "target_copy", "step_size_bound"):
+        for name in ("truncate_targets", "target_copy", "step_size_bound", "averager"):
             check_bool(name, getattr(self, name), optional=True)
         check_choice("preset", self.preset, PRESETS)
         check_number("residual_zeta (Eq. 5.9)", self.residual_zeta, 0.0, 1.0, optional=True)
@@ -269,12 +294,21 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self._check_hyperparameters()
         given = {name: getattr(self, name) for name in (*STABILIZERS, "replays_per_stored_trajectory")}
         self.stabilizers = resolve_preset(self.preset, given)
+        if self.residual_zeta and self.stabilizers["averager"]:
+            if self.averager:
+                raise ValueError(
+                    f"averager=True with residual_zeta={self.residual_zeta}: the averager moves each weight towards "
+                    "its share of the target, and the residual direction phi(s, a) - zeta gamma phi(s', a) has no "
+                    "such form; use truncate_targets or target_copy with the residual variants"
+                )
+            self.stabilizers["averager"] = False  # a preset's averager: the semi-gradient variants only
         if self.prioritized_updates is not None and self.stabilizers["replay_ratio"] is not None:
             raise ValueError(
                 f"prioritized_updates={self.prioritized_updates} and replay_ratio={self.stabilizers['replay_ratio']} "
                 "both set a prioritized phase's updates: give one"
             )
         super()._setup_model()
+        self._check_averager_step()
         self.replay_buffer = TrajectoryReplayBuffer(
             self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {}), n_envs=self.n_envs or 1
         )
@@ -297,10 +331,24 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         super().set_parameters(load_path_or_dict, exact_match, device)
         self._setup_target_copy()
 
+    def _check_averager_step(self) -> None:
+        """ValueError if the averager would step with a learning rate above 1 (each weight carried past its share of
+        the target, and the bound on the values lost)."""
+        if self.stabilizers["averager"] and self.current_learning_rate > 1.0:
+            raise ValueError(
+                f"averager=True needs a learning rate of at most 1 (now {self.current_learning_rate}): a larger step "
+                "carries each weight past its share of the target, and the averager's bound on the values is lost"
+            )
+
     def _stabilizer_options(self) -> dict[str, Any]:
         """The UpdateRule fields of the resolved stabilizers: truncation to the value watch's bounds of the possible
         returns (Chen, Clarke and Maguluri 2023) and the step-size bound (Dabney and Barto 2012)."""
-        options = dict(truncate=self.stabilizers["truncate_targets"], step_bound=self.stabilizers["step_size_bound"])
+        options = dict(
+            truncate=self.stabilizers["truncate_targets"],
+            step_bound=self.stabilizers["step_size_bound"],
+            averager=self.stabilizers["averager"],
+        )
+        self._check_averager_step()
         if options["truncate"]:
             options["value_low"], options["value_high"] = self._watch.bounds
         return options
@@ -522,6 +570,7 @@ class ERSigma(ER):
         truncate_targets: bool | None = None,
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
+        averager: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -561,6 +610,7 @@ class ERSigma(ER):
             truncate_targets=truncate_targets,
             target_copy=target_copy,
             step_size_bound=step_size_bound,
+            averager=averager,
             replay_ratio=replay_ratio,
             learning_rate=learning_rate,
             gamma=gamma,
@@ -614,6 +664,7 @@ class ResidualER(ER):
         truncate_targets: bool | None = None,
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
+        averager: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -653,6 +704,7 @@ class ResidualER(ER):
             truncate_targets=truncate_targets,
             target_copy=target_copy,
             step_size_bound=step_size_bound,
+            averager=averager,
             replay_ratio=replay_ratio,
             learning_rate=learning_rate,
             gamma=gamma,
@@ -705,6 +757,7 @@ class ResidualERSigma(ER):
         truncate_targets: bool | None = None,
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
+        averager: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -744,6 +797,7 @@ class ResidualERSigma(ER):
             truncate_targets=truncate_targets,
             target_copy=target_copy,
             step_size_bound=step_size_bound,
+            averager=averager,
             replay_ratio=replay_ratio,
             learning_rate=learning_rate,
             gamma=gamma,

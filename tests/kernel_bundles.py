@@ -21,6 +21,7 @@ def rule(
     truncate=None,
     step_bound: bool = False,
     step_cap=None,
+    averager: bool = False,
 ) -> kernels.UpdateRule:
     """An UpdateRule; ``truncate`` is None (off) or the (low, high) of the possible returns."""
     low, high = (-np.inf, np.inf) if truncate is None else truncate
@@ -37,6 +38,7 @@ def rule(
         value_high=high,
         step_bound=step_bound,
         step_cap=step_cap,
+        averager=averager,
     )
 
 

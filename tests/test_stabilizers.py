@@ -1,12 +1,15 @@
 """The replay stabilizers, each against its guarantee on a hand case (issue 34): truncation (with and without the
 target copy) keeps Figure 5.6's self-affecting sample inside the possible returns for every ER variant, where the
 literal algorithms leave them; the target copy is read by bootstrapping and taken anew at each phase; the step-size
-bound stops a step that would carry a transition's TD error past zero; the replay ratio bounds the updates per new
-sample; presets resolve with explicit arguments winning."""
+bound stops a step that would carry a transition's TD error past zero; the averager moves Q(s, a) as far as the
+semi-gradient step but keeps every value inside the range of its start and its targets, without truncation; the replay
+ratio bounds the updates per new sample; presets resolve with explicit arguments winning."""
 
 import kernel_bundles as bundles
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma
 from sb3_er.common import kernels
@@ -115,6 +118,93 @@ def test_the_step_size_bound_with_a_trace():
     assert 1.0 / (1.0 - gamma * gamma * lam) > 1.0
 
 
+def test_the_averager_step_by_hand():
+    """One replayed update of a terminal transition (r = 2) from s, whose N = 4 weights are 1, 2, 3, 4 (Q = 10), with
+    alpha 0.5: the semi-gradient adds alpha delta / N = 0.125 (2 - 10) = -1 to each (0, 1, 2, 3); the averager moves
+    each halfway to T / N = 0.5 (0.75, 1.25, 1.75, 2.25). Both give Q(s, a) = 10 + 0.5 (2 - 10) = 6."""
+    coder = TileCoder([1.0], [1], n_tilings=4, memory_size=2**12)
+    buffer = TrajectoryReplayBuffer(10, coder)
+    state = np.array([0.5])
+    buffer.add(state, coder.slots(state), 0, 2.0, np.array([3.5]), end=True)
+    features = coder.feature_indices(state, 0)
+    assert np.unique(features).size == 4
+    moved = {}
+    for averager in (False, True):
+        theta = np.zeros(coder.n_weights)
+        theta[features] = [1.0, 2.0, 3.0, 4.0]
+        bundles.replay_phase(theta, buffer, bundles.rule(0.5 / 4, 0.9, averager=averager))
+        moved[averager] = theta[features]
+    assert np.allclose(moved[False], [0.0, 1.0, 2.0, 3.0])
+    assert np.allclose(moved[True], [0.75, 1.25, 1.75, 2.25])
+    assert moved[False].sum() == pytest.approx(6.0) and moved[True].sum() == pytest.approx(6.0)
+
+
+@pytest.mark.parametrize("variant", ["ER", "ER-σ"])
+@pytest.mark.parametrize("case", list(vg.CASES))
+def test_the_averager_keeps_the_self_affecting_sample_inside_without_truncation(variant, case):
+    """Figure 5.6's sample, which the literal semi-gradient variants carry out of the possible returns (case b), stays
+    inside them with the averager alone: no truncation, no target copy."""
+    low, high = _possible(case)
+    stable = vg.replay_values(vg.self_affecting_model(variant, case, shared=3, averager=True), 400)
+    tolerance = 1e-9 * max(abs(low), abs(high))
+    assert np.all((stable >= low - tolerance) & (stable <= high + tolerance)), (stable.min(), stable.max())
+    literal = vg.replay_values(vg.self_affecting_model(variant, case, shared=3), 400)
+    if case == "b":
+        assert literal.max() > high
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    rewards=st.lists(st.floats(-1.0, 1.0), min_size=2, max_size=12),
+    moves=st.lists(st.floats(-0.6, 0.6), min_size=12, max_size=12),
+    alpha=st.floats(0.05, 1.0),
+    gamma=st.floats(0.5, 0.99),
+    sigma=st.sampled_from([kernels.SIGMA_NONE, kernels.SIGMA_AVERAGE_WORST, kernels.SIGMA_BEST]),
+    start=st.floats(-1.0, 1.0),
+)
+def test_the_averager_keeps_every_value_inside_the_possible_returns(rewards, moves, alpha, gamma, sigma, start):
+    """Gordon's (1995) guarantee on random trajectories of a 1-D walk with 2 actions and overlapping tiles: rewards
+    in [-1, 1] and every weight starting at start / ((1 - gamma) N) keep every weight of the table, times N, inside
+    [-1 / (1 - gamma), 1 / (1 - gamma)] through 20 replay phases, for ER and each sigma of ER-sigma; so every Q(s, a)
+    and every sigma-extrapolated Q~ are inside too."""
+    coder = TileCoder([0.7], [2], n_tilings=4, memory_size=2**12)
+    buffer = TrajectoryReplayBuffer(100, coder)
+    bound = 1.0 / (1.0 - gamma)
+    state = np.array([0.0])
+    for t, reward in enumerate(rewards):
+        next_state = np.clip(state + moves[t], -3.0, 3.0)
+        end = True if t == len(rewards) - 1 else None
+        buffer.add(state, coder.slots(state), t % 2, reward, next_state, end=end)
+        state = next_state
+    theta = np.full(coder.n_weights, start * bound / 4)
+    rule = bundles.rule(alpha / 4, gamma, 0.1, sigma=sigma, averager=True)
+    for phase in range(20):
+        bundles.replay_phase(theta, buffer, rule, picks_rng=kernels.new_rng_state(phase, 1))
+    assert np.all(np.abs(theta * 4) <= bound * (1 + 1e-9)), (theta.min() * 4, theta.max() * 4, bound)
+
+
+def test_the_averager_refuses_what_it_cannot_bound():
+    """The residual direction has no averager form; a learning rate above 1 carries weights past their targets. A
+    preset's averager is dropped on the residual classes, which keep the preset's other stabilizers."""
+    with pytest.raises(ValueError, match="averager=True with residual_zeta=1.0"):
+        ResidualER("TileQ", "CartPole-v1", averager=True)
+    with pytest.raises(ValueError, match="averager=True with residual_zeta=0.5"):
+        ER("TileQ", "CartPole-v1", averager=True, residual_zeta=0.5)
+    with pytest.raises(ValueError, match="averager=True needs a learning rate of at most 1"):
+        ERSigma("TileQ", "CartPole-v1", averager=True, learning_rate=1.5)
+    with pytest.raises(ValueError, match="averager=True needs a learning rate of at most 1"):
+        ERSigma("TileQ", "CartPole-v1", averager=True, learning_rate=lambda progress: 2.0 - progress).learn(600)
+    assert ER("TileQ", "CartPole-v1", averager=True, residual_zeta=0.0).stabilizers["averager"] is True
+
+
+def test_a_preset_averager_is_dropped_by_the_residual_classes(monkeypatch):
+    monkeypatch.setitem(PRESETS, "stable", {**PRESETS["stable"], "averager": True, "truncate_targets": True})
+    for algo in (ResidualER, ResidualERSigma):
+        model = algo("TileQ", "CartPole-v1", preset="stable")
+        assert model.stabilizers["averager"] is False and model.stabilizers["truncate_targets"] is True
+    assert ERSigma("TileQ", "CartPole-v1", preset="stable").stabilizers["averager"] is True
+
+
 @pytest.mark.parametrize("algo", [ER, ERSigma, ResidualER, ResidualERSigma])
 def test_the_replay_ratio_bounds_updates_per_new_sample(algo):
     """With replay_ratio r, the replayed updates stay within r x the transitions stored plus one trajectory's worth
@@ -181,7 +271,15 @@ def test_a_model_saved_before_presets_loads_with_the_thesis_algorithm(tmp_path):
     model.save(tmp_path / "m")
     loaded = ERSigma.load(tmp_path / "m")
     assert loaded.stabilizers == model.stabilizers  # the file's values
-    for name in ("preset", "truncate_targets", "target_copy", "step_size_bound", "replay_ratio", "stabilizers"):
+    for name in (
+        "preset",
+        "truncate_targets",
+        "target_copy",
+        "step_size_bound",
+        "averager",
+        "replay_ratio",
+        "stabilizers",
+    ):
         del model.__dict__[name]
     model.save(tmp_path / "old")
     old = ERSigma.load(tmp_path / "old")

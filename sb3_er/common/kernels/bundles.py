@@ -108,6 +108,10 @@ class UpdateRule(NamedTuple):
         target: the step per weight becomes min(step_size, step_cap[0]), and step_cap[0] <- min(step_cap[0],
         1 / |(gamma phi' - phi)^T e|) with e the update's direction (the trace, or phi(s, a) in replay).
     :param step_cap: the bound so far, a float64 (1,) array changed in place (+inf: none yet); kept by the model.
+    :param averager: a replayed semi-gradient update moves each active weight towards its share of the target,
+        theta_i <- theta_i + step_size (T - N theta_i), instead of adding step_size delta to each (Gordon 1995's
+        averager): Q(s, a) moves by the same alpha (T - Q(s, a)), but every weight stays a convex combination of its
+        start and the targets / N, so no Q leaves their range (needs alpha <= 1).
     """
 
     target_kind: int
@@ -122,6 +126,7 @@ class UpdateRule(NamedTuple):
     value_high: float
     step_bound: bool
     step_cap: np.ndarray
+    averager: bool
 
 
 class Trace(NamedTuple):
@@ -378,6 +383,7 @@ def update_rule(
     value_high: float = np.inf,
     step_bound: bool = False,
     step_cap: np.ndarray | None = None,
+    averager: bool = False,
 ) -> UpdateRule:
     """An :class:`UpdateRule` with the stabilizers off unless given: the thesis's Sarsa update by default (the
     fields are documented on the class). ``step_cap`` None gives a fresh bound of +inf."""
@@ -395,6 +401,7 @@ def update_rule(
         value_high=value_high,
         step_bound=step_bound,
         step_cap=np.full(1, np.inf) if step_cap is None else step_cap,
+        averager=averager,
     )
 
 

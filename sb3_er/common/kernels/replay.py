@@ -27,7 +27,14 @@ from sb3_er.common.kernels.bundles import (
 )
 from sb3_er.common.kernels.policy import argmax_first, epsilon_greedy_explored
 from sb3_er.common.kernels.rng import random_integer
-from sb3_er.common.kernels.tiles import add_to_features, all_q_values, overlap, q_value, visited_q_values
+from sb3_er.common.kernels.tiles import (
+    add_to_features,
+    all_q_values,
+    average_features_toward,
+    overlap,
+    q_value,
+    visited_q_values,
+)
 from sb3_er.common.kernels.watch import watch_shift, watch_truncation, watch_update
 
 
@@ -290,8 +297,10 @@ def semi_gradient_step(
     weights, slots, action, next_slots, next_action, terminal, layout, rule, delta, target, q_sa, watch
 ):
     """theta <- theta + alpha delta phi(s_t, a_t) (Alg. 8 line 7, Alg. 10 line 9): each of the N active weights by
-    alpha delta / N (:func:`step_size`). The watch sees T and Q(s_t, a_t) first. A non-finite delta changes nothing
-    and is returned for the phase to stop. Returns (delta, whether the watch saw its first value out of bounds).
+    alpha delta / N (:func:`step_size`). With ``rule.averager`` each active weight moves instead towards its share of
+    the target used, delta + Q(s_t, a_t) (:func:`~sb3_er.common.kernels.tiles.average_features_toward`). The watch
+    sees T and Q(s_t, a_t) first. A non-finite delta changes nothing and is returned for the phase to stop. Returns
+    (delta, whether the watch saw its first value out of bounds).
 
     :param weights: the Weights; theta changes in place.
     :param slots: the tiles of s_t, (N,).
@@ -310,7 +319,10 @@ def semi_gradient_step(
         return delta, False
     flagged = watch_update(watch, target, q_sa)
     step = step_size(weights, layout, rule, slots, action, next_slots, next_action, terminal, action)
-    add_to_features(weights, slots, layout, action, step * delta)
+    if rule.averager:
+        average_features_toward(weights, slots, layout, action, step, delta + q_sa)
+    else:
+        add_to_features(weights, slots, layout, action, step * delta)
     return delta, flagged
 
 

@@ -133,6 +133,28 @@ def add_to_features(weights, slots, layout, action, change):
         log_change(weights, i)
 
 
+@inline
+def average_features_toward(weights, slots, layout, action, step, target):
+    """theta_i <- theta_i + step (target - N theta_i) for each active feature i of phi(s, a): Gordon's (1995)
+    averager step. With step = alpha / N each weight moves the share alpha of the way to target / N, so Q(s, a), their
+    sum, moves by alpha (target - Q(s, a)) as under the semi-gradient step (without hash collisions), while every
+    weight stays a convex combination of its own start and the targets / N it was moved towards (for alpha <= 1).
+
+    :param weights: the Weights; theta changes in place (and the change log, with a target copy).
+    :param slots: the state-tile slots of s, (N,).
+    :param layout: the TileLayout.
+    :param action: the flat action index a.
+    :param step: the step per weight (alpha / N).
+    :param target: the target T the update moves Q(s, a) towards.
+    """
+    theta = weights.theta
+    n_tilings = slots.shape[0]
+    for k in range(n_tilings):
+        i = feature(layout, slots, k, action)
+        theta[i] += step * (target - n_tilings * theta[i])
+        log_change(weights, i)
+
+
 @kernel
 def refresh_target(weights):
     """target <- theta, on the weights that changed since the last refresh (the start of a replay phase: Chen,
