@@ -1222,9 +1222,49 @@ def markdown_summary(summary: dict, goal_result: dict, code_versions: str, comma
                     f" ± {_format(figures['falls_ci'])}" if figures.get("falls_ci") is not None else ""
                 )
             lines.append(f"| {env_id} | {label(method)} | {_format(figures.get('rise_time'))} | {end} | {falls} |")
-    lines += ["", *goal_markdown(goal_result), "", code_versions, ""]
+    overview = [] if len(goal_overview(summary)) < 2 else overview_markdown(goal_overview(summary))
+    lines += ["", *overview, *([""] if overview else []), *goal_markdown(goal_result), "", code_versions, ""]
     lines += [f"Figure: `{FIGURE}`, each method's median samples to the target over Sarsa(λ)'s, task by task.", ""]
     return "\n".join(lines)
+
+
+def goal_overview(summary: dict) -> dict[str, dict[str, Any]]:
+    """The goal's checks (:func:`goal`) for every method of the summary but Sarsa(lambda) and the peers, by method:
+    the screen's comparison of stabilizers on one footing."""
+    ran = [
+        m
+        for m in METHODS
+        if m != REFERENCE and not is_peer(m) and any(f.get(m, {}).get("applies") for f in summary.values())
+    ]
+    return {method: goal(summary, method) for method in ran}
+
+
+def overview_markdown(overview: dict[str, dict[str, Any]]) -> list[str]:
+    """A row per method: how many tasks pass each check, and which fail."""
+    if not overview:
+        return []
+    lines = [
+        "Every method's goal checks against Sarsa(λ) (the tasks measured; the rules are those of the table below):",
+        "",
+        "| method | stability: tasks that fail | samples: tasks at half or less; tasks above Sarsa(λ)'s plus one "
+        "interval | final return: tasks that fail | walker | all |",
+        "|---|---|---|---|---|---|",
+    ]
+    for method, result in overview.items():
+        unstable = [env_id for env_id, task in result["stability"]["tasks"].items() if task["holds"] is False]
+        samples = result["samples"]
+        low = [env_id for env_id, task in result["final_return"]["tasks"].items() if task["holds"] is False]
+        over = samples["tasks_over_limit"]
+        lines.append(
+            f"| {label(method)} | {len(unstable)} of {len(result['stability']['tasks'])}"
+            + (f" ({', '.join(unstable)})" if unstable else "")
+            + f" | {samples['tasks_at_half']} of {samples['tasks_measured']}; {len(over)}"
+            + (f" ({', '.join(over)})" if over else "")
+            + f" | {len(low)} of {len(result['final_return']['tasks'])}"
+            + (f" ({', '.join(low)})" if low else "")
+            + f" | {_yes_no(result['walker']['holds'])} | {_yes_no(result['holds'])} |"
+        )
+    return lines
 
 
 def goal_markdown(goal_result: dict) -> list[str]:
@@ -1369,6 +1409,7 @@ def write_summary(runs_file: dict, out: Path, goal_method: str | None = None) ->
         "commands": commands,
         "tasks": summary,
         "goal": goal_result,
+        "goals": goal_overview(summary),
         "task_settings": {env_id: task_settings(TASKS[env_id]) for env_id in summary},
         "methods": {name: {"class": cls, "kwargs": kwargs} for name, (cls, kwargs) in METHODS.items()},
         "benchmarks": benchmarks_entries(summary),
