@@ -278,6 +278,31 @@ def test_goal_and_the_machine_readable_summary(tmp_path):
     assert se.default_goal_method(written["tasks"]) == "er_sigma"
 
 
+def test_every_methods_goal_checks_side_by_side(tmp_path):
+    """Two methods beside Sarsa(lambda): one at half its samples on six tasks, one that leaves the possible returns
+    further than Sarsa(lambda) on CartPole-v1 and is over the limit on another task; the overview names each."""
+    fast = {env_id: 5_000 for env_id in ALL_TASKS[:6]}
+    runs = suite(fast)
+    for r in suite({ALL_TASKS[7]: 50_000}, largest_excursion=0.0):
+        if r["method"] == "er_sigma":
+            r = {**r, "method": "er_sigma_truncate"}
+            if r["task"] == CARTPOLE:
+                r["largest_excursion"] = 3.0
+            runs.append(r)
+    overview = se.goal_overview(se.summarize(runs))
+    assert list(overview) == ["er_sigma", "er_sigma_truncate"]
+    assert overview["er_sigma"]["holds"] is None  # the walker's rise was not measured in these hand-made runs
+    assert overview["er_sigma"]["samples"]["tasks_at_half"] == 6
+    truncated = overview["er_sigma_truncate"]
+    assert truncated["stability"]["tasks"][CARTPOLE]["holds"] is False
+    assert truncated["samples"]["tasks_over_limit"] == [ALL_TASKS[7]] and truncated["holds"] is False
+    runs_file = {"format": se.FORMAT, "commands": [], "runs": runs}
+    se.write_summary(runs_file, tmp_path, goal_method="er_sigma")
+    text = (tmp_path / "summary.md").read_text()
+    row = next(line for line in text.splitlines() if line.startswith("| ER-σ + truncation |"))
+    assert f"1 of 9 ({CARTPOLE})" in row and f"0 of 9; 1 ({ALL_TASKS[7]})" in row
+
+
 # --- resumption ---
 
 
