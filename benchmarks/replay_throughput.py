@@ -169,6 +169,8 @@ class ReplayTimer:
             replay.update(max_updates=-1)
         if "averager" in module.UpdateRule._fields:
             rule.update(averager=False)
+        if "project" in module.UpdateRule._fields:
+            rule.update(project=False)
         if hasattr(module, "weights_bundle"):
             weights = module.weights_bundle(self.theta, 0.0, 0.0, 0)
         else:

@@ -319,6 +319,7 @@ METHODS: dict[str, tuple[str, dict[str, Any]]] = {
     ),
     "er_sigma_averager": ("ERSigma", {"preset": "thesis", "averager": True}),
     "er_sigma_averager_target_copy": ("ERSigma", {"preset": "thesis", "averager": True, "target_copy": True}),
+    "er_sigma_project": ("ERSigma", {"preset": "thesis", "project_weights": True}),
     "dqn": ("DQN", {}),
     "sac": ("SAC", {}),
 }
@@ -345,6 +346,7 @@ LABELS = {
     "er_sigma_truncate_target_copy_ratio_50": "ER-σ + truncation + target copy + ratio 50",
     "er_sigma_averager": "ER-σ + averager",
     "er_sigma_averager_target_copy": "ER-σ + averager + target copy",
+    "er_sigma_project": "ER-σ + projection",
     "dqn": "DQN (rl-zoo)",
     "sac": "SAC (rl-zoo)",
 }

@@ -44,6 +44,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         target_copy=False,
         step_size_bound=False,
         averager=False,
+        project_weights=False,
     ),
     "stable": dict(
         n_replays=100,
@@ -52,10 +53,19 @@ PRESETS: dict[str, dict[str, Any]] = {
         target_copy=True,
         step_size_bound=False,
         averager=False,
+        project_weights=False,
     ),
 }
 #: What a preset resolves.
-STABILIZERS = ("n_replays", "replay_ratio", "truncate_targets", "target_copy", "step_size_bound", "averager")
+STABILIZERS = (
+    "n_replays",
+    "replay_ratio",
+    "truncate_targets",
+    "target_copy",
+    "step_size_bound",
+    "averager",
+    "project_weights",
+)
 REPLAY_VOLUME = ("n_replays", "replays_per_stored_trajectory", "replay_ratio")
 
 
@@ -161,6 +171,13 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         rate of at most 1; not with the residual direction (``residual_zeta``), whose update has no averager form (a
         preset's averager is dropped there). Online Sarsa(lambda) steps between phases (``online_lambda``) keep their
         trace update.
+    :param project_weights: after each replayed update, project every weight it moved onto [V_min / N, V_max / N],
+        with [V_min, V_max] the value watch's bounds of the possible returns (projected TD: Bhandari, Russo and Singal
+        2018, "A finite time analysis of temporal difference learning with linear function approximation"; Zou, Xu
+        and Liang 2019 for Sarsa with linear function approximation); None (default): the preset's. No Q(s, a) built
+        from moved weights can then leave the possible returns, on every ER variant, the residual ones included;
+        weights no update touched keep their initial values. Online Sarsa(lambda) steps between phases
+        (``online_lambda``) are not projected.
     :param replay_ratio: replayed updates per new stored transition (D'Oro et al., ICLR 2023): each phase replays
         whole trajectories until it has made this many updates per transition stored since the last phase, instead of
         ``n_replays`` trajectories; None (default): the preset's. The thesis's protocols make about 10^4 updates per
@@ -169,8 +186,8 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
     _trace_lambda_parameter = "online_lambda"
 
-    #: Files saved before presets (or the averager) existed replayed with the thesis's algorithm.
-    older_file_values: ClassVar[dict[str, Any]] = {"preset": "thesis", "averager": False}
+    #: Files saved before presets (or a later stabilizer) existed replayed with the thesis's algorithm.
+    older_file_values: ClassVar[dict[str, Any]] = {"preset": "thesis", "averager": False, "project_weights": False}
 
     def __init__(
         self,
@@ -198,6 +215,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
         averager: bool | None = None,
+        project_weights: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -234,6 +252,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self.target_copy = target_copy
         self.step_size_bound = step_size_bound
         self.averager = averager
+        self.project_weights = project_weights
         self.replay_ratio = replay_ratio
         self.stabilizers: dict[str, Any] = {}
         self.priority_evaluations = 0
@@ -278,7 +297,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         check_number("replay_ratio (replayed updates per new sample)", self.replay_ratio, 0.0, optional=True)
         if self.replay_ratio is not None and self.replays_per_stored_trajectory is not None:
             raise ValueError("give either replay_ratio or replays_per_stored_trajectory: both set the replay volume")
-        for name in ("truncate_targets", "target_copy", "step_size_bound", "averager"):
+        for name in ("truncate_targets", "target_copy", "step_size_bound", "averager", "project_weights"):
             check_bool(name, getattr(self, name), optional=True)
         check_choice("preset", self.preset, PRESETS)
         check_number("residual_zeta (Eq. 5.9)", self.residual_zeta, 0.0, 1.0, optional=True)
@@ -347,9 +366,10 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             truncate=self.stabilizers["truncate_targets"],
             step_bound=self.stabilizers["step_size_bound"],
             averager=self.stabilizers["averager"],
+            project=self.stabilizers["project_weights"],
         )
         self._check_averager_step()
-        if options["truncate"]:
+        if options["truncate"] or options["project"]:
             options["value_low"], options["value_high"] = self._watch.bounds
         return options
 
@@ -571,6 +591,7 @@ class ERSigma(ER):
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
         averager: bool | None = None,
+        project_weights: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -611,6 +632,7 @@ class ERSigma(ER):
             target_copy=target_copy,
             step_size_bound=step_size_bound,
             averager=averager,
+            project_weights=project_weights,
             replay_ratio=replay_ratio,
             learning_rate=learning_rate,
             gamma=gamma,
@@ -665,6 +687,7 @@ class ResidualER(ER):
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
         averager: bool | None = None,
+        project_weights: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -705,6 +728,7 @@ class ResidualER(ER):
             target_copy=target_copy,
             step_size_bound=step_size_bound,
             averager=averager,
+            project_weights=project_weights,
             replay_ratio=replay_ratio,
             learning_rate=learning_rate,
             gamma=gamma,
@@ -758,6 +782,7 @@ class ResidualERSigma(ER):
         target_copy: bool | None = None,
         step_size_bound: bool | None = None,
         averager: bool | None = None,
+        project_weights: bool | None = None,
         replay_ratio: float | None = None,
         learning_rate: float | Schedule = 0.2,
         gamma: float = 0.99,
@@ -798,6 +823,7 @@ class ResidualERSigma(ER):
             target_copy=target_copy,
             step_size_bound=step_size_bound,
             averager=averager,
+            project_weights=project_weights,
             replay_ratio=replay_ratio,
             learning_rate=learning_rate,
             gamma=gamma,

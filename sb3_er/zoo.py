@@ -121,10 +121,11 @@ def _sample_common(trial) -> dict[str, Any]:
 
 def _sample_stabilizers(trial, averager: bool = True) -> dict[str, Any]:
     """The replay stabilizers every ER class takes (``truncate_targets``, ``target_copy``, ``step_size_bound``,
-    ``averager`` and ``replay_ratio``): each one on or off, and the replay volume as a ratio of updates per new
-    transition (None: the volume of the config or the preset). Each is sampled explicitly, so ``preset``, which only
-    fills what is not given, is not searched. A sampled ratio replaces the config's volume, which rl-zoo merges under
-    the sampled values (the grid world's replays_per_stored_trajectory, the walker's n_replays).
+    ``averager``, ``project_weights`` and ``replay_ratio``): each one on or off, and the replay volume as a ratio of
+    updates per new transition (None: the volume of the config or the preset). Each is sampled explicitly, so
+    ``preset``, which only fills what is not given, is not searched. A sampled ratio replaces the config's volume,
+    which rl-zoo merges under the sampled values (the grid world's replays_per_stored_trajectory, the walker's
+    n_replays).
 
     :param trial: the optuna trial that suggests the values.
     :param averager: sample the averager too (the semi-gradient classes); False for the residual classes, whose
@@ -135,6 +136,7 @@ def _sample_stabilizers(trial, averager: bool = True) -> dict[str, Any]:
         "target_copy": trial.suggest_categorical("target_copy", [False, True]),
         "step_size_bound": trial.suggest_categorical("step_size_bound", [False, True]),
         "averager": trial.suggest_categorical("averager", [False, True]) if averager else False,
+        "project_weights": trial.suggest_categorical("project_weights", [False, True]),
         "replay_ratio": trial.suggest_categorical("replay_ratio", [None, 1, 4, 16, 64, 256]),
     }
     if sampled["replay_ratio"] is not None:

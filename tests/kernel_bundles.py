@@ -22,8 +22,10 @@ def rule(
     step_bound: bool = False,
     step_cap=None,
     averager: bool = False,
+    project: bool = False,
 ) -> kernels.UpdateRule:
-    """An UpdateRule; ``truncate`` is None (off) or the (low, high) of the possible returns."""
+    """An UpdateRule; ``truncate`` is None (off) or the (low, high) of the possible returns, which ``project`` (a
+    bool) needs too."""
     low, high = (-np.inf, np.inf) if truncate is None else truncate
     return kernels.update_rule(
         step_size,
@@ -39,6 +41,7 @@ def rule(
         step_bound=step_bound,
         step_cap=step_cap,
         averager=averager,
+        project=project,
     )
 
 

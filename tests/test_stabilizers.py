@@ -2,8 +2,9 @@
 target copy) keeps Figure 5.6's self-affecting sample inside the possible returns for every ER variant, where the
 literal algorithms leave them; the target copy is read by bootstrapping and taken anew at each phase; the step-size
 bound stops a step that would carry a transition's TD error past zero; the averager moves Q(s, a) as far as the
-semi-gradient step but keeps every value inside the range of its start and its targets, without truncation; the replay
-ratio bounds the updates per new sample; presets resolve with explicit arguments winning."""
+semi-gradient step but keeps every value inside the range of its start and its targets, without truncation; the
+projection keeps every weight an update moved inside the possible returns / N; the replay ratio bounds the updates per
+new sample; presets resolve with explicit arguments winning."""
 
 import kernel_bundles as bundles
 import numpy as np
@@ -153,6 +154,36 @@ def test_the_averager_keeps_the_self_affecting_sample_inside_without_truncation(
         assert literal.max() > high
 
 
+def test_the_projection_by_hand():
+    """A terminal transition (r = 10) from s, whose N = 4 weights are 0, 0, 0, 4 (Q = 4), alpha 1, values bounded to
+    [-10, 10]: the semi-gradient step adds (10 - 4) / 4 = 1.5 to each (1.5, 1.5, 1.5, 5.5; Q = 10, inside the bounds);
+    the projection then clips the last weight to 10 / 4 = 2.5 (Q = 7): it bounds each weight, not only their sum, which
+    is the representation it gives up."""
+    coder = TileCoder([1.0], [1], n_tilings=4, memory_size=2**12)
+    buffer = TrajectoryReplayBuffer(10, coder)
+    state = np.array([0.5])
+    buffer.add(state, coder.slots(state), 0, 10.0, np.array([3.5]), end=True)
+    features = coder.feature_indices(state, 0)
+    moved = {}
+    for project in (False, True):
+        theta = np.zeros(coder.n_weights)
+        theta[features] = [0.0, 0.0, 0.0, 4.0]
+        bundles.replay_phase(theta, buffer, bundles.rule(1.0 / 4, 0.9, truncate=(-10.0, 10.0), project=project))
+        moved[project] = theta[features]
+    assert np.allclose(moved[False], [1.5, 1.5, 1.5, 5.5])
+    assert np.allclose(moved[True], [1.5, 1.5, 1.5, 2.5])
+
+
+@pytest.mark.parametrize("variant", list(vg.VARIANTS))
+@pytest.mark.parametrize("case", list(vg.CASES))
+def test_the_projection_keeps_the_self_affecting_sample_inside_for_every_variant(variant, case):
+    """Figure 5.6's sample with the projection alone (no truncation, no target copy), residual variants included."""
+    low, high = _possible(case)
+    stable = vg.replay_values(vg.self_affecting_model(variant, case, shared=3, project_weights=True), 400)
+    tolerance = 1e-9 * max(abs(low), abs(high))
+    assert np.all((stable >= low - tolerance) & (stable <= high + tolerance)), (stable.min(), stable.max())
+
+
 @settings(max_examples=30, deadline=None)
 @given(
     rewards=st.lists(st.floats(-1.0, 1.0), min_size=2, max_size=12),
@@ -161,12 +192,16 @@ def test_the_averager_keeps_the_self_affecting_sample_inside_without_truncation(
     gamma=st.floats(0.5, 0.99),
     sigma=st.sampled_from([kernels.SIGMA_NONE, kernels.SIGMA_AVERAGE_WORST, kernels.SIGMA_BEST]),
     start=st.floats(-1.0, 1.0),
+    stabilizer=st.sampled_from(["averager", "project", "project residual"]),
 )
-def test_the_averager_keeps_every_value_inside_the_possible_returns(rewards, moves, alpha, gamma, sigma, start):
-    """Gordon's (1995) guarantee on random trajectories of a 1-D walk with 2 actions and overlapping tiles: rewards
-    in [-1, 1] and every weight starting at start / ((1 - gamma) N) keep every weight of the table, times N, inside
-    [-1 / (1 - gamma), 1 / (1 - gamma)] through 20 replay phases, for ER and each sigma of ER-sigma; so every Q(s, a)
-    and every sigma-extrapolated Q~ are inside too."""
+def test_averager_and_projection_keep_every_value_inside_the_possible_returns(
+    rewards, moves, alpha, gamma, sigma, start, stabilizer
+):
+    """Their guarantees on random trajectories of a 1-D walk with 2 actions and overlapping tiles: rewards in [-1, 1]
+    and every weight starting at start / ((1 - gamma) N) keep every weight of the table, times N, inside
+    [-1 / (1 - gamma), 1 / (1 - gamma)] through 20 replay phases, for ER and each sigma of ER-sigma (and with the
+    projection, their residual variants); so every Q(s, a) and every sigma-extrapolated Q~ are inside too. Gordon's
+    (1995) averager needs no bounds for it; the projection is given them."""
     coder = TileCoder([0.7], [2], n_tilings=4, memory_size=2**12)
     buffer = TrajectoryReplayBuffer(100, coder)
     bound = 1.0 / (1.0 - gamma)
@@ -177,7 +212,12 @@ def test_the_averager_keeps_every_value_inside_the_possible_returns(rewards, mov
         buffer.add(state, coder.slots(state), t % 2, reward, next_state, end=end)
         state = next_state
     theta = np.full(coder.n_weights, start * bound / 4)
-    rule = bundles.rule(alpha / 4, gamma, 0.1, sigma=sigma, averager=True)
+    if stabilizer == "averager":
+        rule = bundles.rule(alpha / 4, gamma, 0.1, sigma=sigma, averager=True)
+    else:
+        zeta = 1.0 if stabilizer == "project residual" else 0.0
+        rule = bundles.rule(alpha / 4, gamma, 0.1, sigma=sigma, zeta=zeta, truncate=(-bound, bound), project=True)
+        rule = rule._replace(truncate=False)  # the projection alone, given the bounds
     for phase in range(20):
         bundles.replay_phase(theta, buffer, rule, picks_rng=kernels.new_rng_state(phase, 1))
     assert np.all(np.abs(theta * 4) <= bound * (1 + 1e-9)), (theta.min() * 4, theta.max() * 4, bound)

@@ -255,7 +255,7 @@ def test_every_choice_of_the_search_space_builds_a_model(algo):
             algorithm("TileQ", "sb3_er/WindyCliff-v0", **{name: choice})
     if algo in ("er", "er_sigma", "residual_er", "residual_er_sigma"):  # the stabilizers, with every config's volume
         assert "preset" not in trial.spaces  # every stabilizer is sampled explicitly: the preset would decide nothing
-        for name in ("truncate_targets", "target_copy", "step_size_bound"):
+        for name in ("truncate_targets", "target_copy", "step_size_bound", "project_weights"):
             assert trial.spaces[name] == [False, True]
         assert trial.spaces.get("averager") == (None if algo.startswith("residual") else [False, True])
         assert None in trial.spaces["replay_ratio"]
@@ -329,7 +329,7 @@ def test_two_optimize_workers_share_one_sqlite_study(tmp_path):
     assert len(trials) == 4, [trial.state for trial in trials]
     assert all(trial.state == optuna.trial.TrialState.COMPLETE for trial in trials), [t.state for t in trials]
     expected = {"learning_rate", "gamma", "exploration_rate", "replay_order"}
-    expected |= {"truncate_targets", "target_copy", "step_size_bound", "averager", "replay_ratio"}
+    expected |= {"truncate_targets", "target_copy", "step_size_bound", "averager", "project_weights", "replay_ratio"}
     assert all(set(trial.params) == expected for trial in trials), [sorted(trial.params) for trial in trials]
     # every worker's report lists the study's trials when it finished: the later one all 4
     reports = [pd.read_csv(next((tmp_path / f"worker_{index}" / "er").glob("report_*.csv"))) for index in range(2)]

@@ -112,6 +112,9 @@ class UpdateRule(NamedTuple):
         theta_i <- theta_i + step_size (T - N theta_i), instead of adding step_size delta to each (Gordon 1995's
         averager): Q(s, a) moves by the same alpha (T - Q(s, a)), but every weight stays a convex combination of its
         start and the targets / N, so no Q leaves their range (needs alpha <= 1).
+    :param project: after a replayed update, each weight it moved is projected onto [value_low / N, value_high / N]
+        (projected TD: Bhandari, Russo and Singal 2018; Zou, Xu and Liang 2019 for Sarsa), so that no Q(s, a) leaves
+        [value_low, value_high].
     """
 
     target_kind: int
@@ -127,6 +130,7 @@ class UpdateRule(NamedTuple):
     step_bound: bool
     step_cap: np.ndarray
     averager: bool
+    project: bool
 
 
 class Trace(NamedTuple):
@@ -384,6 +388,7 @@ def update_rule(
     step_bound: bool = False,
     step_cap: np.ndarray | None = None,
     averager: bool = False,
+    project: bool = False,
 ) -> UpdateRule:
     """An :class:`UpdateRule` with the stabilizers off unless given: the thesis's Sarsa update by default (the
     fields are documented on the class). ``step_cap`` None gives a fresh bound of +inf."""
@@ -402,6 +407,7 @@ def update_rule(
         step_bound=step_bound,
         step_cap=np.full(1, np.inf) if step_cap is None else step_cap,
         averager=averager,
+        project=project,
     )
 
 

@@ -273,6 +273,7 @@ def prioritized_phase(weights, data, layout, rule, sweep, action_rng, scratch, q
         False,  # a priority is not an update: it moves no step-size bound
         rule.step_cap,
         rule.averager,
+        rule.project,
     )
     no_watch = watch[:0]
     threshold, max_predecessors = sweep.threshold, sweep.max_predecessors

@@ -32,6 +32,7 @@ from sb3_er.common.kernels.tiles import (
     all_q_values,
     average_features_toward,
     overlap,
+    project_features,
     q_value,
     visited_q_values,
 )
@@ -298,7 +299,9 @@ def semi_gradient_step(
 ):
     """theta <- theta + alpha delta phi(s_t, a_t) (Alg. 8 line 7, Alg. 10 line 9): each of the N active weights by
     alpha delta / N (:func:`step_size`). With ``rule.averager`` each active weight moves instead towards its share of
-    the target used, delta + Q(s_t, a_t) (:func:`~sb3_er.common.kernels.tiles.average_features_toward`). The watch
+    the target used, delta + Q(s_t, a_t) (:func:`~sb3_er.common.kernels.tiles.average_features_toward`). With
+    ``rule.project`` the moved weights are then projected onto [value_low / N, value_high / N]
+    (:func:`~sb3_er.common.kernels.tiles.project_features`). The watch
     sees T and Q(s_t, a_t) first. A non-finite delta changes nothing and is returned for the phase to stop. Returns
     (delta, whether the watch saw its first value out of bounds).
 
@@ -323,6 +326,8 @@ def semi_gradient_step(
         average_features_toward(weights, slots, layout, action, step, delta + q_sa)
     else:
         add_to_features(weights, slots, layout, action, step * delta)
+    if rule.project:
+        project_features(weights, slots, layout, action, rule.value_low, rule.value_high)
     return delta, flagged
 
 
@@ -331,7 +336,8 @@ def residual_step(weights, slots, action, next_slots, next_action, terminal, lay
     """The residual-gradient step (Eq. 5.7-5.9; Alg. 12 line 7, Alg. 14 line 9):
     theta <- theta + alpha delta (phi(s_t, a_t) - zeta gamma phi(s_{t+1}, a)), with a = a_t (the thesis's) or, with
     ``rule.residual_next_action``, a_{t+1} (Baird's residual gradient of the squared TD error). No second term at a
-    terminal s_{t+1}. Returns what :func:`semi_gradient_step` returns.
+    terminal s_{t+1}. With ``rule.project`` the weights of both terms are then projected onto [value_low / N,
+    value_high / N]. Returns what :func:`semi_gradient_step` returns.
 
     :param weights: the Weights; theta changes in place.
     :param slots: the tiles of s_t, (N,).
@@ -354,6 +360,10 @@ def residual_step(weights, slots, action, next_slots, next_action, terminal, lay
     add_to_features(weights, slots, layout, action, step * delta)
     if not terminal:
         add_to_features(weights, next_slots, layout, residual_action, -(step * delta * rule.residual_zeta * rule.gamma))
+    if rule.project:
+        project_features(weights, slots, layout, action, rule.value_low, rule.value_high)
+        if not terminal:
+            project_features(weights, next_slots, layout, residual_action, rule.value_low, rule.value_high)
     return delta, flagged
 
 

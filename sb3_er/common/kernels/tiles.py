@@ -155,6 +155,26 @@ def average_features_toward(weights, slots, layout, action, step, target):
         log_change(weights, i)
 
 
+@inline
+def project_features(weights, slots, layout, action, low, high):
+    """theta_i <- min(max(theta_i, low / N), high / N) for each active feature i of phi(s, a): the projection of the
+    weights an update moved onto the box whose sums are the values [low, high] (projected TD).
+
+    :param weights: the Weights; theta changes in place (the change log already holds what the update moved).
+    :param slots: the state-tile slots of s, (N,).
+    :param layout: the TileLayout.
+    :param action: the flat action index a.
+    :param low: the lower end of the values, value_low.
+    :param high: their upper end, value_high.
+    """
+    theta = weights.theta
+    n_tilings = slots.shape[0]
+    low, high = low / n_tilings, high / n_tilings
+    for k in range(n_tilings):
+        i = feature(layout, slots, k, action)
+        theta[i] = min(max(theta[i], low), high)
+
+
 @kernel
 def refresh_target(weights):
     """target <- theta, on the weights that changed since the last refresh (the start of a replay phase: Chen,
