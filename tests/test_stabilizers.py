@@ -245,6 +245,17 @@ def test_a_preset_averager_is_dropped_by_the_residual_classes(monkeypatch):
     assert ERSigma("TileQ", "CartPole-v1", preset="stable").stabilizers["averager"] is True
 
 
+@pytest.mark.parametrize("algo", [ERSigma, ResidualERSigma])
+def test_the_stable_preset_keeps_pendulum_values_inside_where_the_literal_leaves(algo):
+    """Pendulum-v1, where the literal ER-sigma's values leave the possible returns within its first 15,000 steps (the
+    screen's runs go on to 1e205): the stable preset, the projection, keeps every value inside, up to rounding."""
+    literal = algo("TileQ", "Pendulum-v1", seed=0, value_bound_action="ignore").learn(15_000)
+    assert literal.values_out_of_range > 0
+    stable = algo("TileQ", "Pendulum-v1", seed=0, preset="stable").learn(15_000)
+    assert stable.stabilizers["project_weights"] is True
+    assert stable.values_out_of_range == 0 and stable.largest_excursion <= 1e-9 * 1700
+
+
 @pytest.mark.parametrize("algo", [ER, ERSigma, ResidualER, ResidualERSigma])
 def test_the_replay_ratio_bounds_updates_per_new_sample(algo):
     """With replay_ratio r, the replayed updates stay within r x the transitions stored plus one trajectory's worth
