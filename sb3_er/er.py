@@ -540,6 +540,9 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         if self.stabilizers["truncate_targets"] and watch.shape[0] and watch[kernels.WATCH_PERIOD_UPDATES] > 0:
             truncated = watch[kernels.WATCH_TRUNCATED] / watch[kernels.WATCH_PERIOD_UPDATES]
             self.logger.record("train/truncated_share", float(truncated))
+        if self.stabilizers["project_weights"] and watch.shape[0] and watch[kernels.WATCH_PERIOD_UPDATES] > 0:
+            projected = watch[kernels.WATCH_PROJECTED] / watch[kernels.WATCH_PERIOD_UPDATES]
+            self.logger.record("train/projected_share", float(projected))
         if self.stabilizers["step_size_bound"]:
             bound = float(self._step_cap[0]) * self.policy.tile_coder.n_tilings
             self.logger.record("train/effective_learning_rate", min(self.current_learning_rate, bound))

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from sb3_cases import InMemoryLogger
 
 from sb3_er import ER, ERSigma, ResidualER, ResidualERSigma
 from sb3_er.common import kernels
@@ -254,6 +255,25 @@ def test_the_stable_preset_keeps_pendulum_values_inside_where_the_literal_leaves
     stable = algo("TileQ", "Pendulum-v1", seed=0, preset="stable").learn(15_000)
     assert stable.stabilizers["project_weights"] is True
     assert stable.values_out_of_range == 0 and stable.largest_excursion <= 1e-9 * 1700
+
+
+def test_tensorboard_shows_how_often_truncation_and_projection_bind():
+    """train/truncated_share and train/projected_share: shares of the period's updates, in [0, 1], each logged only
+    with its stabilizer; on Pendulum-v1 both bind (the literal ER-sigma's values leave the bounds there)."""
+    logged = {}
+    for option in ("truncate_targets", "project_weights"):
+        model = ERSigma("TileQ", "Pendulum-v1", seed=0, preset="thesis", value_bound_action="ignore", **{option: True})
+        logger = InMemoryLogger()
+        model.set_logger(logger)
+        model.learn(6_000, log_interval=1)
+        logged[option] = [dump for dump in logger.dumped if "train/replay_ratio" in dump]
+        assert logged[option], "no train/ dump"
+    truncated = [dump.get("train/truncated_share") for dump in logged["truncate_targets"]]
+    projected = [dump.get("train/projected_share") for dump in logged["project_weights"]]
+    assert all(v is not None and 0.0 <= v <= 1.0 for v in truncated + projected), (truncated, projected)
+    assert max(truncated) > 0.0 and max(projected) > 0.0
+    assert all("train/projected_share" not in dump for dump in logged["truncate_targets"])
+    assert all("train/truncated_share" not in dump for dump in logged["project_weights"])
 
 
 @pytest.mark.parametrize("algo", [ER, ERSigma, ResidualER, ResidualERSigma])

@@ -104,6 +104,7 @@ from sb3_er.common.kernels.watch import (
     WATCH_OUT_OF_RANGE,
     WATCH_PERIOD,
     WATCH_PERIOD_UPDATES,
+    WATCH_PROJECTED,
     WATCH_Q_MAX,
     WATCH_Q_MIN,
     WATCH_RAISED,

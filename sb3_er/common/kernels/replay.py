@@ -36,7 +36,7 @@ from sb3_er.common.kernels.tiles import (
     q_value,
     visited_q_values,
 )
-from sb3_er.common.kernels.watch import watch_shift, watch_truncation, watch_update
+from sb3_er.common.kernels.watch import watch_projection, watch_shift, watch_truncation, watch_update
 
 
 @inline
@@ -326,8 +326,8 @@ def semi_gradient_step(
         average_features_toward(weights, slots, layout, action, step, delta + q_sa)
     else:
         add_to_features(weights, slots, layout, action, step * delta)
-    if rule.project:
-        project_features(weights, slots, layout, action, rule.value_low, rule.value_high)
+    if rule.project and project_features(weights, slots, layout, action, rule.value_low, rule.value_high):
+        watch_projection(watch)
     return delta, flagged
 
 
@@ -361,9 +361,11 @@ def residual_step(weights, slots, action, next_slots, next_action, terminal, lay
     if not terminal:
         add_to_features(weights, next_slots, layout, residual_action, -(step * delta * rule.residual_zeta * rule.gamma))
     if rule.project:
-        project_features(weights, slots, layout, action, rule.value_low, rule.value_high)
+        moved = project_features(weights, slots, layout, action, rule.value_low, rule.value_high)
         if not terminal:
-            project_features(weights, next_slots, layout, residual_action, rule.value_low, rule.value_high)
+            moved |= project_features(weights, next_slots, layout, residual_action, rule.value_low, rule.value_high)
+        if moved:
+            watch_projection(watch)
     return delta, flagged
 
 

@@ -158,7 +158,8 @@ def average_features_toward(weights, slots, layout, action, step, target):
 @inline
 def project_features(weights, slots, layout, action, low, high):
     """theta_i <- min(max(theta_i, low / N), high / N) for each active feature i of phi(s, a): the projection of the
-    weights an update moved onto the box whose sums are the values [low, high] (projected TD).
+    weights an update moved onto the box whose sums are the values [low, high] (projected TD). Returns whether it
+    moved a weight.
 
     :param weights: the Weights; theta changes in place (the change log already holds what the update moved).
     :param slots: the state-tile slots of s, (N,).
@@ -170,9 +171,13 @@ def project_features(weights, slots, layout, action, low, high):
     theta = weights.theta
     n_tilings = slots.shape[0]
     low, high = low / n_tilings, high / n_tilings
+    moved = False
     for k in range(n_tilings):
         i = feature(layout, slots, k, action)
-        theta[i] = min(max(theta[i], low), high)
+        projected = min(max(theta[i], low), high)
+        moved |= projected != theta[i]
+        theta[i] = projected
+    return moved
 
 
 @kernel

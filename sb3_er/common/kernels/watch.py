@@ -28,8 +28,9 @@ from sb3_er.common.kernels._jit import inline, kernel
     WATCH_EXCURSION,  # cumulative: the largest distance of a value (T or Q) beyond them, 0 when none
     WATCH_PERIOD_UPDATES,
     WATCH_TRUNCATED,  # per logging period: updates watched, targets whose bootstrapped value was truncated
-) = range(19)
-WATCH_SIZE = 19
+    WATCH_PROJECTED,  # per logging period: updates whose projection moved a weight back into the bounds
+) = range(20)
+WATCH_SIZE = 20
 WATCH_PERIOD = (
     WATCH_TARGET_MIN,
     WATCH_TARGET_MAX,
@@ -41,6 +42,7 @@ WATCH_PERIOD = (
     WATCH_LOWERED,
     WATCH_PERIOD_UPDATES,
     WATCH_TRUNCATED,
+    WATCH_PROJECTED,
 )
 
 #: The watch switched off: kernels given an empty array watch nothing.
@@ -82,9 +84,8 @@ def reset_watch_period(watch: np.ndarray) -> None:
     """
     watch[[WATCH_TARGET_MIN, WATCH_Q_MIN]] = np.inf
     watch[[WATCH_TARGET_MAX, WATCH_Q_MAX]] = -np.inf
-    watch[[WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT, WATCH_RAISED, WATCH_LOWERED, WATCH_PERIOD_UPDATES, WATCH_TRUNCATED]] = (
-        0.0
-    )
+    counts = [WATCH_SHIFT_SUM, WATCH_SHIFT_COUNT, WATCH_RAISED, WATCH_LOWERED, WATCH_PERIOD_UPDATES]
+    watch[counts + [WATCH_TRUNCATED, WATCH_PROJECTED]] = 0.0
 
 
 @inline
@@ -144,6 +145,16 @@ def watch_truncation(watch):
     """
     if watch.shape[0] > 0:
         watch[WATCH_TRUNCATED] += 1.0
+
+
+@inline
+def watch_projection(watch):
+    """Count one update whose projection moved a weight back into the bounds.
+
+    :param watch: the value watch (:func:`new_watch`; an empty array switches it off), updated in place.
+    """
+    if watch.shape[0] > 0:
+        watch[WATCH_PROJECTED] += 1.0
 
 
 @kernel
