@@ -39,6 +39,9 @@ class Experiment:
     :param thesis_table: the thesis's numbers of the table, by algorithm and metric (default none).
     :param thesis_caption: the caption of the thesis's table (default "").
     :param zoo_configs: whether the settings start from the zoo configs (default True).
+    :param random_performance: the uniformly random policy's mean performance in the table's metric (what a run that
+        learned nothing is worth), as measured by ``benchmarks/random_policy.py`` and committed in
+        ``results/measured/random_policy/scores.json`` (4 significant digits); None (default) where not measured.
     """
 
     name: str
@@ -59,6 +62,7 @@ class Experiment:
     thesis_table: dict = field(default_factory=dict)
     thesis_caption: str = ""
     zoo_configs: bool = True
+    random_performance: float | None = None
 
     @property
     def budget_unit(self) -> str:
@@ -104,6 +108,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         default_budget=100,
         thesis_table=thesis.PENDULUM,
         thesis_caption="Thesis Table 6.1: rise time in episodes, end performance as accumulated reward.",
+        random_performance=-54130.0,
     ),
     "walker": _walking(
         name="walker",
@@ -118,6 +123,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         thesis_table=thesis.WALKER,
         thesis_caption="Thesis Table 6.2: rise time in seconds of learning time, end performance in meters walked in "
         "100 s (ours: the mean of 10 greedy 100 s runs).",
+        random_performance=0.5205,
     ),
     "leo": _walking(
         name="leo",
@@ -133,6 +139,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         thesis_table=thesis.LEO,
         thesis_caption="Thesis Table 6.3: rise time in minutes of learning time, end performance in meters walked in "
         "a greedy 25 s run.",
+        random_performance=0.08725,
     ),
 }
 
