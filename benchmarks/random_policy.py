@@ -71,7 +71,7 @@ def main(argv=None) -> int:
     data = {"command": command, "code_version": records.code_version(), "tasks": {r["experiment"]: r for r in results}}
     args.out.mkdir(parents=True, exist_ok=True)
     path = files.write_json(args.out / "scores.json", data)
-    print(f"wrote {path}")
+    print(f"wrote {path}", file=sys.stderr)
     return 0
 
 
