@@ -826,3 +826,21 @@ def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committe
     (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps({"benchmarks": [{"task": "x"}]}))
     with pytest.raises(generator.FindingsError, match="sample_efficiency/summary.json: benchmarks\\[0\\]"):
         generator.which_algorithm_benchmarks(tmp_path)
+
+
+def test_the_sample_efficiency_page_says_how_far_a_benchmark_in_progress_has_come(tmp_path):
+    """Without summary.md the results part says the results are not committed; with a runs file and no summary yet,
+    how many finished runs it holds; with a summary, the summary itself."""
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        import sb3er_benchmarks
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+    folder = tmp_path / "sample_efficiency"
+    folder.mkdir()
+    assert "not committed yet" in sb3er_benchmarks.results_markdown(folder, tmp_path)
+    (folder / "runs.json").write_text(json.dumps({"format": 1, "commands": [], "runs": [{}] * 1234}))
+    assert "in progress: 1,234 finished runs" in sb3er_benchmarks.results_markdown(folder, tmp_path)
+    (folder / "summary.md").write_text("# Title\n\nthe summary's table\n")
+    text = sb3er_benchmarks.results_markdown(folder, tmp_path)
+    assert "the summary's table" in text and "# Title" not in text and "in progress" not in text

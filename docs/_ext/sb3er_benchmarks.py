@@ -7,7 +7,7 @@ benchmark itself, so that no figure is copied by hand:
   benchmarks/sample_efficiency.py);
 - ``methods``: the methods and how each is built (its METHODS table), and whether today's package runs each;
 - ``results``: the committed ``results/measured/sample_efficiency/summary.md`` and its figure, or, while that folder
-  holds no summary yet, a sentence saying that the results are not committed yet.
+  holds no summary yet, a sentence saying how many runs of the benchmark in progress are committed (or that none is).
 """
 
 from __future__ import annotations
@@ -43,6 +43,16 @@ def results_markdown(results: Path = RESULTS, relative_to: Path = DOCS / "benchm
     """
     summary = results / "summary.md"
     if not summary.is_file():
+        runs = results / "runs.json"
+        if runs.is_file():
+            import json
+
+            finished = len(json.loads(runs.read_text(encoding="utf-8"))["runs"])
+            return (
+                f"The benchmark is in progress: {finished:,} finished runs are committed so far "
+                f"(`results/measured/{results.name}/runs.json`, whose README says how far it has come), and its "
+                "summary is written when every run has finished. The first command below resumes it.\n"
+            )
         return (
             f"The results are not committed yet: `results/measured/{results.name}/` holds no `summary.md`. The command "
             "below makes them.\n"
