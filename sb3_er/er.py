@@ -319,7 +319,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
                 raise ValueError(
                     f"averager=True with residual_zeta={self.residual_zeta}: the averager moves each weight towards "
                     "its share of the target, and the residual direction phi(s, a) - zeta gamma phi(s', a) has no "
-                    "such form; use truncate_targets or target_copy with the residual variants"
+                    "such form; project_weights keeps the residual variants inside the possible returns"
                 )
             self.stabilizers["averager"] = False  # a preset's averager: the semi-gradient variants only
         if self.prioritized_updates is not None and self.stabilizers["replay_ratio"] is not None:
