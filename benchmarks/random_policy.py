@@ -22,7 +22,7 @@ from scipy import stats
 
 import sb3_er_envs  # noqa: F401  (registers the thesis's env ids)
 from sb3_er.experiments import files, records
-from sb3_er.experiments.random_policy import random_policy_scores
+from sb3_er.experiments.random_policy import METRICS, random_policy_scores
 from sb3_er.experiments.specs import EXPERIMENTS
 
 TASKS = ("pendulum", "walker", "leo")
@@ -37,7 +37,7 @@ def measure(name: str, n_runs: int, seed: int) -> dict:
     return {
         "experiment": name,
         "env_id": EXPERIMENTS[name].env_id,
-        "metric": EXPERIMENTS[name].performance_label,
+        "metric": METRICS[EXPERIMENTS[name].protocol],
         "runs": n_runs,
         "seed": seed,
         "mean": float(scores.mean()),

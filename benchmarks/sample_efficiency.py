@@ -1224,8 +1224,9 @@ def markdown_summary(summary: dict, goal_result: dict, code_versions: str, comma
                     f" ± {_format(figures['falls_ci'])}" if figures.get("falls_ci") is not None else ""
                 )
             lines.append(f"| {env_id} | {label(method)} | {_format(figures.get('rise_time'))} | {end} | {falls} |")
-    overview = [] if len(goal_overview(summary)) < 2 else overview_markdown(goal_overview(summary))
-    lines += ["", *overview, *([""] if overview else []), *goal_markdown(goal_result), "", code_versions, ""]
+    goals = goal_overview(summary)
+    overview = overview_markdown(goals) + [""] if len(goals) > 1 else []
+    lines += ["", *overview, *goal_markdown(goal_result), "", code_versions, ""]
     lines += [f"Figure: `{FIGURE}`, each method's median samples to the target over Sarsa(λ)'s, task by task.", ""]
     return "\n".join(lines)
 

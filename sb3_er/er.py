@@ -36,25 +36,18 @@ SIGMAS = {
 #: algorithms exactly (Alg. 7-14: 100 trajectories per phase, no stabilizer). "stable": the projection of the weights
 #: onto the possible returns, the combination the stabilizer screen chose over the whole sample-efficiency suite
 #: (results/measured/stable_replay_screen; its rule in docs/stable_replay.md), the same on every task.
+_THESIS_PRESET: dict[str, Any] = dict(
+    n_replays=100,
+    replay_ratio=None,
+    truncate_targets=False,
+    target_copy=False,
+    step_size_bound=False,
+    averager=False,
+    project_weights=False,
+)
 PRESETS: dict[str, dict[str, Any]] = {
-    "thesis": dict(
-        n_replays=100,
-        replay_ratio=None,
-        truncate_targets=False,
-        target_copy=False,
-        step_size_bound=False,
-        averager=False,
-        project_weights=False,
-    ),
-    "stable": dict(
-        n_replays=100,
-        replay_ratio=None,
-        truncate_targets=False,
-        target_copy=False,
-        step_size_bound=False,
-        averager=False,
-        project_weights=True,
-    ),
+    "thesis": _THESIS_PRESET,
+    "stable": {**_THESIS_PRESET, "project_weights": True},
 }
 #: What a preset resolves.
 STABILIZERS = (

@@ -31,9 +31,9 @@ def test_the_walkers_random_runs_fall_within_a_few_steps():
     assert scores.mean() < EXPERIMENTS["walker"].success_threshold
 
 
-@pytest.mark.parametrize("n_runs", [0, -1, 2.5, None])
+@pytest.mark.parametrize("n_runs", [0, -1, 2.5, None, True])
 def test_a_bad_number_of_runs_is_refused(n_runs):
-    with pytest.raises(ValueError, match="n_runs must be a positive integer"):
+    with pytest.raises(ValueError, match="n_runs must be an integer of at least 1"):
         random_policy_scores(EXPERIMENTS["walker"], n_runs)
 
 

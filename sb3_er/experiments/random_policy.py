@@ -13,7 +13,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from sb3_er.common.checks import check_integer
 from sb3_er.experiments.specs import Experiment
+
+#: What one score of :func:`random_policy_scores` is, by protocol.
+METRICS = {
+    "episodes": "undiscounted return of one episode",
+    "walking": "distance of one evaluation run [m]",
+}
 
 
 def random_policy_scores(
@@ -28,9 +35,8 @@ def random_policy_scores(
     :param seed: seeds the episodes' initial states and the actions (default 0).
     :param env_kwargs: ``gymnasium.make`` keyword arguments (default None: none).
     """
-    if not (isinstance(n_runs, int) and n_runs >= 1):
-        raise ValueError(f"n_runs must be a positive integer, got {n_runs!r}")
-    if experiment.protocol not in ("episodes", "walking"):
+    check_integer("n_runs", n_runs, minimum=1)
+    if experiment.protocol not in METRICS:
         raise ValueError(f"{experiment.name}: no table metric for the {experiment.protocol!r} protocol")
     env = gym.make(experiment.env_id, **(env_kwargs or {}))
     try:
