@@ -36,12 +36,16 @@ def _assert_well_formed(result, algos, seeds, columns, n_records):
             record = read_record(run_csv_path(result.out_dir, algo, seed))  # written by the driver beside the CSV
             assert (record["run"], record["config"]["budget"]) == (f"{algo}/seed_{seed}", result_budget(result))
     table = pd.read_csv(result.table_csv)
-    for _, rows in table.groupby("algorithm"):  # every run averaged, or counted as diverged or out of bounds
-        counted = rows.set_index("metric")["average"]
-        left = counted.get("Runs whose values left the possible returns", 0.0)
-        assert rows["seeds"].iloc[0] + left + counted.get("Diverged runs", 0.0) == len(seeds)
+    for _, rows in table.groupby(
+        "algorithm"
+    ):  # every run averaged, a diverged one left out only without a random score
+        texts = rows.set_index("metric")["average_text"]
+        uncounted = (
+            int(texts.get("Diverged runs", "0 of 0").split()[0]) if "left out" in texts.get("Diverged runs", "") else 0
+        )
+        assert rows["seeds"].iloc[0] + uncounted == len(seeds)
     markdown = result.table_markdown.read_text()
-    rise_rows = [line for line in markdown.splitlines() if "| Rise time" in line and "(all runs)" not in line]
+    rise_rows = [line for line in markdown.splitlines() if "| Rise time" in line and "(inside only)" not in line]
     assert len(rise_rows) == len(algos)
     for figure in result.figures:
         assert figure.read_bytes()[:4] == (b"GIF8" if figure.suffix == ".gif" else PNG_SIGNATURE)

@@ -119,20 +119,6 @@ def test_no_gait_shows_na_and_a_rise_time_beyond_the_run():
     assert row.loc["End performance", "thesis_average"] == "NA"
 
 
-def test_diverged_runs_are_counted_and_left_out_of_the_averages():
-    pendulum = EXPERIMENTS["pendulum"]
-    curves = {
-        "residual_er": _curves([1, 2], [[-100.0, -10.0]], [[0, 0]], diverged=(1, 2)),
-        "er": Curves(np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)), (), (0,), 1.0),
-    }
-    table = summary_table(pendulum, curves, budget=2).set_index(["algorithm", "metric"])
-    assert table.loc[("residual ER", "End performance"), "average"] == -10.0
-    assert table.loc[("residual ER", "End performance"), "seeds"] == 1
-    assert table.loc[("residual ER", "Diverged runs"), "average_text"] == "2 of 3"
-    assert table.loc[("vanilla-ER", "Diverged runs"), "average_text"] == "1 of 1"
-    assert table.loc[("vanilla-ER", "End performance"), "average_text"] == "NA"
-
-
 @settings(max_examples=50, deadline=None)
 @given(
     curve=st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=2, max_size=30),
@@ -188,7 +174,7 @@ def test_settling_time_of_a_curve_that_never_settles_or_has_no_plateau():
         settling_time([0.0, 1.0], [1.0, 2.0], tolerance=1.5)
 
 
-def _write_run(folder, algo, seed, returns, out_of_range):
+def _write_run(folder, algo, seed, returns, out_of_range, diverged=False):
     import pandas as pd
 
     from sb3_er.experiments.runner import run_csv_path
@@ -201,7 +187,7 @@ def _write_run(folder, algo, seed, returns, out_of_range):
             "return": returns,
             "cumulative_falls": 0,
             "wall_time_s": 1.0,
-            "diverged": False,
+            "diverged": diverged,
         }
     )
     if out_of_range is not None:
@@ -209,9 +195,114 @@ def _write_run(folder, algo, seed, returns, out_of_range):
     frame.to_csv(path, index=False)
 
 
-def test_runs_whose_values_left_the_bounds_are_counted_and_left_out_of_the_averages(tmp_path):
+def _write_walker_run(folder, algo, seed, distances, falls, out_of_range=0, diverged=False):
+    """A walker run's CSV, one row every 100 s of learning time from 0."""
+    import pandas as pd
+
+    from sb3_er.experiments.runner import run_csv_path
+
+    path = run_csv_path(folder, algo, seed)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(
+        {
+            "learning_time_s": 100.0 * np.arange(len(distances)),
+            "distance": distances,
+            "cumulative_falls": falls,
+            "wall_time_s": 1.0,
+            "values_out_of_range": out_of_range,
+            "diverged": diverged,
+        }
+    ).to_csv(path, index=False)
+
+
+def test_a_diverged_run_counts_as_learning_nothing(tmp_path):
+    """Residual ER: one complete run ending at -10 and two that diverged after 2 and 1 episodes. Every run is averaged:
+    each diverged run at the random policy's committed score throughout (-54,130), so the mean curve's best is
+    (-10 - 2 * 54,130) / 3 = -36,090; the runs that stayed inside alone end at -10, in rows of their own."""
+    from sb3_er.experiments.summary import load_curves
+
+    pendulum = EXPERIMENTS["pendulum"]
+    assert pendulum.random_performance == -54_130.0
+    for seed in (0, 1):
+        _write_run(tmp_path, "sarsa_lambda", seed, [-100.0, -50.0, -20.0, -20.0], [0, 0, 0, 0])
+    _write_run(tmp_path, "residual_er", 0, [-100.0, -10.0, -10.0, -10.0], [0, 0, 0, 0])
+    _write_run(tmp_path, "residual_er", 1, [-100.0, -80.0], [0, 3], diverged=True)
+    _write_run(tmp_path, "residual_er", 2, [-90.0], [2], diverged=True)
+    curves = {
+        algo: load_curves(pendulum, tmp_path, algo, range(3), budget=4) for algo in ("sarsa_lambda", "residual_er")
+    }
+    residual = curves["residual_er"]
+    assert residual.seeds == (0,) and residual.diverged_seeds == (1, 2)
+    every = residual.all_runs()
+    assert every.seeds == (0, 1, 2) and every.performance.shape == (3, 4)
+    np.testing.assert_array_equal(every.performance[1:], -54_130.0)
+    table = summary_table(pendulum, curves, budget=4).set_index(["algorithm", "metric"])
+    assert table.loc[("residual ER", "End performance"), "average"] == pytest.approx(-36_090.0)
+    assert table.loc[("residual ER", "End performance"), "seeds"] == 3
+    # rise time is measured on the mean curve, which still rises at episode 2 (the complete run's rise)
+    assert table.loc[("residual ER", "Rise time [episodes]"), "average"] == 2.0
+    assert table.loc[("residual ER", "Diverged runs"), "average_text"] == "2 of 3"
+    assert table.loc[("residual ER", "End performance (inside only)"), "average"] == -10.0
+    assert table.loc[("residual ER", "End performance (inside only)"), "difference_with_sarsa_lambda"] == "+50 %"
+    assert ("Sarsa(λ)", "End performance (inside only)") not in table.index
+
+
+def test_a_diverged_walker_run_falls_on_at_its_last_rate(tmp_path):
+    """A walker run that diverged at 200 s after 0, 3, 7 falls goes on at its last interval's 4 falls per 100 s to the
+    budget's 500 s (11, 15, 19), at the random policy's distance throughout; a run that left the possible returns but
+    walked counts with its own curve."""
+    from sb3_er.experiments.summary import load_curves
+
+    walker = EXPERIMENTS["walker"]
+    _write_walker_run(tmp_path, "er_sigma", 0, [0.0, 2.0, 4.0, 6.0, 8.0, 10.0], [0, 2, 4, 5, 6, 6])
+    _write_walker_run(tmp_path, "er_sigma", 1, [0.0, 1.0, 3.0, 5.0, 7.0, 9.0], [0, 5, 6, 7, 8, 9], out_of_range=12)
+    _write_walker_run(tmp_path, "er_sigma", 2, [0.0, 0.4, 0.2], [0, 3, 7], diverged=True)
+    curves = load_curves(walker, tmp_path, "er_sigma", range(3), budget=500.0)
+    assert curves.seeds == (0,) and curves.out_of_bounds_seeds == (1,) and curves.diverged_seeds == (2,)
+    every = curves.all_runs()
+    np.testing.assert_array_equal(every.cumulative_falls[2], [0, 3, 7, 11, 15, 19])
+    np.testing.assert_array_equal(every.performance[2], walker.random_performance)
+    np.testing.assert_array_equal(every.performance[1], [0.0, 1.0, 3.0, 5.0, 7.0, 9.0])
+    table = summary_table(walker, {"er_sigma": curves}, budget=500.0).set_index(["algorithm", "metric"])
+    assert table.loc[("ER-σ", "Falls"), "average"] == pytest.approx((6 + 9 + 19) / 3)
+    assert table.loc[("ER-σ", "Falls (inside only)"), "average"] == 6.0
+    assert table.loc[("ER-σ", "End performance"), "average"] == pytest.approx(
+        (10.0 + 9.0 + walker.random_performance) / 3
+    )
+
+
+def test_every_run_diverged_counts_to_the_end_of_the_budget(tmp_path):
+    """No complete run: the counted curves reach the budget, one evaluation interval apart, and never rise."""
+    from sb3_er.experiments.summary import load_curves
+
+    walker = EXPERIMENTS["walker"]
+    _write_walker_run(tmp_path, "er", 0, [0.0, 0.3], [0, 2], diverged=True)
+    curves = load_curves(walker, tmp_path, "er", [0], budget=400.0)
+    np.testing.assert_array_equal(curves.all_runs().x, [0.0, 100.0, 200.0, 300.0, 400.0])
+    np.testing.assert_array_equal(curves.all_runs().cumulative_falls[0], [0, 2, 4, 6, 8])
+    table = summary_table(walker, {"er": curves}, budget=400.0).set_index(["algorithm", "metric"])
+    assert table.loc[("vanilla-ER", "Rise time [s]"), "average_text"] == ">400"
+    assert table.loc[("vanilla-ER", "End performance"), "average_text"] == "NA"  # no gait: below the success level
+
+
+def test_without_a_random_score_diverged_runs_are_left_out_and_say_so(tmp_path):
+    from sb3_er.experiments.summary import load_curves
+
+    gridworld = EXPERIMENTS["gridworld"]
+    assert gridworld.random_performance is None
+    frame_dir = tmp_path
+    _write_run(frame_dir, "er", 0, [-100.0, -20.0], [0, 0])
+    _write_run(frame_dir, "er", 1, [-100.0], [0], diverged=True)
+    curves = {"er": load_curves(gridworld, frame_dir, "er", range(2), budget=2)}
+    assert curves["er"].all_runs().seeds == (0,)
+    table = summary_table(gridworld, curves, budget=2).set_index(["algorithm", "metric"])
+    assert table.loc[("vanilla-ER", "Diverged runs"), "average_text"].startswith("1 of 2 (left out: ")
+    assert table.loc[("vanilla-ER", "End performance"), "seeds"] == 1
+
+
+def test_runs_whose_values_left_the_bounds_are_counted_and_averaged_with_their_own_curves(tmp_path):
     """Two Sarsa(lambda) runs, and three ER-sigma runs of which one left the possible returns at its third episode:
-    counted, left out of the averages, and averaged in by the "(all runs)" rows."""
+    counted, averaged with its own curve, and left out of the "(inside only)" rows only."""
     from sb3_er.experiments.summary import load_curves
 
     pendulum = EXPERIMENTS["pendulum"]
@@ -225,9 +316,9 @@ def test_runs_whose_values_left_the_bounds_are_counted_and_left_out_of_the_avera
     table = summary_table(pendulum, curves, budget=4).set_index(["algorithm", "metric"])
     assert table.loc[("ER-σ", "Runs whose values left the possible returns"), "average_text"] == "1 of 3"
     assert table.loc[("Sarsa(λ)", "Runs whose values left the possible returns"), "average_text"] == "0 of 2"
-    assert table.loc[("ER-σ", "End performance"), "average"] == -20.0
-    assert table.loc[("ER-σ", "End performance (all runs)"), "average"] == pytest.approx(-40.0)  # (-20-20-80)/3
-    assert ("Sarsa(λ)", "End performance (all runs)") not in table.index
+    assert table.loc[("ER-σ", "End performance"), "average"] == pytest.approx(-40.0)  # (-20-20-80)/3
+    assert table.loc[("ER-σ", "End performance (inside only)"), "average"] == -20.0
+    assert ("Sarsa(λ)", "End performance (inside only)") not in table.index
 
 
 def test_runs_before_the_watch_say_not_measured(tmp_path):

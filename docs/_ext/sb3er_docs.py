@@ -125,14 +125,23 @@ class FindingsError(ValueError):
 
 @dataclass(frozen=True)
 class Finding:
+    """One finding of a ``findings.json``: judged on all runs (`holds`), and on the runs that stayed inside the
+    possible returns (`inside_only`: its verdict word, "" when every run stayed inside)."""
+
     claim: str
     holds: bool | None
     evidence: str
+    inside_only: str = ""
 
 
 def result_dirs() -> list[str]:
     """The folders of results/measured, sorted."""
     return sorted(path.name for path in MEASURED.iterdir() if path.is_dir()) if MEASURED.is_dir() else []
+
+
+def _is_verdict(value) -> bool:
+    """Whether `value` is true, false or null (and not 1 or 0, which equal True and False)."""
+    return value is True or value is False or value is None
 
 
 def read_findings(name: str, measured: Path = MEASURED) -> list[Finding] | None:
@@ -154,12 +163,16 @@ def read_findings(name: str, measured: Path = MEASURED) -> list[Finding] | None:
     for index, entry in enumerate(entries):
         if not isinstance(entry, dict) or not isinstance(entry.get("claim"), str) or not entry["claim"].strip():
             raise FindingsError(f"{path}: findings[{index}] needs a non-empty string 'claim'")
-        if "holds" not in entry or entry["holds"] not in (True, False, None):
+        if "holds" not in entry or not _is_verdict(entry["holds"]):
             raise FindingsError(f"{path}: findings[{index}] needs 'holds': true, false or null")
         evidence = entry.get("evidence", "")
         if not isinstance(evidence, str):
             raise FindingsError(f"{path}: findings[{index}]['evidence'] must be a string")
-        findings.append(Finding(entry["claim"].strip(), entry["holds"], evidence.strip()))
+        inside = entry.get("inside_only")
+        if inside is not None and (not isinstance(inside, dict) or not _is_verdict(inside.get("holds", ""))):
+            raise FindingsError(f"{path}: findings[{index}]['inside_only'] needs 'holds': true, false or null")
+        inside_word = "" if inside is None else verdict_word(inside["holds"])
+        findings.append(Finding(entry["claim"].strip(), entry["holds"], evidence.strip(), inside_word))
     return findings
 
 
@@ -194,8 +207,9 @@ def _cell(text: str) -> str:
     return " ".join(text.split()).replace("|", "\\|")
 
 
-def verdict_rows(measured: Path = MEASURED, defaults_only: bool = False) -> list[tuple[str, str, str, str]]:
-    """(folder, thesis, finding, verdict) per finding; one "not judged yet" row per thesis folder without findings.
+def verdict_rows(measured: Path = MEASURED, defaults_only: bool = False) -> list[tuple[str, str, str, str, str]]:
+    """(folder, thesis, finding, verdict on all runs, verdict on the runs that stayed inside or "") per finding; one
+    "not judged yet" row per thesis folder without findings.
     With `defaults_only`, only the folders of the default readings (no other reading of THESIS_RESULTS, no folder
     outside it)."""
     names = sorted(
@@ -215,24 +229,30 @@ def verdict_rows(measured: Path = MEASURED, defaults_only: bool = False) -> list
         thesis = THESIS_RESULTS[name].thesis if name in THESIS_RESULTS else ""
         findings = read_findings(name, measured)
         if findings is None:
-            rows.append((name, thesis, "", "not judged yet"))
+            rows.append((name, thesis, "", "not judged yet", ""))
             continue
         data = json.loads((measured / name / "findings.json").read_text(encoding="utf-8"))
         thesis = data.get("thesis", thesis) if isinstance(data.get("thesis", thesis), str) else thesis
-        rows.extend((name, thesis, finding.claim, verdict_word(finding.holds)) for finding in findings)
+        rows.extend(
+            (name, thesis, finding.claim, verdict_word(finding.holds), finding.inside_only) for finding in findings
+        )
     return rows
 
 
 def verdict_table(link, measured: Path = MEASURED, defaults_only: bool = False) -> str:
     """The verdict table in Markdown; ``link(folder)`` gives the target of a folder's link; `defaults_only` as in
     :func:`verdict_rows`."""
-    lines = ["| result | thesis | finding | verdict | ER-σ's σ |", "|---|---|---|---|---|"]
-    for name, thesis, claim, verdict in verdict_rows(measured, defaults_only):
+    lines = [
+        "| result | thesis | finding | verdict | on the runs that stayed inside | ER-σ's σ |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, thesis, claim, verdict, inside in verdict_rows(measured, defaults_only):
         title = THESIS_RESULTS[name].title if name in THESIS_RESULTS else name
         regime = sigma_regime(name, measured)
         moved = "—" if not regime else ("raised targets" if " raised its targets" in regime else "lowered targets")
         lines.append(
-            f"| [{_cell(title)}]({link(name)}) | {_cell(thesis)} | {_cell(claim) or '—'} | {verdict} | {moved} |"
+            f"| [{_cell(title)}]({link(name)}) | {_cell(thesis)} | {_cell(claim) or '—'} | {verdict} | "
+            f"{inside or '—'} | {moved} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -473,29 +493,25 @@ def _figure_seed(directory: Path) -> int | None:
     return min(seeds) if seeds else None
 
 
-def _excluded_runs(directory: Path, seed: int) -> dict[str, str]:
-    """{algorithm: why} for each algorithm of `directory` whose run of `seed` is left out of the averages (and so of
-    the typical-runs figure), by the summary's own rule (:func:`sb3_er.experiments.summary.load_curves`)."""
+def _runs_not_inside(directory: Path, seed: int) -> dict[str, str]:
+    """{algorithm: "diverged" or "left"} for each algorithm of `directory` whose run of `seed` diverged (not shown in
+    the typical-runs figure: its curve ends at the divergence) or whose values left the possible returns (shown), by
+    the summary's own rule (:func:`sb3_er.experiments.summary.load_curves`)."""
     from sb3_er.experiments.specs import EXPERIMENTS
     from sb3_er.experiments.summary import load_curves
 
     experiment = EXPERIMENTS.get(_read_json(directory / "settings.json").get("experiment", ""))
     if experiment is None:
         return {}
-    excluded = {}
+    status = {}
     for algo_dir in sorted(p for p in (directory / "runs").iterdir() if p.is_dir()):
         if not (algo_dir / f"seed_{seed}.csv").is_file():
             continue
         curves = load_curves(experiment, directory, algo_dir.name, [seed])
         if curves is None or seed in curves.seeds:
             continue
-        if seed in curves.diverged_seeds:
-            excluded[algo_dir.name] = "the weights diverged"
-        elif seed in curves.out_of_bounds_seeds:
-            excluded[algo_dir.name] = "the values left the possible returns"
-        else:
-            excluded[algo_dir.name] = "it is left out of the averages"
-    return excluded
+        status[algo_dir.name] = "diverged" if seed in curves.diverged_seeds else "left"
+    return status
 
 
 def _listed(names: list[str]) -> str:
@@ -509,18 +525,20 @@ def _typical_runs_caption(directory: Path) -> str:
     if seed is None:
         return "Typical runs: one seed's learning curve per algorithm."
     caption = f"Typical runs: the learning curve of seed {seed} of each algorithm."
-    excluded = _excluded_runs(directory, seed)
-    if excluded:
-        one = len(excluded) == 1
-        names = _listed([ALGORITHM_LABELS.get(algo, algo) for algo in excluded])
-        why = "; ".join(
-            f"{_listed([ALGORITHM_LABELS.get(a, a) for a, w in excluded.items() if w == reason])}: {reason}"
-            for reason in dict.fromkeys(excluded.values())
-        )
+    status = _runs_not_inside(directory, seed)
+    left = [ALGORITHM_LABELS.get(algo, algo) for algo, kind in status.items() if kind == "left"]
+    diverged = [ALGORITHM_LABELS.get(algo, algo) for algo, kind in status.items() if kind == "diverged"]
+    if left:
+        one = len(left) == 1
         caption += (
-            f" {names} {'is' if one else 'are'} not shown: {'its' if one else 'their'} seed-{seed} "
-            f"run{'' if one else 's'} {'is' if one else 'are'} left out of the averages, as the table leaves out "
-            f"every such run ({why})."
+            f" The values of {_listed(left)}'s run{'' if one else 's'} left the possible returns; "
+            f"{'it is' if one else 'they are'} shown and averaged, as the table averages every run."
+        )
+    if diverged:
+        one = len(diverged) == 1
+        caption += (
+            f" {_listed(diverged)} {'is' if one else 'are'} not shown: {'its' if one else 'their'} seed-{seed} "
+            f"run{'' if one else 's'} diverged, and the table counts {'it' if one else 'them'} as learning nothing."
         )
     return caption
 
@@ -580,8 +598,8 @@ def figure_caption(folder: Path, path: Path) -> str:
         return FIGURE_CAPTIONS[path.name]
     if stem == "learning_curves":
         return (
-            "Learning curves: each algorithm's mean over its averaged runs (n in the legend), with the 95 % "
-            "confidence interval of the mean shaded."
+            "Learning curves: each algorithm's mean over the runs its summary averages (n in the legend), with the "
+            "95 % confidence interval of the mean shaded."
         )
     if stem == "cumulative_falls":
         return "Falls while learning, summed from the start: each algorithm's mean with its 95 % confidence interval."
@@ -651,8 +669,17 @@ def results_page(name: str) -> str:
         if findings is None:
             lines += ["Not judged yet: this folder has no `findings.json`.", ""]
         else:
-            lines += ["| finding | verdict | evidence |", "|---|---|---|"]
-            lines += [f"| {_cell(f.claim)} | {verdict_word(f.holds)} | {_cell(f.evidence) or '—'} |" for f in findings]
+            lines += [
+                "Judged on every run; the runs that stayed inside the possible returns are judged beside "
+                "(— where every run stayed inside).",
+                "",
+                "| finding | verdict | on the runs that stayed inside | evidence |",
+                "|---|---|---|---|",
+            ]
+            lines += [
+                f"| {_cell(f.claim)} | {verdict_word(f.holds)} | {f.inside_only or '—'} | {_cell(f.evidence) or '—'} |"
+                for f in findings
+            ]
             lines.append("")
     regime = sigma_regime(name)
     if regime:
@@ -720,7 +747,14 @@ def results_index() -> str:
     lines += [
         "## Verdicts",
         "",
-        "Each thesis finding, judged on the committed runs (from each folder's `findings.json`).",
+        "Each thesis finding, judged on the committed runs (from each folder's `findings.json`). A finding holds when "
+        "our difference with Sarsa(λ) has the thesis's sign and its 95 % bootstrap interval over seeds excludes zero, "
+        "does not hold when the interval excludes zero with the other sign, and is inconclusive otherwise or when a "
+        "side has fewer than 5 runs. Every run is judged, as the thesis averaged every run it made: a run whose "
+        "values left the possible returns counts with its own measured curve, and a diverged run as one that learned "
+        "nothing (the random policy's committed score throughout, so that it never rises and ends at that score; its "
+        "falls go on at its last recorded rate to the end of the budget). Where some runs did not stay inside the "
+        "possible returns, the same rule on the runs that did is shown beside, not instead.",
         "",
         verdict_table(lambda name: f"{name}.md"),
         "",
@@ -1180,7 +1214,12 @@ def _thesis_benchmark(folder: str, task: str, measured: Path) -> Benchmark | Non
         if end is None:
             continue
         rise = next(
-            (row for metric, row in own.items() if metric.startswith("Rise time") and "all runs" not in metric), None
+            (
+                row
+                for metric, row in own.items()
+                if metric.startswith("Rise time") and "all runs" not in metric and "inside only" not in metric
+            ),
+            None,
         )
         unit = re.search(r"\[(.+)\]", rise["metric"]).group(1) if rise and "[" in rise["metric"] else unit
         left = [
@@ -1305,10 +1344,14 @@ def which_algorithm(link, measured: Path = MEASURED) -> str:
         ranked = _ranked(benchmark)
         shown = [f"{_label(score.algorithm)} {score.text}" for score in ranked]
         facts = [f"{benchmark.metric}: {', '.join(shown)}" if shown else "no learner could be ranked"]
-        sooner = [score for score in ranked if score.speed is not None]
+        # A rise time is measured to 90 % of the learner's own end: only the picks' rise times compare (a learner
+        # that ends far below rises "soon" to its low end).
+        relative = benchmark.speed_label == "rise time"
+        sooner = [score for score in (chosen if relative else ranked) if score.speed is not None]
         if sooner:
             first = min(sooner, key=lambda score: score.speed)
-            facts.append(f"soonest ({benchmark.speed_label}): {_label(first.algorithm)}, {first.speed_text}")
+            among = ", of the picks" if relative else ""
+            facts.append(f"soonest ({benchmark.speed_label}{among}): {_label(first.algorithm)}, {first.speed_text}")
         with_falls = [score for score in ranked if score.falls is not None]
         if with_falls:
             fewest = min(with_falls, key=lambda score: score.falls)

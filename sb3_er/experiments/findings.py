@@ -15,8 +15,15 @@ A rise time that the mean curve never reaches counts as the run's end (the thesi
 an algorithm that learns no gait has no end performance, and its difference is then undefined (inconclusive). Where
 the thesis prints NA (no gait learned), the finding is "learns no gait", judged on the same bootstrap: it holds when
 the resampled mean curve stays below the success level in at least 97.5 % of the resamples, does not hold when it
-stays below in at most 2.5 %, and is inconclusive in between. Runs whose values left the possible returns and diverged
-runs are left out, as in the tables.
+stays below in at most 2.5 %, and is inconclusive in between.
+
+Every run is judged, as the thesis averaged every run it made. A run whose values left the possible returns still
+walked or fell: it counts with its own measured curve. A run whose Q-function diverged counts as a run that learned
+nothing: its performance is the random policy's committed score throughout (``Experiment.random_performance``; so its
+rise is "> budget" and its end that score), and its falls go on at its last recorded rate to the end of the budget
+(:func:`sb3_er.experiments.summary.diverged_run_curves`). Where some run of either side left the possible returns or
+diverged, the same rule on the runs that stayed inside is written beside the verdict (``inside_only``), not instead
+of it: leaving those runs out flatters the replay learners, since they are the runs that went wrong.
 
 Each side needs at least ``MIN_AVERAGED_RUNS`` averaged runs (5) for a verdict, else the finding is inconclusive:
 resampling n runs with replacement gives C(2n - 1, n) distinct resamples, and a side's own 2.5 % tail needs at least
@@ -215,10 +222,7 @@ def _nothing_averaged(algo: str, curves: Curves | None) -> str:
     diverged = len(curves.diverged_seeds) if curves is not None else 0
     if not left and not diverged:
         return f"{label} has no complete run. "
-    return (
-        f"{label} has no run to average: {left} left the possible returns and {diverged} diverged (left out, "
-        "as in the table). "
-    )
+    return f"{label} has no run that stayed inside: {left} left the possible returns and {diverged} diverged. "
 
 
 def _finite(value: float) -> float | None:
@@ -226,10 +230,99 @@ def _finite(value: float) -> float | None:
     return None if math.isnan(value) else float(value)
 
 
+def _judged(
+    experiment: Experiment,
+    algo: str,
+    metric: str,
+    claim: str,
+    ours: Curves | None,
+    reference: Curves | None,
+    run_end: float,
+    rng: np.random.Generator,
+    n_resamples: int,
+) -> dict[str, Any]:
+    """One finding on the rows of `ours` and `reference` (module docstring's rule)."""
+    sign = thesis_sign(str(experiment.thesis_table[algo][metric][1]))
+    if reference is None or not reference.seeds or ours is None or not ours.seeds:
+        evidence = (_nothing_averaged(algo, ours) + _nothing_averaged(REFERENCE, reference)).strip()
+        return {"claim": claim, "holds": None, "evidence": evidence}
+    difference, low, high, undefined = bootstrap_difference(
+        experiment, ours, reference, metric, run_end, rng, n_resamples
+    )
+    unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
+    if unit == " episodes" and abs(difference) == 1:
+        unit = " episode"
+    shown = [value for value in (difference, low, high) if not math.isnan(value)]
+    scale, whole = max(map(abs, shown), default=0.0), all(float(value).is_integer() for value in shown)
+    seeds = (
+        f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"
+        if len(ours.seeds) != 1 or len(reference.seeds) != 1
+        else "over 1 seed each"
+    )
+    if math.isnan(low):
+        interval = (
+            f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
+            f"{n_resamples} bootstrap resamples {seeds}"
+        )
+    else:
+        ends = ", ".join(format_figure(end, scale, signed=True, whole=whole) for end in (low, high))
+        interval = f"95 % bootstrap CI [{ends}] {seeds}"
+    ours_text = (
+        "undefined (no gait on the mean curve of all seeds)"
+        if math.isnan(difference)
+        else (f"{format_figure(difference, scale, signed=True, whole=whole)}{unit}")
+    )
+    evidence = f"ours {ours_text}, {interval}"
+    too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
+    if too_few:
+        evidence = f"{too_few} ({evidence})"
+    return {
+        "claim": claim,
+        "holds": None if too_few else judge(sign, low, high),
+        "evidence": evidence,
+        "algorithm": algo,
+        "metric": metric,
+        "thesis_sign": sign,
+        "difference": _finite(difference),
+        "ci95": [_finite(low), _finite(high)],
+    }
+
+
+def _counted_runs(algo: str, curves: Curves | None) -> str:
+    """How the runs that did not stay inside are counted in `algo`'s verdict on all runs ("" when every run stayed
+    inside)."""
+    if curves is None:
+        return ""
+    left, diverged = len(curves.out_of_bounds_seeds), len(curves.diverged_seeds)
+    uncounted = len(curves.all_runs().diverged_seeds)
+    parts = []
+    if left:
+        parts.append(f"{left} left the possible returns (counted with their own curves)")
+    if diverged - uncounted:
+        parts.append(f"{diverged - uncounted} diverged (counted as learning nothing)")
+    if uncounted:
+        parts.append(f"{uncounted} diverged (left out: no random policy's score)")
+    return f"{ALGORITHM_LABELS.get(algo, algo)}: " + ", ".join(parts) if parts else ""
+
+
+def _on_all_runs(curves: Curves | None) -> Curves | None:
+    return None if curves is None else curves.all_runs()
+
+
+def _with_inside_only(finding: dict[str, Any], inside: dict[str, Any], left_out: str) -> dict[str, Any]:
+    """`finding` (judged on all runs) with the runs' counts in its evidence and the verdict on the runs that stayed
+    inside beside it, when some run did not stay inside."""
+    if not left_out:
+        return finding
+    kept = {key: inside[key] for key in ("holds", "evidence", "difference", "ci95", "no_gait_share") if key in inside}
+    return {**finding, "evidence": f"{finding['evidence']}; every run counted ({left_out})", "inside_only": kept}
+
+
 def table_findings(
     experiment: Experiment, curves: dict[str, Curves], budget: float, seed: int = 0, n_resamples: int = N_RESAMPLES
 ) -> list[dict[str, Any]]:
-    """Every printed difference of the experiment's thesis table, judged on our curves (module docstring).
+    """Every printed difference of the experiment's thesis table, judged on all of our runs, with the verdict on the
+    runs that stayed inside the possible returns beside it (module docstring).
 
     :param experiment: the experiment (its metrics and thesis table).
     :param curves: the algorithms' learning curves by algorithm (rows: seeds).
@@ -237,7 +330,7 @@ def table_findings(
     :param seed: the seed of the bootstrap (default 0).
     :param n_resamples: bootstrap resamples (default 2000).
     """
-    rng = np.random.default_rng(seed)
+    rng, inside_rng = np.random.default_rng(seed), np.random.default_rng([seed, 1])
     run_end = budget / experiment.rise_time_scale if experiment.protocol == "walking" else budget  # table units
     reference = curves.get(REFERENCE)
     table = experiment.thesis_table
@@ -245,65 +338,27 @@ def table_findings(
     for algo, entries in table.items():
         if algo == REFERENCE or algo not in curves:
             continue
+        ours = curves[algo]
+        left_out = "; ".join(text for text in (_counted_runs(algo, ours), _counted_runs(REFERENCE, reference)) if text)
         for metric, entry in entries.items():
             if metric == "end_performance" and entry[0] is None and experiment.success_threshold is not None:
-                findings.append(no_gait_finding(experiment, algo, curves[algo], rng, n_resamples))
+                everything = no_gait_finding(experiment, algo, _on_all_runs(ours), rng, n_resamples)
+                inside = no_gait_finding(experiment, algo, ours, inside_rng, n_resamples) if left_out else {}
+                findings.append(_with_inside_only(everything, inside, left_out))
                 continue
             sign = thesis_sign(str(entry[1]))
             if metric not in METRICS or sign is None:
                 continue
-            ours = curves[algo]
-            if reference is None or not reference.seeds or ours is None or not ours.seeds:
-                findings.append(
-                    {
-                        "claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
-                        "holds": None,
-                        "evidence": (_nothing_averaged(algo, ours) + _nothing_averaged(REFERENCE, reference)).strip(),
-                    }
-                )
-                continue
-            difference, low, high, undefined = bootstrap_difference(
-                experiment, ours, reference, metric, run_end, rng, n_resamples
+            claim = _claim(algo, metric, sign, entry, table[REFERENCE][metric])
+            everything = _judged(
+                experiment, algo, metric, claim, _on_all_runs(ours), _on_all_runs(reference), run_end, rng, n_resamples
             )
-            unit = f" {experiment.rise_time_unit}" if metric == "rise_time" else ""
-            if unit == " episodes" and abs(difference) == 1:
-                unit = " episode"
-            shown = [value for value in (difference, low, high) if not math.isnan(value)]
-            scale, whole = max(map(abs, shown), default=0.0), all(float(value).is_integer() for value in shown)
-            seeds = (
-                f"over {len(ours.seeds)} and {counted(len(reference.seeds), 'seed')}"
-                if len(ours.seeds) != 1 or len(reference.seeds) != 1
-                else "over 1 seed each"
+            inside = (
+                _judged(experiment, algo, metric, claim, ours, reference, run_end, inside_rng, n_resamples)
+                if left_out
+                else {}
             )
-            if math.isnan(low):
-                interval = (
-                    f"no interval: the metric is undefined (no gait on the mean curve) in {undefined} of "
-                    f"{n_resamples} bootstrap resamples {seeds}"
-                )
-            else:
-                ends = ", ".join(format_figure(end, scale, signed=True, whole=whole) for end in (low, high))
-                interval = f"95 % bootstrap CI [{ends}] {seeds}"
-            ours_text = (
-                "undefined (no gait on the mean curve of all seeds)"
-                if math.isnan(difference)
-                else (f"{format_figure(difference, scale, signed=True, whole=whole)}{unit}")
-            )
-            evidence = f"ours {ours_text}, {interval}"
-            too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
-            if too_few:
-                evidence = f"{too_few} ({evidence})"
-            findings.append(
-                {
-                    "claim": _claim(algo, metric, sign, entry, table[REFERENCE][metric]),
-                    "holds": None if too_few else judge(sign, low, high),
-                    "evidence": evidence,
-                    "algorithm": algo,
-                    "metric": metric,
-                    "thesis_sign": sign,
-                    "difference": _finite(difference),
-                    "ci95": [_finite(low), _finite(high)],
-                }
-            )
+            findings.append(_with_inside_only(everything, inside, left_out))
     return findings
 
 
@@ -320,9 +375,11 @@ def write_findings(out_dir: Path, thesis: str, findings: list[dict[str, Any]], r
         "rule": "holds: our difference with Sarsa(λ) has the thesis's sign and its 95 % "
         "bootstrap CI over seeds excludes zero; does not hold (false) when the CI excludes zero with the other "
         "sign; inconclusive (null) when the CI includes zero or a side has fewer than "
-        f"{MIN_AVERAGED_RUNS} averaged runs (runs whose values left the possible returns are not averaged); where "
-        "the thesis prints NA, 'learns no gait' holds when at least 97.5 % of the bootstrap resamples learn no "
-        "gait",
+        f"{MIN_AVERAGED_RUNS} averaged runs; where the thesis prints NA, 'learns no gait' holds when at least 97.5 % "
+        "of the bootstrap resamples learn no gait. Every run is judged: a run whose values left the possible returns "
+        "with its own curve, a diverged run as one that learned nothing (the random policy's score throughout, its "
+        "falls going on at its last rate to the end of the budget); 'inside_only' gives the same rule on the runs "
+        "that stayed inside, where some did not",
         "findings": findings,
     }
     if regime:

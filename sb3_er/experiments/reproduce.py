@@ -170,9 +170,9 @@ def reproduce(
         on_written=lambda job: records.pin_settings(out_dir, settings),
     )
 
-    curves = {algo: load_curves(experiment, out_dir, algo, seeds) for algo in algos}
+    curves = {algo: load_curves(experiment, out_dir, algo, seeds, budget) for algo in algos}
     table = summary_table(experiment, curves, budget)
-    plotted = {algo: curve for algo, curve in curves.items() if curve.seeds}
+    plotted = {algo: every for algo, curve in curves.items() if (every := curve.all_runs()).seeds}
     table_csv = files.write_csv(out_dir / "summary.csv", table)
 
     figures = [
@@ -207,8 +207,10 @@ def reproduce(
         markdown_table(experiment, table),
         "",
         experiment.thesis_caption,
-        "Averages leave out diverged runs and runs whose values left the possible returns (their counts have rows "
-        "of their own; rows marked (all runs) average every run); rise time is measured on the mean curve.",
+        "Averages count every run: a run whose values left the possible returns with its own curve, a diverged run "
+        "as one that learned nothing (the random policy's score throughout, its falls going on at its last rate to "
+        "the end of the run); their counts have rows of their own, and rows marked (inside only) average the runs "
+        "that stayed inside. Rise time is measured on the mean curve.",
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
@@ -258,7 +260,7 @@ def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: 
     if experiment.protocol == "walking":
         runs = {}
         for algo, curve in curves.items():
-            if curve is not None and seed in curve.seeds:
+            if curve is not None and seed in curve.all_runs().seeds and seed not in curve.diverged_seeds:
                 frame = read_run_csv(run_csv_path(out_dir, algo, seed))
                 runs[ALGORITHM_LABELS[algo]] = (
                     frame[experiment.x_column].to_numpy(),

@@ -19,20 +19,25 @@ REFERENCE_ALGORITHM = "sarsa_lambda"
 
 @dataclass(frozen=True)
 class Curves:
-    """Per-seed curves of one algorithm's complete runs, cut to the shortest (rows: seeds), and its diverged runs.
+    """Per-seed curves of one algorithm's runs, cut to the shortest complete run (rows: seeds).
+
+    Two sets of rows: the runs whose values stayed inside the possible returns (``performance``, ``seeds``), and every
+    run (``all_performance``, ``all_seeds``; :meth:`all_runs`), where a diverged run counts as one that learned
+    nothing (:func:`diverged_run_curves`).
 
     :param x: the common abscissa, shape (n,), in the experiment's x units.
-    :param performance: the performance curves of the averaged runs, shape (len(seeds), n).
+    :param performance: the performance curves of the runs that stayed inside, shape (len(seeds), n).
     :param cumulative_falls: their cumulative falls, shape (len(seeds), n).
-    :param seeds: the runs whose values stayed within the possible returns (or were not watched), the ones averaged.
-    :param diverged_seeds: the seeds of the runs whose Q-function diverged (left out of the curves).
+    :param seeds: the complete runs whose values stayed within the possible returns (or were not watched).
+    :param diverged_seeds: the seeds of the runs whose Q-function diverged (their CSVs end at the divergence).
     :param wall_time_s: the runs' summed wall time in seconds.
-    :param out_of_bounds_seeds: the complete runs whose values left the possible returns (their curves are in
-        ``all_performance`` and ``all_cumulative_falls``); default none.
+    :param out_of_bounds_seeds: the complete runs whose values left the possible returns; default none.
     :param unwatched_seeds: the runs made before the value watch (their CSVs have no ``values_out_of_range`` column),
-        averaged as before; None (default): no run was watched.
-    :param all_performance: the performance curves of every complete run, shape (runs, n); default None.
-    :param all_cumulative_falls: their cumulative falls, shape (runs, n); default None.
+        counted as inside; None (default): no run was watched.
+    :param all_performance: the performance curves of every run, shape (len(all_seeds), n); default None: the runs
+        that stayed inside are all.
+    :param all_cumulative_falls: their cumulative falls, shape (len(all_seeds), n); default None.
+    :param all_seeds: the rows of ``all_performance``; default None: ``seeds`` and ``out_of_bounds_seeds``.
     """
 
     x: np.ndarray
@@ -45,26 +50,64 @@ class Curves:
     unwatched_seeds: tuple[int, ...] | None = None
     all_performance: np.ndarray | None = None
     all_cumulative_falls: np.ndarray | None = None
+    all_seeds: tuple[int, ...] | None = None
 
     @property
     def n_runs(self) -> int:
         return len(self.seeds) + len(self.diverged_seeds) + len(self.out_of_bounds_seeds)
 
-    def including_out_of_bounds(self) -> Curves:
-        """These curves with the runs whose values left the possible returns averaged in."""
-        seeds = tuple(sorted(self.seeds + self.out_of_bounds_seeds))
+    @property
+    def left_out_seeds(self) -> tuple[int, ...]:
+        """The runs that are in :meth:`all_runs` and not in the runs that stayed inside."""
+        return tuple(seed for seed in self.all_runs().seeds if seed not in self.seeds)
+
+    def all_runs(self) -> Curves:
+        """These curves with every run as its rows: the runs whose values left the possible returns with their own
+        curves, and the diverged ones as runs that learned nothing (:func:`diverged_run_curves`)."""
+        if self.all_performance is None:
+            return self
+        seeds = self.all_seeds if self.all_seeds is not None else tuple(sorted(self.seeds + self.out_of_bounds_seeds))
         return Curves(
             self.x,
             self.all_performance,
             self.all_cumulative_falls,
             seeds,
-            self.diverged_seeds,
+            tuple(seed for seed in self.diverged_seeds if seed not in seeds),
             self.wall_time_s,
             (),
             self.unwatched_seeds,
             self.all_performance,
             self.all_cumulative_falls,
+            seeds,
         )
+
+
+def diverged_run_curves(
+    experiment: Experiment, frame: pd.DataFrame, x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(performance, cumulative falls) on `x` of a run whose Q-function diverged, counted as a run that learned
+    nothing: its performance is the random policy's committed score throughout (so it never rises, and ends at that
+    score), and its falls are those it recorded, going on at its last rate (the falls of its last recorded interval
+    per x unit) to the end of `x`. None when the experiment has no random score (the run cannot be counted).
+
+    :param experiment: the experiment (its random policy's score, its x column).
+    :param frame: the diverged run's CSV, cut at the divergence.
+    :param x: the abscissa of the other runs, or of the whole budget.
+    """
+    if experiment.random_performance is None:
+        return None
+    performance = np.full(x.shape, float(experiment.random_performance))
+    recorded_x = frame[experiment.x_column].to_numpy(dtype=float) if not frame.empty else np.zeros(0)
+    recorded = frame["cumulative_falls"].to_numpy(dtype=float) if not frame.empty else np.zeros(0)
+    if recorded.size == 0:
+        return performance, np.zeros(x.shape)
+    rate = 0.0
+    if recorded.size >= 2 and recorded_x[-1] > recorded_x[-2]:
+        rate = (recorded[-1] - recorded[-2]) / (recorded_x[-1] - recorded_x[-2])
+    falls = np.interp(x, recorded_x, recorded)  # the recorded falls on the common abscissa
+    beyond = x > recorded_x[-1]
+    falls[beyond] = recorded[-1] + rate * (x[beyond] - recorded_x[-1])
+    return performance, falls
 
 
 def left_the_bounds(frame: pd.DataFrame) -> bool | None:
@@ -79,13 +122,28 @@ def left_the_bounds(frame: pd.DataFrame) -> bool | None:
     return None if last < 0 else last > 0
 
 
-def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curves | None:
+def _abscissa(experiment: Experiment, frames: dict, complete_seeds: list, length: int, budget) -> np.ndarray:
+    """The common abscissa: the complete runs' (cut to the shortest); without one, the longest diverged run's x steps
+    continued to `budget` (or to its own end when no budget is given)."""
+    if complete_seeds:
+        return frames[complete_seeds[0]][experiment.x_column].iloc[:length].to_numpy(dtype=float)
+    longest = max(frames.values(), key=len)
+    x = longest[experiment.x_column].to_numpy(dtype=float)
+    if budget is None or x.size < 2:
+        return x
+    step = x[1] - x[0]  # one evaluation interval (walking) or one episode
+    return x[0] + step * np.arange(int(math.floor((float(budget) - x[0]) / step + 1e-9)) + 1)
+
+
+def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds, budget: float | None = None) -> Curves | None:
     """The finished runs of `algo` among `seeds`, or None when none has finished.
 
     :param experiment: the experiment (its units and thesis table).
     :param out_dir: the results folder.
     :param algo: the algorithm's rl-zoo name.
     :param seeds: the seeds to read.
+    :param budget: the runs' length, the end of a diverged run's counted curve when no run is complete (default None:
+        the longest diverged run's end).
     """
     frames = {seed: read_run_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
     if not frames:
@@ -96,14 +154,26 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curv
     complete = {seed: frames[seed].iloc[:length] for seed in complete_seeds}
     out_of_bounds = tuple(seed for seed in complete_seeds if left_the_bounds(frames[seed]))
     averaged = [seed for seed in complete_seeds if seed not in out_of_bounds]
+    x = _abscissa(experiment, frames, complete_seeds, length, budget)
+    counted = {seed: diverged_run_curves(experiment, frames[seed], x) for seed in diverged}
+    counted = {seed: curves for seed, curves in counted.items() if curves is not None}
 
     def stacked(column: str, chosen) -> np.ndarray:
         if not chosen:
-            return np.zeros((0, length))
+            return np.zeros((0, x.size))
         return np.stack([complete[seed][column].to_numpy(dtype=float) for seed in chosen])
 
+    every = sorted(complete_seeds + list(counted))
+
+    def every_run(column: str, part: int) -> np.ndarray:
+        if not every:
+            return np.zeros((0, x.size))
+        return np.stack(
+            [counted[seed][part] if seed in counted else complete[seed][column].to_numpy(dtype=float) for seed in every]
+        )
+
     return Curves(
-        x=complete[complete_seeds[0]][experiment.x_column].to_numpy(dtype=float) if complete else np.zeros(0),
+        x=x,
         performance=stacked(experiment.performance_column, averaged),
         cumulative_falls=stacked("cumulative_falls", averaged),
         seeds=tuple(averaged),
@@ -111,8 +181,9 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds) -> Curv
         wall_time_s=float(sum(frame["wall_time_s"].iloc[-1] for frame in frames.values() if not frame.empty)),
         out_of_bounds_seeds=out_of_bounds,
         unwatched_seeds=tuple(seed for seed in sorted(frames) if left_the_bounds(frames[seed]) is None),
-        all_performance=stacked(experiment.performance_column, complete_seeds),
-        all_cumulative_falls=stacked("cumulative_falls", complete_seeds),
+        all_performance=every_run(experiment.performance_column, 0),
+        all_cumulative_falls=every_run("cumulative_falls", 1),
+        all_seeds=tuple(every),
     )
 
 
@@ -245,65 +316,73 @@ def _out_of_bounds_row(curve: Curves) -> tuple:
     return "left_bounds", name, float(count), None, text
 
 
+def _diverged_row(curve: Curves) -> tuple:
+    """("diverged", name, count, None, text): how many runs diverged, and whether they are counted."""
+    count = len(curve.diverged_seeds)
+    text = f"{count} of {curve.n_runs}"
+    if curve.all_runs().diverged_seeds:
+        text += " (left out: this experiment has no random policy's score to count them by)"
+    return "diverged", "Diverged runs", float(count), None, text
+
+
 def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: float) -> pd.DataFrame:
     """One row per (algorithm, metric), columns as thesis Tables 6.1-6.3 plus the thesis's own figures.
 
-    Diverged runs are left out of the averages and counted in a "Diverged runs" row of their algorithm. So are the runs
-    whose values left the possible returns, counted in a "Runs whose values left the possible returns" row ("not
-    measured" where runs predate the value watch); where there are such runs, the rise time, end performance and falls
-    averaged over all complete runs follow, marked "(all runs)".
+    Every run is averaged, as the thesis averaged every run it made: a run whose values left the possible returns with
+    its own curve, a diverged run as a run that learned nothing (:func:`diverged_run_curves`). Their counts have rows
+    of their own ("Diverged runs", "Runs whose values left the possible returns", "not measured" where runs predate
+    the value watch). Where some runs left the possible returns or diverged, the rise time, end performance and falls
+    of the runs that stayed inside follow, marked "(inside only)", against Sarsa(λ)'s own runs that stayed inside.
 
     :param experiment: the experiment (its units and thesis table).
     :param curves: the curves by algorithm.
     :param budget: the runs' length.
     """
-    summaries = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
-    reference = summaries.get(REFERENCE_ALGORITHM)
+    summaries = {algo: summarize(experiment, curve.all_runs()) for algo, curve in curves.items()}
+    inside = {algo: summarize(experiment, curve) for algo, curve in curves.items()}
     run_end = budget / experiment.rise_time_scale if experiment.protocol == "walking" else budget
     no_run = CurveSummary(float("nan"), float("nan"), float("nan"), None, None, 0)
     rows = []
     for algo, curve in curves.items():
         summary = summaries[algo] or no_run
         label = ALGORITHM_LABELS.get(algo, algo)
-        rise = summary.rise_time
-        rise_text = f">{format_figure(run_end)}" if math.isnan(rise) and summary.n_seeds else None
-        settling = summary.settling_time
+
+        def rise_text(of: CurveSummary) -> str | None:
+            return f">{format_figure(run_end)}" if math.isnan(of.rise_time) and of.n_seeds else None
+
         metrics = [
-            ("rise_time", f"Rise time [{experiment.rise_time_unit}]", rise, None, rise_text),
-            ("settling_time", f"Settling time [{experiment.rise_time_unit}]", settling, None, None),
+            ("rise_time", f"Rise time [{experiment.rise_time_unit}]", summary.rise_time, None, rise_text(summary)),
+            ("settling_time", f"Settling time [{experiment.rise_time_unit}]", summary.settling_time, None, None),
             ("end_performance", "End performance", summary.end_performance, summary.end_performance_ci, None),
         ]
         if experiment.has_falls:
             falls = float("nan") if summary.falls is None else summary.falls
             metrics.append(("falls", "Falls", falls, summary.falls_ci, None))
         if curve.diverged_seeds:
-            share = len(curve.diverged_seeds)
-            metrics.append(("diverged", "Diverged runs", share, None, f"{share} of {curve.n_runs}"))
+            metrics.append(_diverged_row(curve))
         metrics.append(_out_of_bounds_row(curve))
-        if curve.out_of_bounds_seeds:
-            everything = summarize(experiment, curve.including_out_of_bounds()) or no_run
+        if curve.left_out_seeds:
+            kept = inside[algo] or no_run
+            unit = experiment.rise_time_unit
             metrics.append(
-                (
-                    "rise_time_all",
-                    f"Rise time [{experiment.rise_time_unit}] (all runs)",
-                    everything.rise_time,
-                    None,
-                    None,
-                )
+                ("rise_time_inside", f"Rise time [{unit}] (inside only)", kept.rise_time, None, rise_text(kept))
             )
             metrics.append(
                 (
-                    "end_performance_all",
-                    "End performance (all runs)",
-                    everything.end_performance,
-                    everything.end_performance_ci,
+                    "end_performance_inside",
+                    "End performance (inside only)",
+                    kept.end_performance,
+                    kept.end_performance_ci,
                     None,
                 )
             )
-            if experiment.has_falls and everything.falls is not None:
-                metrics.append(("falls_all", "Falls (all runs)", everything.falls, everything.falls_ci, None))
+            if experiment.has_falls:
+                falls = float("nan") if kept.falls is None else kept.falls
+                metrics.append(("falls_inside", "Falls (inside only)", falls, kept.falls_ci, None))
         for key, name, value, half_width, text in metrics:
-            reference_key = key.removesuffix("_all")  # "(all runs)" rows against the reference's own averages
+            of_inside = key.endswith("_inside")  # "(inside only)" rows against the reference's own inside runs
+            reference = (inside if of_inside else summaries).get(REFERENCE_ALGORITHM)
+            reference_key = key.removesuffix("_inside")
             reference_value = getattr(reference, reference_key, float("nan")) if reference is not None else float("nan")
             thesis_value, thesis_difference = _thesis_cells(experiment, algo, key)
             rows.append(
