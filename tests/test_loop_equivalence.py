@@ -60,7 +60,7 @@ RUNS = {
     "er_walker_segments": (
         ER,
         "sb3_er/SimplestWalker-v0",
-        dict(replay_trigger="segment", n_replays=10, policy_kwargs=dict(SMALL_TABLE)),
+        dict(preset="thesis", replay_trigger="segment", n_replays=10, policy_kwargs=dict(SMALL_TABLE)),
         3_000,
         5,
     ),
@@ -68,7 +68,11 @@ RUNS = {
         ER,
         "CartPole-v1",
         dict(
-            online_lambda=0.8, replay_order="prioritized", n_replays=5, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)
+            preset="thesis",
+            online_lambda=0.8,
+            replay_order="prioritized",
+            n_replays=5,
+            policy_kwargs=dict(n_tilings=8, **SMALL_TABLE),
         ),
         2_000,
         3,
@@ -76,15 +80,19 @@ RUNS = {
     "er_sigma_compass_walker": (
         ERSigma,
         "sb3_er/CompassWalker-v0",
-        dict(replays_per_stored_trajectory=2, policy_kwargs=dict(initial_value=(0.0, 1.0), **SMALL_TABLE)),
+        dict(
+            preset="thesis",
+            replays_per_stored_trajectory=2,
+            policy_kwargs=dict(initial_value=(0.0, 1.0), **SMALL_TABLE),
+        ),
         3_000,
         2,
     ),
-    "residual_er_windy_cliff": (ResidualER, "sb3_er/WindyCliff-v0", dict(n_replays=10), 3_000, 5),
+    "residual_er_windy_cliff": (ResidualER, "sb3_er/WindyCliff-v0", dict(preset="thesis", n_replays=10), 3_000, 5),
     "residual_er_sigma_cartpole": (
         ResidualERSigma,
         "CartPole-v1",
-        dict(n_replays=10, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
+        dict(preset="thesis", n_replays=10, policy_kwargs=dict(n_tilings=8, **SMALL_TABLE)),
         3_000,
         3,
     ),

@@ -80,3 +80,19 @@ def test_a_job_passes_every_accepted_parameter_the_runner_does_not_set(algo):
     kwargs = job_model_kwargs(job)
     assert set(settable) <= set(kwargs)
     cls("TileQ", ENV, _init_setup_model=False, **kwargs)
+
+
+@pytest.mark.parametrize("zoo_configs", [True, False])
+@pytest.mark.parametrize("experiment", ["gridworld", "pendulum", "walker", "leo"])
+def test_a_reproduction_runs_the_thesis_preset_unless_told_otherwise(experiment, zoo_configs):
+    """Every reproduction passes preset="thesis" to the ER classes, with or without the zoo configs, so that a later
+    class default cannot change the thesis's runs; ``--algo-kwargs preset:stable`` chooses the other; Sarsa(λ) takes
+    no preset."""
+    import dataclasses
+
+    spec = dataclasses.replace(EXPERIMENTS[experiment], zoo_configs=zoo_configs)
+    for algo in ("er", "er_sigma", "residual_er", "residual_er_sigma"):
+        assert job_model_kwargs(RunJob(spec, algo, 0, 5, csv_path=None))["preset"] == "thesis"
+        job = RunJob(spec, algo, 0, 5, csv_path=None, algo_kwargs=(("preset", "stable"),))
+        assert job_model_kwargs(job)["preset"] == "stable"
+    assert "preset" not in job_model_kwargs(RunJob(spec, "sarsa_lambda", 0, 5, csv_path=None))

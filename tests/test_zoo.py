@@ -54,6 +54,15 @@ def test_zoo_configs_hold_the_thesis_hyperparameters(algo, env_id):
     assert zoo.load_hyperparameters(algo, env_id)["policy"] == "TileQ"
 
 
+@pytest.mark.parametrize("algo", ["er", "er_sigma", "residual_er", "residual_er_sigma"])
+def test_the_thesis_entries_pass_the_thesis_preset_explicitly(algo):
+    """A later class default (the "stable" preset) must not change the thesis's configs: each of their entries names
+    its preset, and the users' classic-control entries, which take the class default, do not."""
+    for env_id in ENV_IDS:
+        assert zoo.model_kwargs(algo, env_id)["preset"] == "thesis", env_id
+    assert "preset" not in zoo.model_kwargs(algo, "CartPole-v1")
+
+
 def test_replay_schedules_of_thesis_section_4_2():
     assert zoo.model_kwargs("sarsa_lambda", "sb3_er/Leo-v0")["trace_lambda"] == 0.859
     assert zoo.model_kwargs("sarsa_lambda", "sb3_er/SimplestWalker-v0")["trace_lambda"] == 0.92

@@ -88,7 +88,9 @@ def check_algo_kwargs(algorithm_classes: Iterable[type], algo_kwargs: dict[str, 
 
 def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
-    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda)).
+    where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda)). An ER class
+    gets ``preset="thesis"`` unless the config or ``job.algo_kwargs`` give another: the reproductions run the thesis's
+    algorithms whatever the class default is.
 
     :param job: the run.
     """
@@ -96,6 +98,8 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
 
     kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
     accepted = set(accepted_parameters(algorithm_classes()[job.algo]))
+    if "preset" in accepted:
+        kwargs.setdefault("preset", "thesis")
     kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS})
     return kwargs
 
