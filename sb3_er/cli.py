@@ -28,6 +28,7 @@ SIGMA_REGIME_READINGS = (
     "walker-optimistic",
     "leo",
 )
+SIGMA_REGIME_LEARNERS = ("er_sigma", "er_sigma_stable")  # kept in step with sigma_regime.LEARNERS (a test checks)
 
 
 def _name_value(text: str) -> tuple[str, object]:
@@ -105,7 +106,9 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         default=None,
         choices=list(ALGORITHM_LABELS),
-        help="algorithms (default: all five; not for the analyses)",
+        help="the table's rows (default: all nine, the thesis's five algorithms and the stable learner's rows "
+        "er_stable, er_sigma_stable, residual_er_stable and residual_er_sigma_stable: each ER class with "
+        "preset='stable'; not for the analyses)",
     )
     parser.add_argument("--out", default=None, help="output folder (default results/<experiment>)")
     parser.add_argument(
@@ -209,6 +212,14 @@ def _add_reproduce_arguments(parser: argparse.ArgumentParser) -> None:
         choices=SIGMA_REGIME_READINGS,
         help="sigma-regime: the env readings to run (default all seven)",
     )
+    analyses.add_argument(
+        "--learners",
+        nargs="+",
+        default=None,
+        choices=SIGMA_REGIME_LEARNERS,
+        help="sigma-regime: the learners to run, ER-sigma under the thesis's preset (er_sigma) and under the stable "
+        "one (er_sigma_stable) (default both)",
+    )
     parser.add_argument(
         "--allow-mixed-versions",
         action="store_true",
@@ -223,7 +234,7 @@ ANALYSIS_OPTIONS = {
     "sigma": {"sigmas": "sigmas", "algo_kwargs": "algo_kwargs"},
     "pessimistic": {"initial_value": "initial_value"},
     "framework": {"problems": "problems", "methods": "methods"},
-    "sigma-regime": {"readings": "readings"},
+    "sigma-regime": {"readings": "readings", "learners": "learners"},
 }
 
 
@@ -242,6 +253,7 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
             "problems",
             "methods",
             "readings",
+            "learners",
         )
         if (value := getattr(args, dest)) not in (None, [])
     }

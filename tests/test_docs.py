@@ -257,9 +257,10 @@ def test_each_table_says_which_regime_er_sigma_was_in(tmp_path):
     (measured / "table_6_1" / "findings.json").write_text(json.dumps({"findings": [{"claim": "c", "holds": True}]}))
     (measured / "sigma_regime").mkdir()
     (measured / "sigma_regime" / "summary.csv").write_text(
-        "reading,results,runs,phases,mean_shift,raised,lowered,left_bounds,diverged\n"
-        "pendulum-0.33,table_6_1,4,400,-20.6,0.003,0.125,0,0\n"
-        "walker-optimistic,,4,4275,1030000.0,0.23,0.072,3,0\n"
+        "reading,learner,results,runs,phases,mean_shift,raised,lowered,left_bounds,diverged\n"
+        "pendulum-0.33,er_sigma_stable,table_6_1,4,400,+5.0,0.2,0.1,0,0\n"
+        "pendulum-0.33,er_sigma,table_6_1,4,400,-20.6,0.003,0.125,0,0\n"
+        "walker-optimistic,er_sigma,,4,4275,1030000.0,0.23,0.072,3,0\n"
     )
     sentence = generator.sigma_regime("table_6_1", measured)
     assert sentence.startswith("ER-σ's σ lowered its targets") and "-20.6 over 400 replay phases of 4 runs" in sentence

@@ -100,6 +100,28 @@ def test_pendulum_reproduction_in_two_worker_processes(tmp_path):
     )
 
 
+def test_a_table_gets_the_stable_learners_rows(tmp_path):
+    """A stable row runs its ER class with preset="stable" (the record says so, the literal row says "thesis"), has its
+    own runs folder and label, and is judged on the thesis's claims for its algorithm."""
+    algos = ["sarsa_lambda", "er_sigma", "er_sigma_stable"]
+    reproduce("pendulum", n_seeds=2, algos=algos[:2], out_dir=tmp_path, budget=2, n_workers=1, show_progress=False)
+    # a second command adds the stable row with fewer seeds (as LEO's): one table holds every row of the folder
+    result = reproduce(
+        "pendulum", n_seeds=1, algos=algos[2:], out_dir=tmp_path, budget=2, n_workers=1, show_progress=False
+    )
+    markdown = result.table_markdown.read_text()
+    assert markdown.startswith("# Inverted pendulum swing-up: 2 seeds (1 for ER-σ (stable)), 2 episodes per run")
+    assert "| Sarsa(λ) | Rise time" in markdown and "| ER-σ | Rise time" in markdown
+    kwargs = {algo: read_record(run_csv_path(tmp_path, algo, 0))["config"]["algorithm_kwargs"] for algo in algos[1:]}
+    assert kwargs["er_sigma"]["preset"] == "thesis" and kwargs["er_sigma_stable"]["preset"] == "stable"
+    assert read_record(run_csv_path(tmp_path, "er_sigma_stable", 0))["config"]["algorithm"] == "er_sigma"
+    assert "| ER-σ (stable) | Rise time" in markdown
+    claims = [f["claim"] for f in json.loads((tmp_path / "findings.json").read_text())["findings"]]
+    assert (
+        "ER-σ (stable)'s rise time is lower (better) than Sarsa(λ)'s (thesis for ER-σ: 9 against 22, -60 %)" in claims
+    )
+
+
 # The walker's earlier default reading (GRL's fall test, coordinates and start), on which Sarsa(lambda) walks within
 # 200 s of learning; under today's defaults (the printed fall and observation) it needs about 1500 s, as in Table 6.2.
 EARLIER_WALKER = {"fall": "angles", "observation": "grl", "start": "grl"}

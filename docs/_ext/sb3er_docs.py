@@ -185,7 +185,11 @@ def sigma_regime(name: str, measured: Path = MEASURED) -> str:
     import csv
 
     with table.open(encoding="utf-8", newline="") as handle:
-        rows = [row for row in csv.DictReader(handle) if row.get("results") == name]
+        rows = [  # the thesis's ER-σ (a summary from before the stable learner's rows has no learner column)
+            row
+            for row in csv.DictReader(handle)
+            if row.get("results") == name and row.get("learner", "er_sigma") == "er_sigma"
+        ]
     if not rows or not rows[0].get("mean_shift"):
         return ""
     row = rows[0]

@@ -45,7 +45,7 @@ from sb3_er.experiments import files
 from sb3_er.experiments.records import counted
 from sb3_er.experiments.specs import Experiment
 from sb3_er.experiments.summary import Curves, format_figure, summarize, thesis_text
-from sb3_er.experiments.thesis import ALGORITHM_LABELS
+from sb3_er.experiments.thesis import ALGORITHM_LABELS, row_algorithm
 
 REFERENCE = "sarsa_lambda"
 METRICS = {"rise_time": "rise time", "end_performance": "end performance", "falls": "falls"}
@@ -170,7 +170,10 @@ def _claim(algo: str, metric: str, sign: int, thesis_entry, reference_entry) -> 
     label, reference = ALGORITHM_LABELS.get(algo, algo), ALGORITHM_LABELS[REFERENCE]
     words = {-1: "lower", 0: "the same", 1: "higher"}[sign]
     better = "" if sign == 0 else (" (better)" if (sign < 0) == LOWER_IS_BETTER[metric] else " (worse)")
-    printed = f"thesis: {thesis_text(thesis_entry[0])} against {thesis_text(reference_entry[0])}, {thesis_entry[1]}"
+    base = row_algorithm(algo)[0]
+    whose = "" if base == algo else f" for {ALGORITHM_LABELS[base]}"  # a stable row: the claim of its algorithm
+    figures = f"{thesis_text(thesis_entry[0])} against {thesis_text(reference_entry[0])}, {thesis_entry[1]}"
+    printed = f"thesis{whose}: {figures}"
     verb = "are" if metric == "falls" else "is"
     than = "as" if sign == 0 else "than"
     return f"{label}'s {METRICS[metric]} {verb} {words}{better} {than} {reference}'s ({printed})"
@@ -188,7 +191,9 @@ def no_gait_finding(
     :param rng: the generator of the resamples.
     :param n_resamples: the number of bootstrap resamples.
     """
-    claim = f"{ALGORITHM_LABELS.get(algo, algo)} learns no gait (thesis: NA as its end performance)"
+    base = row_algorithm(algo)[0]
+    whose = "its" if base == algo else f"{ALGORITHM_LABELS[base]}'s"
+    claim = f"{ALGORITHM_LABELS.get(algo, algo)} learns no gait (thesis: NA as {whose} end performance)"
     entry = {"claim": claim, "algorithm": algo, "metric": "no_gait", "thesis_sign": None}
     if ours is None or not ours.seeds:
         return {**entry, "holds": None, "evidence": "no complete run"}
@@ -242,7 +247,7 @@ def _judged(
     n_resamples: int,
 ) -> dict[str, Any]:
     """One finding on the rows of `ours` and `reference` (module docstring's rule)."""
-    sign = thesis_sign(str(experiment.thesis_table[algo][metric][1]))
+    sign = thesis_sign(str(experiment.thesis_table[row_algorithm(algo)[0]][metric][1]))
     if reference is None or not reference.seeds or ours is None or not ours.seeds:
         evidence = (_nothing_averaged(algo, ours) + _nothing_averaged(REFERENCE, reference)).strip()
         return {"claim": claim, "holds": None, "evidence": evidence}
@@ -335,9 +340,9 @@ def table_findings(
     reference = curves.get(REFERENCE)
     table = experiment.thesis_table
     findings = []
-    for algo, entries in table.items():
-        if algo == REFERENCE or algo not in curves:
-            continue
+    ordered = [algo for algo in ALGORITHM_LABELS if algo in curves] + [a for a in curves if a not in ALGORITHM_LABELS]
+    for algo in (algo for algo in ordered if algo != REFERENCE and row_algorithm(algo)[0] in table):
+        entries = table[row_algorithm(algo)[0]]  # a stable row is judged on the claims of its algorithm
         ours = curves[algo]
         left_out = "; ".join(text for text in (_counted_runs(algo, ours), _counted_runs(REFERENCE, reference)) if text)
         for metric, entry in entries.items():

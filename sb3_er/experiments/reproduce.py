@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -74,12 +75,40 @@ def _check_finished_runs(finished: list[RunJob], out_dir: Path, allow_mixed_vers
     )
 
 
-def _code_versions_line(out_dir: Path, algos: Sequence[str], seeds: Sequence[int]) -> str:
+def _code_versions_line(out_dir: Path, rows: dict[str, list[int]]) -> str:
     """Which code made the runs, e.g. "Code: sb3-er 0.1.0, code hash 1f4d0e44dc (40 runs from commit 91bd149)"."""
     from sb3_er.experiments.runner import run_csv_path
 
-    paths = [run_csv_path(out_dir, algo, seed) for algo in algos for seed in seeds]
+    paths = [run_csv_path(out_dir, row, seed) for row, seeds in rows.items() for seed in seeds]
     return records.code_versions_line([records.read_record(path) for path in paths if path.is_file()])
+
+
+def _finished_rows(out_dir: Path, algos: Sequence[str], seeds: Sequence[int]) -> dict[str, list[int]]:
+    """{row: seeds} of the summary, in the tables' order: this command's rows and seeds, and every other row and seed
+    of the folder's finished runs (``runs/<row>/seed_<n>.csv``; one folder holds one reading and run length, pinned by
+    its ``settings.json``), so that rows run by several commands (LEO's stable rows with fewer seeds) share one
+    table."""
+    rows: dict[str, set[int]] = {algo: set(seeds) for algo in algos}
+    runs = Path(out_dir) / "runs"
+    for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
+        if folder.is_dir() and folder.name in ALGORITHM_LABELS:
+            found = (re.fullmatch(r"seed_(\d+)\.csv", path.name) for path in folder.iterdir())
+            rows.setdefault(folder.name, set()).update(int(match.group(1)) for match in found if match)
+    return {row: sorted(rows[row]) for row in ALGORITHM_LABELS if row in rows}
+
+
+def _seeds_text(rows: dict[str, list[int]]) -> str:
+    """ "20 seeds", or "20 seeds (10 for A and B)" when some rows have another number."""
+    counts = {row: len(seeds) for row, seeds in rows.items()}
+    most = max(counts.values(), key=list(counts.values()).count) if counts else 0
+    others: dict[int, list[str]] = {}
+    for row, count in counts.items():
+        if count != most:
+            others.setdefault(count, []).append(ALGORITHM_LABELS[row])
+    text = records.counted(most, "seed")
+    if others:
+        text += " (" + "; ".join(f"{count} for {', '.join(labels)}" for count, labels in others.items()) + ")"
+    return text
 
 
 @files.holds_folder_locks
@@ -117,7 +146,9 @@ def reproduce(
 
     :param experiment_name: "gridworld", "pendulum", "walker" or "leo".
     :param n_seeds: seeds per algorithm (default 20, the thesis's).
-    :param algos: rl-zoo names of the algorithms (default all five of the thesis).
+    :param algos: the table's rows: rl-zoo names of the algorithms, and the stable learner's rows such as
+        "er_sigma_stable" (each ER class with ``preset="stable"``); default every row, the thesis's five algorithms
+        and the four stable rows.
     :param out_dir: output folder; None (default) is ``results/<experiment_name>``.
     :param budget: run length in episodes (grid world, pendulum) or seconds of learning time (walker, LEO); None
         (default) is the experiment's (100 episodes, 100 episodes, 5000 s, 12000 s).
@@ -170,8 +201,11 @@ def reproduce(
         on_written=lambda job: records.pin_settings(out_dir, settings),
     )
 
-    curves = {algo: load_curves(experiment, out_dir, algo, seeds, budget) for algo in algos}
+    rows = _finished_rows(out_dir, algos, seeds)  # this command's rows and seeds, and those of earlier commands
+    curves = {row: load_curves(experiment, out_dir, row, row_seeds, budget) for row, row_seeds in rows.items()}
+    curves = {row: curve for row, curve in curves.items() if curve is not None}
     table = summary_table(experiment, curves, budget)
+    seeds_text = _seeds_text(rows)
     plotted = {algo: every for algo, curve in curves.items() if (every := curve.all_runs()).seeds}
     table_csv = files.write_csv(out_dir / "summary.csv", table)
 
@@ -180,7 +214,7 @@ def reproduce(
             {algo: (curve.x, curve.performance) for algo, curve in plotted.items()},
             experiment.x_label,
             experiment.performance_label,
-            f"{experiment.title}: mean of {records.counted(n_seeds, 'run')}, 95% CI",
+            f"{experiment.title}: mean of {seeds_text.replace('seed', 'run')}, 95% CI",
             out_dir / "learning_curves.png",
         )
     ]
@@ -190,7 +224,7 @@ def reproduce(
                 {algo: (curve.x, curve.cumulative_falls) for algo, curve in plotted.items()},
                 experiment.x_label,
                 "cumulative falls while learning",
-                f"{experiment.title}: falls, mean of {records.counted(n_seeds, 'run')}, 95% CI",
+                f"{experiment.title}: falls, mean of {seeds_text.replace('seed', 'run')}, 95% CI",
                 out_dir / "cumulative_falls.png",
             )
         )
@@ -202,7 +236,7 @@ def reproduce(
         else f"{budget:g} {experiment.budget_unit}"
     )
     sections = [
-        f"# {experiment.title}: {records.counted(n_seeds, 'seed')}, {length} per run{reading}",
+        f"# {experiment.title}: {seeds_text}, {length} per run{reading}",
         "",
         markdown_table(experiment, table),
         "",
@@ -215,7 +249,7 @@ def reproduce(
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
         "",
-        _code_versions_line(out_dir, algos, seeds),
+        _code_versions_line(out_dir, rows),
     ]
     if experiment.name == "gridworld":
         value_figures, value_section = _gridworld_value_maps(out_dir, first_seed)
@@ -243,9 +277,10 @@ THESIS_TABLES = {"pendulum": "Table 6.1", "walker": "Table 6.2", "leo": "Table 6
 
 def _check_algo_kwargs(algos: Sequence[str], algo_kwargs: dict) -> None:
     from sb3_er.experiments.runner import check_algo_kwargs
+    from sb3_er.experiments.thesis import row_algorithm
     from sb3_er.zoo import algorithm_classes
 
-    check_algo_kwargs([algorithm_classes()[algo] for algo in algos], algo_kwargs)
+    check_algo_kwargs([algorithm_classes()[row_algorithm(algo)[0]] for algo in algos], algo_kwargs)
 
 
 def _per_run_figures(experiment: Experiment, out_dir: Path, curves: dict, seed: int) -> list[Path]:

@@ -444,30 +444,36 @@ def plan_jobs(
     damaged runs aside). The first seed's runs make the per-run figures' data.
 
     :param experiment: the experiment the runs belong to.
-    :param algos: the algorithms' rl-zoo names.
+    :param algos: the table's rows: the algorithms' rl-zoo names, or a stable learner's row such as
+        "er_sigma_stable" (:data:`sb3_er.experiments.thesis.STABLE_ROWS`).
     :param seeds: the seeds.
     :param budget: run length in the experiment's unit (episodes or seconds of learning time).
     :param out_dir: the results folder.
     :param env_kwargs: ``gymnasium.make`` keyword arguments of the runs' envs (default None: none).
-    :param algo_kwargs: constructor overrides by parameter name (default None: none).
+    :param algo_kwargs: constructor overrides by parameter name (default None: none); a stable row's preset wins.
     """
+    from sb3_er.experiments.thesis import row_algorithm
+
     env_items = tuple(sorted((env_kwargs or {}).items()))
-    algo_items = tuple(sorted((algo_kwargs or {}).items()))
     seeds = list(seeds)
-    jobs = [
-        RunJob(
-            experiment,
-            algo,
-            seed,
-            budget,
-            run_csv_path(out_dir, algo, seed),
-            env_items,
-            algo_items,
-            figure_run=seed == seeds[0],
-        )
-        for algo in algos
-        for seed in seeds
-    ]
+    jobs = []
+    for row in algos:
+        algo, own = row_algorithm(row)  # a stable row: its algorithm with preset="stable", over any algo_kwargs
+        algo_items = tuple(sorted({**(algo_kwargs or {}), **own}.items()))
+        jobs += [
+            RunJob(
+                experiment,
+                algo,
+                seed,
+                budget,
+                run_csv_path(out_dir, row, seed),
+                env_items,
+                algo_items,
+                figure_run=seed == seeds[0],
+                label="" if row == algo else row,
+            )
+            for seed in seeds
+        ]
     return split_finished(jobs)
 
 

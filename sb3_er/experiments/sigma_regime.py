@@ -14,6 +14,10 @@ in for each table: the grid world (Chapter 5), the pendulum's default (Table 6.1
 3.3 rad/s, goal 0.1 rad and 1 rad/s), the simplest walker's default (Table 6.2) and earlier default (GRL's start, fall
 test and coordinates), the walker with optimistic initial values (Q starting at 100, no table), and LEO's default
 (Table 6.3; a run is about 4 CPU minutes).
+
+Learners (:data:`LEARNERS`): the thesis's ER-σ (``preset="thesis"``) and the stable learner's ER-σ (``preset="stable"``,
+the projection of the weights onto the possible returns, docs/stable_replay.md), so that the table says whether σ still
+raises the targets once the values are held to the possible returns.
 """
 
 from __future__ import annotations
@@ -69,6 +73,10 @@ class Reading:
     title: str = ""
     results: str = ""
 
+
+#: The learners of each reading: the row name (its runs folder) and the ER-σ preset it runs.
+LEARNERS = {"er_sigma": "thesis", "er_sigma_stable": "stable"}
+LEARNER_TITLES = {"er_sigma": "ER-σ", "er_sigma_stable": "ER-σ (stable)"}
 
 WALKER_EARLIER_DEFAULT = (("fall", "angles"), ("observation", "grl"), ("start", "grl"))
 READINGS = {
@@ -189,32 +197,40 @@ def sigma_regime_run(job: RunJob, env, report) -> TaskOutput:
     return TaskOutput(frame, model)
 
 
-def regime_jobs(out_dir: Path, readings: Sequence[str], seeds: Sequence[int], budget: float | None) -> list[RunJob]:
-    """One job per (reading, seed): ``<out>/<reading>/runs/er_sigma/seed_<n>.csv``.
+def regime_jobs(
+    out_dir: Path,
+    readings: Sequence[str],
+    seeds: Sequence[int],
+    budget: float | None,
+    learners: Sequence[str] = ("er_sigma",),
+) -> list[RunJob]:
+    """One job per (reading, learner, seed): ``<out>/<reading>/runs/<learner>/seed_<n>.csv``.
 
     :param out_dir: the results folder.
     :param readings: the readings' names.
     :param seeds: the seeds.
     :param budget: run length (None: each reading's own).
+    :param learners: the learners, keys of :data:`LEARNERS` (default the thesis's ER-σ only).
     """
     jobs = []
     for name in readings:
         reading = READINGS[name]
         length = float(reading.budget if budget is None else budget)
         initial = () if reading.initial_value is None else (("initial_value", reading.initial_value),)
-        jobs += [
-            RunJob(
-                regime_experiment(name),
-                "er_sigma",
-                seed,
-                length,
-                run_csv_path(Path(out_dir) / name, "er_sigma", seed),
-                reading.env_kwargs,
-                initial,
-                label=f"{name}/er_sigma",
-            )
-            for seed in seeds
-        ]
+        for learner in learners:
+            jobs += [
+                RunJob(
+                    regime_experiment(name),
+                    "er_sigma",
+                    seed,
+                    length,
+                    run_csv_path(Path(out_dir) / name, learner, seed),
+                    reading.env_kwargs,
+                    tuple(sorted((*initial, ("preset", LEARNERS[learner])))),
+                    label=f"{name}/{learner}",
+                )
+                for seed in seeds
+            ]
     return jobs
 
 
@@ -259,6 +275,7 @@ def reproduce_sigma_regime(
     allow_mixed_versions: bool = False,
     env_kwargs: dict | None = None,
     readings: Sequence[str] | None = None,
+    learners: Sequence[str] | None = None,
 ):
     """`sb3-er reproduce sigma-regime`: the ER-σ runs of each reading, then ``summary.md`` and ``summary.csv`` with the
     regime figures. `budget` (episodes or seconds of learning) applies to readings of one unit only. Returns a
@@ -276,6 +293,8 @@ def reproduce_sigma_regime(
     :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
         None).
     :param readings: the readings' names (default None: all of :data:`READINGS`).
+    :param learners: the learners, keys of :data:`LEARNERS` (default None: both, the thesis's ER-σ and the stable
+        learner's).
     """
     from sb3_er.experiments.reproduce import Reproduction
 
@@ -284,6 +303,10 @@ def reproduce_sigma_regime(
     unknown = [name for name in readings if name not in READINGS]
     if unknown:
         raise ValueError(f"unknown readings {unknown}; choose from {', '.join(READINGS)}")
+    learners = list(dict.fromkeys(learners or LEARNERS))
+    unknown = [name for name in learners if name not in LEARNERS]
+    if unknown:
+        raise ValueError(f"unknown learners {unknown}; choose from {', '.join(LEARNERS)}")
     if env_kwargs:
         raise ValueError("sigma-regime runs each reading with its own env settings; --env-kwargs does not apply")
     units = {READINGS[name].unit for name in readings}
@@ -308,44 +331,49 @@ def reproduce_sigma_regime(
     for folder, pinned in settings.items():
         check_settings(folder, pinned)
     seeds = list(range(first_seed, first_seed + n_seeds))
-    jobs = regime_jobs(out_dir, readings, seeds, budget)
+    jobs = regime_jobs(out_dir, readings, seeds, budget, learners)
     done, skipped = run_analysis_jobs(
         jobs, out_dir, n_workers, show_progress, backend, address, allow_mixed_versions, settings=settings
     )
-    # The summary covers the folder: the readings run now (their requested seeds) and every other reading whose runs
-    # an earlier command left in it (all their finished seeds), so that running one reading keeps the others' rows.
-    summarized, lengths = {}, {}  # reading -> its seeds, its run length; in READINGS' order
+    # The summary covers the folder: the (reading, learner) pairs run now (their requested seeds) and every other
+    # pair whose runs an earlier command left in it (all their finished seeds), so that running one keeps the others.
+    summarized, lengths = {}, {}  # (reading, learner) -> its seeds; reading -> its run length; in READINGS' order
     for name in READINGS:
-        if name in readings:
-            summarized[name], lengths[name] = seeds, settings[out_dir / name]["budget"]
-        elif (out_dir / name / "settings.json").is_file():
-            found = sorted(
-                int(path.stem.removeprefix("seed_"))
-                for path in (out_dir / name / "runs" / "er_sigma").glob("seed_*.csv")
-            )
-            if found:
-                pinned = files.read_json(
-                    out_dir / name / "settings.json", f"rerun the reading with --readings {name} into a new --out"
+        for learner in LEARNERS:
+            if name in readings and learner in learners:
+                summarized[name, learner], lengths[name] = seeds, settings[out_dir / name]["budget"]
+            elif (out_dir / name / "settings.json").is_file():
+                found = sorted(
+                    int(path.stem.removeprefix("seed_"))
+                    for path in (out_dir / name / "runs" / learner).glob("seed_*.csv")
                 )
-                summarized[name], lengths[name] = found, float(pinned["budget"])
+                if found:
+                    pinned = files.read_json(
+                        out_dir / name / "settings.json", f"rerun the reading with --readings {name} into a new --out"
+                    )
+                    summarized[name, learner], lengths[name] = found, float(pinned["budget"])
     summary_jobs = [
-        job for name, its_seeds in summarized.items() for job in regime_jobs(out_dir, [name], its_seeds, lengths[name])
+        job
+        for (name, learner), its_seeds in summarized.items()
+        for job in regime_jobs(out_dir, [name], its_seeds, lengths[name], [learner])
     ]
     rows = []
-    for name, its_seeds in summarized.items():
+    for (name, learner), its_seeds in summarized.items():
         frames = {
             seed: read_run_csv(path)
             for seed in its_seeds
-            if (path := run_csv_path(out_dir / name, "er_sigma", seed)).is_file()
+            if (path := run_csv_path(out_dir / name, learner, seed)).is_file()
         }
-        rows.append({"reading": name, "results": READINGS[name].results, **summarize_regime(frames)})
+        rows.append(
+            {"reading": name, "learner": learner, "results": READINGS[name].results, **summarize_regime(frames)}
+        )
     table = pd.DataFrame(rows)
     table_csv = files.write_csv(out_dir / "summary.csv", table)
     counts = {len(its_seeds) for its_seeds in summarized.values()}
     per_reading = (
-        f"{counted(n_seeds, 'seed')} per reading"
+        f"{counted(n_seeds, 'seed')} per reading and learner"
         if counts == {n_seeds}
-        else "the runs per reading are counted in the last two columns"
+        else "the runs per reading and learner are counted in the last two columns"
     )
     lines = [
         f"# Which way ER-σ moves its targets: {per_reading}",
@@ -354,19 +382,19 @@ def reproduce_sigma_regime(
         "shares of targets σ raised and lowered; averaged over all phases of all runs, weighted by their updates. "
         "Values outside: runs whose value watch saw a target or Q-value outside the possible returns.",
         "",
-        "| Reading | Its table's results | Run length | Phases | Mean T_σ - T | Raised | Lowered | Values outside | "
-        "Diverged |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| Reading | Learner | Its table's results | Run length | Phases | Mean T_σ - T | Raised | Lowered | "
+        "Values outside | Diverged |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
-        reading = READINGS[row["reading"]]
+        reading, learner = READINGS[row["reading"]], LEARNER_TITLES[row["learner"]]
         length = f"{lengths[row['reading']]:g} {reading.unit}"
         folder = f"results/measured/{reading.results}" if reading.results else "—"
         if not row.get("phases"):
-            lines.append(f"| {reading.title} | {folder} | {length} | 0 | — | — | — | — | — |")
+            lines.append(f"| {reading.title} | {learner} | {folder} | {length} | 0 | — | — | — | — | — |")
             continue
         lines.append(
-            f"| {reading.title} | {folder} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
+            f"| {reading.title} | {learner} | {folder} | {length} | {row['phases']} | {row['mean_shift']:+.3g} | "
             f"{row['raised']:.1%} | {row['lowered']:.1%} | {row['left_bounds']} of {row['runs']} | "
             f"{row['diverged']} of {row['runs']} |"
         )

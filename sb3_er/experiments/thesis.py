@@ -6,13 +6,34 @@ Values are (average, difference with Sarsa(lambda) in percent) exactly as printe
 
 from __future__ import annotations
 
-ALGORITHM_LABELS = {
+LITERAL_LABELS = {
     "sarsa_lambda": "Sarsa(λ)",
     "er": "vanilla-ER",
     "er_sigma": "ER-σ",
     "residual_er": "residual ER",
     "residual_er_sigma": "residual ER-σ",
 }
+"""The thesis's five algorithms by rl-zoo name, with the labels of its tables."""
+
+#: The stable learner's rows of the tables: each ER class with ``preset="stable"`` (the projection of the weights
+#: onto the possible returns, docs/stable_replay.md) under the table's own replay protocol, judged against Sarsa(λ)
+#: on the thesis's claims for the same algorithm.
+STABLE_ROWS = {f"{algo}_stable": algo for algo in ("er", "er_sigma", "residual_er", "residual_er_sigma")}
+
+ALGORITHM_LABELS = {**LITERAL_LABELS, **{row: f"{LITERAL_LABELS[algo]} (stable)" for row, algo in STABLE_ROWS.items()}}
+"""Every row of the tables by name: the thesis's five algorithms, then the stable learner's rows."""
+
+
+def row_algorithm(row: str) -> tuple[str, dict[str, str]]:
+    """(the rl-zoo name of the algorithm, its constructor arguments) of a table's row: "er_sigma_stable" ->
+    ("er_sigma", {"preset": "stable"}); a literal row is its algorithm with no argument.
+
+    :param row: the row's name, a key of :data:`ALGORITHM_LABELS`.
+    """
+    if row in STABLE_ROWS:
+        return STABLE_ROWS[row], {"preset": "stable"}
+    return row, {}
+
 
 ThesisEntry = tuple[float | str | None, str]
 
