@@ -291,8 +291,9 @@ def _check_env_kwargs(parser: argparse.ArgumentParser, args: argparse.Namespace)
 def reproduce_command(argv: Sequence[str]) -> None:
     """`sb3-er reproduce EXPERIMENT [--seeds N] [--algos ...] [--out DIR] [--budget B] [--jobs J] [--backend ray ...]`.
 
-    Bad option combinations, a missing import (ray), version conflicts with finished runs, a folder another command
-    is writing and a damaged settings or record file exit with the message (status 2). SIGTERM (a scheduler's time
+    Bad option combinations, requests the command refuses (ValueError), a missing import (ray), version conflicts
+    with finished runs, a folder another command is writing and a damaged settings or record file exit with the
+    message (status 2). SIGTERM (a scheduler's time
     limit, ``timeout``) ends the command as Ctrl-C does: its worker processes and the Ray instance it started end
     with it, and the runs written so far stay for a resume.
 
@@ -357,7 +358,9 @@ def reproduce_command(argv: Sequence[str]) -> None:
                 env_kwargs=dict(args.env_kwargs),
                 algo_kwargs=dict(args.algo_kwargs),
             )
-    except (ImportError, MixedVersionsError, FolderLockedError, DamagedFileError) as error:
+    except (ImportError, MixedVersionsError, FolderLockedError, DamagedFileError, ValueError) as error:
+        # ValueError: a request the command refuses before any run (an argument no algorithm takes, a preset set
+        # over the table's rows, a budget of the wrong unit), named in its message
         parser.exit(2, f"sb3-er reproduce: error: {error}\n")
     finally:
         if previous is not None:

@@ -812,6 +812,20 @@ def test_which_algorithm_ranks_only_learners_with_enough_averaged_runs(tmp_path)
     assert "In short: Sarsa(λ) is the pick, or one of the picks, on 1 of these 1 tasks" in text
 
 
+def test_which_algorithm_reads_a_diverged_row_that_says_why_its_runs_are_left_out(tmp_path):
+    """Where an experiment has no random policy's score (the grid world), diverged runs are left out and their row
+    says so after the count: the runs made are read from the count, the note is not."""
+    rows = SUMMARY_CSV + (
+        "residual ER,Diverged runs,4.0,,4 of 20 (left out: this experiment has no random policy's score to count them"
+        " by),,—,—,16\n"
+    )
+    (tmp_path / "table_6_2").mkdir()
+    (tmp_path / "table_6_2" / "summary.csv").write_text(rows, encoding="utf-8")
+    (benchmark,), _ = generator.which_algorithm_benchmarks(tmp_path)
+    residual = next(score for score in benchmark.scores if score.algorithm == "residual_er")
+    assert residual.runs == 20 and residual.left_out == "diverged in 4 of 20 runs"
+
+
 def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committed(tmp_path):
     (tmp_path / "table_6_2").mkdir()
     (tmp_path / "table_6_2" / "summary.csv").write_text(SUMMARY_CSV, encoding="utf-8")

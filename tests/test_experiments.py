@@ -15,7 +15,7 @@ from sb3_er import ER, SarsaLambda
 from sb3_er.cli import main
 from sb3_er.experiments.protocols import EpisodeReturnProtocol, GreedyDistanceProtocol
 from sb3_er.experiments.records import read_record
-from sb3_er.experiments.reproduce import reproduce
+from sb3_er.experiments.reproduce import LeftOutRunWarning, reproduce
 from sb3_er.experiments.runner import plan_jobs, run_csv_path, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS
 
@@ -120,6 +120,19 @@ def test_a_table_gets_the_stable_learners_rows(tmp_path):
     assert (
         "ER-σ (stable)'s rise time is lower (better) than Sarsa(λ)'s (thesis for ER-σ: 9 against 22, -60 %)" in claims
     )
+    # a table's rows choose their preset: --algo-kwargs cannot set it over them
+    with pytest.raises(ValueError, match="rows choose their preset"):
+        reproduce("pendulum", n_seeds=1, algos=["er"], out_dir=tmp_path, budget=2, algo_kwargs={"preset": "stable"})
+    # a damaged run of a row this command does not run is left out of the summary and named, never averaged
+    damaged = run_csv_path(tmp_path, "er_sigma_stable", 0)
+    damaged.write_text(damaged.read_text().replace("False", "True", 1))
+    (damaged.parent / "seed_07.csv").write_text("not a run")  # a name no run has: ignored
+    with pytest.warns(LeftOutRunWarning, match="er_sigma_stable/seed_0"):
+        again = reproduce(
+            "pendulum", n_seeds=2, algos=["sarsa_lambda"], out_dir=tmp_path, budget=2, n_workers=1, show_progress=False
+        )
+    text = again.table_markdown.read_text()
+    assert "ER-σ (stable)" not in text and text.startswith("# Inverted pendulum swing-up: 2 seeds, 2 episodes")
 
 
 # The walker's earlier default reading (GRL's fall test, coordinates and start), on which Sarsa(lambda) walks within

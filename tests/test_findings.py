@@ -241,3 +241,28 @@ def test_runs_that_left_the_bounds_but_walked_give_a_verdict_the_runs_inside_can
 def test_without_runs_left_out_there_is_no_second_verdict():
     found = _verdicts(_curves([-100.0, -110.0, -90.0, -105.0, -95.0], [2] * 5))
     assert all("inside_only" not in f for f in found.values())
+
+
+def test_a_row_of_diverged_runs_never_rises_in_any_resample():
+    """Six runs that learned and six that diverged (each the random policy's score throughout): a resample of diverged
+    runs only has a flat mean curve, which has no rise (not a rise at its first point), so ER's "faster rise" cannot
+    hold on them."""
+    pendulum = EXPERIMENTS["pendulum"]
+    random_runs = np.full((6, X.size), pendulum.random_performance)
+    empty = Curves(X, np.zeros((0, X.size)), np.zeros((0, X.size)), (), tuple(range(6)), 1.0)
+    ours = _every_run(empty, random_runs, np.zeros_like(random_runs), "diverged")
+    found = _verdicts(ours)
+    assert found["rise_time"]["holds"] is not True and found["rise_time"]["difference"] > 0
+    assert found["end_performance"]["holds"] is False
+
+
+def test_the_evidence_on_all_runs_counts_the_runs_that_diverged():
+    """Three runs judged, one of them diverged and counted: the all-runs message names it, not "0 diverged"."""
+    pendulum = EXPERIMENTS["pendulum"]
+    inside = _curves([-100.0, -110.0], [2, 2])
+    random_run = np.full((1, X.size), pendulum.random_performance)
+    found = _verdicts(_every_run(inside, random_run, np.zeros_like(random_run), "diverged"))["end_performance"]
+    assert (
+        found["holds"] is None
+        and "vanilla-ER has 3 averaged runs (0 left the possible returns, 1 diverged)" in (found["evidence"])
+    )

@@ -129,12 +129,27 @@ def test_rise_time_is_invariant_to_positive_affine_rescaling(curve, scale, shift
     curve = np.array(curve)
     x = np.arange(len(curve)) * 10.0
     original = rise_time(x, curve)
-    assert original <= x[np.argmax(curve)]
     rescaled = rise_time(x, scale * curve + shift)
+    if curve.max() <= curve[0]:  # a curve that never rises above its first value has no rise
+        assert math.isnan(original)
+        return
+    assert original <= x[np.argmax(curve)]
     # rescaling may move values that sit exactly on the threshold by rounding; compare away from ties
     threshold = curve[0] + 0.9 * (curve.max() - curve[0])
     if np.min(np.abs(curve - threshold)) > 1e-6 * (1 + np.abs(curve).max()):
         assert rescaled == original
+
+
+def test_a_curve_that_never_rises_has_no_rise_and_no_settling():
+    """A mean curve that never rises above its first value (every run counted as learning nothing, such as a diverged
+    run at the random policy's score throughout) learned nothing: no rise at its first point, no settling."""
+    from sb3_er.experiments.metrics import settling_time
+
+    x = np.arange(1.0, 11.0)
+    for curve in (np.full(10, -54_130.0), np.linspace(-100.0, -200.0, 10)):
+        assert math.isnan(rise_time(x, curve)) and math.isnan(settling_time(x, curve))
+    summary = summarize_curves(x, np.full((3, 10), -54_130.0))
+    assert math.isnan(summary.rise_time) and summary.end_performance == -54_130.0
 
 
 def test_thesis_differences_are_computed_from_the_thesis_averages():
@@ -283,6 +298,37 @@ def test_every_run_diverged_counts_to_the_end_of_the_budget(tmp_path):
     table = summary_table(walker, {"er": curves}, budget=400.0).set_index(["algorithm", "metric"])
     assert table.loc[("vanilla-ER", "Rise time [s]"), "average_text"] == ">400"
     assert table.loc[("vanilla-ER", "End performance"), "average_text"] == "NA"  # no gait: below the success level
+
+
+def test_runs_that_all_diverged_before_their_first_record_count_to_the_budget(tmp_path):
+    """Every run of a row diverged before its first evaluation (header-only CSVs): the row is counted over the whole
+    budget at the random policy's score, never rises and has no falls; a walker budget that is not a multiple of the
+    evaluation interval ends at the budget, as a finished run's last evaluation does."""
+    import pandas as pd
+
+    from sb3_er.experiments.runner import run_csv_path
+    from sb3_er.experiments.summary import load_curves
+
+    pendulum, walker = EXPERIMENTS["pendulum"], EXPERIMENTS["walker"]
+    for seed in (0, 1):
+        _write_run(tmp_path, "sarsa_lambda", seed, [-100.0, -50.0, -20.0], [0, 0, 0])
+        path = run_csv_path(tmp_path, "er", seed)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        pd.DataFrame(columns=["episode", "return", "cumulative_falls", "wall_time_s", "values_out_of_range"]).assign(
+            diverged=pd.Series(dtype=bool)
+        ).to_csv(path, index=False)
+    curves = {algo: load_curves(pendulum, tmp_path, algo, range(2), budget=3) for algo in ("sarsa_lambda", "er")}
+    np.testing.assert_array_equal(curves["er"].all_runs().x, [1.0, 2.0, 3.0])
+    table = summary_table(pendulum, curves, budget=3).set_index(["algorithm", "metric"])
+    assert table.loc[("vanilla-ER", "End performance"), "average"] == pendulum.random_performance
+    assert table.loc[("vanilla-ER", "Rise time [episodes]"), "average_text"] == ">3"
+    assert math.isnan(table.loc[("vanilla-ER", "Settling time [episodes]"), "average"])
+    assert table.loc[("vanilla-ER", "Diverged runs"), "average_text"] == "2 of 2"
+    assert table.loc[("vanilla-ER", "Runs whose values left the possible returns"), "average_text"] == "0 of 2"
+    assert table.loc[("vanilla-ER", "End performance (inside only)"), "seeds"] == 0
+    _write_walker_run(tmp_path, "er_sigma", 0, [0.0], [0], diverged=True)
+    walker_curves = load_curves(walker, tmp_path, "er_sigma", [0], budget=450.0)
+    np.testing.assert_array_equal(walker_curves.all_runs().x, [0.0, 100.0, 200.0, 300.0, 400.0, 450.0])
 
 
 def test_without_a_random_score_diverged_runs_are_left_out_and_say_so(tmp_path):

@@ -1231,7 +1231,8 @@ def _thesis_benchmark(folder: str, task: str, measured: Path) -> Benchmark | Non
             for metric, row in own.items()
             if metric in ("Runs whose values left the possible returns", "Diverged runs") and number(row["average"])
         ]
-        runs = max([int(end["seeds"] or 0)] + [int(text.split(" of ")[1]) for _, text in left if " of " in text])
+        made = [re.match(r"\d+ of (\d+)", text) for _, text in left]  # "4 of 20 (left out: ...)" -> 20
+        runs = max([int(end["seeds"] or 0)] + [int(match.group(1)) for match in made if match])
         falls = own.get("Falls")
         scores.append(
             Score(
@@ -1247,7 +1248,7 @@ def _thesis_benchmark(folder: str, task: str, measured: Path) -> Benchmark | Non
                 falls["average_text"] if falls else "",
                 "; ".join(
                     ("values left the possible returns" if metric.startswith("Runs") else "diverged")
-                    + f" in {text} runs"
+                    + f" in {text.split(' (')[0]} runs"  # "4 of 20", without the row's note
                     for metric, text in left
                 ),
             )

@@ -56,12 +56,14 @@ N_RESAMPLES = 2000
 MIN_AVERAGED_RUNS = 5
 
 
-def _too_few(algo: str, curves: Curves) -> str:
-    """Why `algo`'s averaged runs are too few for a verdict ("" when there are enough)."""
+def _too_few(algo: str, curves: Curves, source: Curves | None = None) -> str:
+    """Why `algo`'s averaged runs are too few for a verdict ("" when there are enough); `source`: the curves as loaded,
+    whose counts of runs that left or diverged the message names (default: `curves`)."""
     n = len(curves.seeds)
     if n >= MIN_AVERAGED_RUNS:
         return ""
-    left, diverged = len(curves.out_of_bounds_seeds), len(curves.diverged_seeds)
+    source = curves if source is None else source
+    left, diverged = len(source.out_of_bounds_seeds), len(source.diverged_seeds)
     return (
         f"{ALGORITHM_LABELS.get(algo, algo)} has {counted(n, 'averaged run')} "
         f"({left} left the possible returns, {diverged} diverged), fewer than the {MIN_AVERAGED_RUNS} a bootstrap "
@@ -245,8 +247,10 @@ def _judged(
     run_end: float,
     rng: np.random.Generator,
     n_resamples: int,
+    sources: tuple[Curves | None, Curves | None] = (None, None),
 ) -> dict[str, Any]:
-    """One finding on the rows of `ours` and `reference` (module docstring's rule)."""
+    """One finding on the rows of `ours` and `reference` (module docstring's rule); `sources`: their curves as loaded,
+    whose counts the evidence names (default: the curves judged)."""
     sign = thesis_sign(str(experiment.thesis_table[row_algorithm(algo)[0]][metric][1]))
     if reference is None or not reference.seeds or ours is None or not ours.seeds:
         evidence = (_nothing_averaged(algo, ours) + _nothing_averaged(REFERENCE, reference)).strip()
@@ -278,7 +282,9 @@ def _judged(
         else (f"{format_figure(difference, scale, signed=True, whole=whole)}{unit}")
     )
     evidence = f"ours {ours_text}, {interval}"
-    too_few = "; ".join(reason for reason in (_too_few(algo, ours), _too_few(REFERENCE, reference)) if reason)
+    too_few = "; ".join(
+        reason for reason in (_too_few(algo, ours, sources[0]), _too_few(REFERENCE, reference, sources[1])) if reason
+    )
     if too_few:
         evidence = f"{too_few} ({evidence})"
     return {
@@ -356,7 +362,16 @@ def table_findings(
                 continue
             claim = _claim(algo, metric, sign, entry, table[REFERENCE][metric])
             everything = _judged(
-                experiment, algo, metric, claim, _on_all_runs(ours), _on_all_runs(reference), run_end, rng, n_resamples
+                experiment,
+                algo,
+                metric,
+                claim,
+                _on_all_runs(ours),
+                _on_all_runs(reference),
+                run_end,
+                rng,
+                n_resamples,
+                sources=(ours, reference),
             )
             inside = (
                 _judged(experiment, algo, metric, claim, ours, reference, run_end, inside_rng, n_resamples)

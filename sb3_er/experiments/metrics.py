@@ -61,7 +61,9 @@ def rise_time(abscissa, mean_curve, end: float | None = None, fraction: float = 
 
     `end` defaults to the curve's maximum (the end performance). For curves starting at zero, such as walked distance,
     this is the thesis's "time to reach 90% of the end performance"; measuring from the first value also makes it
-    meaningful for negative returns (pendulum). NaN when `end` is NaN (no gait learned) or is never reached.
+    meaningful for negative returns (pendulum). NaN when `end` is NaN (no gait learned) or is never reached, and when
+    the curve never rises above its first value (a run that learned nothing, such as a diverged run counted at the
+    random policy's score, has no rise: its rise is beyond the run, not at its first point).
 
     :param abscissa: the curve's x values (episodes or seconds), (P,).
     :param mean_curve: the mean curve over seeds, (P,).
@@ -75,7 +77,7 @@ def rise_time(abscissa, mean_curve, end: float | None = None, fraction: float = 
     if not 0.0 < fraction <= 1.0:
         raise ValueError(f"fraction must lie in (0, 1], got {fraction}")
     target_end = float(np.max(curve)) if end is None else float(end)
-    if np.isnan(target_end):
+    if np.isnan(target_end) or target_end <= curve[0] or np.max(curve) <= curve[0]:
         return float("nan")
     threshold = curve[0] + fraction * (target_end - curve[0])
     reached = np.flatnonzero(curve >= threshold)
@@ -90,7 +92,7 @@ def settling_time(abscissa, mean_curve, tolerance: float = 0.1, plateau_points: 
     whose cost is <= (1 + tolerance) * the plateau's cost. Unlike the thesis's rise time, it does not measure from the
     first value nor from the best value, so once a run is long enough to reach its plateau, a longer run leaves it
     unchanged (the thesis's rise time moves with the run length whenever the mean curve still creeps up at its end).
-    NaN when the plateau is 0.
+    NaN when the plateau is 0, and when the curve never rises above its first value (nothing learned: no settling).
 
     :param abscissa: the curve's x values (episodes or seconds), (P,).
     :param mean_curve: the mean curve over seeds, (P,).
@@ -106,7 +108,7 @@ def settling_time(abscissa, mean_curve, tolerance: float = 0.1, plateau_points: 
     if int(plateau_points) != plateau_points or plateau_points < 1:
         raise ValueError(f"plateau_points must be a positive integer, got {plateau_points}")
     plateau = float(np.mean(curve[-int(plateau_points) :]))
-    if plateau == 0.0 or np.isnan(plateau):
+    if plateau == 0.0 or np.isnan(plateau) or np.max(curve) <= curve[0]:
         return float("nan")
     threshold = plateau * (1.0 - tolerance) if plateau > 0 else plateau * (1.0 + tolerance)
     reached = np.flatnonzero(curve >= threshold)

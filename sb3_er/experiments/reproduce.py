@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +15,7 @@ from sb3_er.experiments import files, records
 from sb3_er.experiments.runner import BACKENDS, RunJob, plan_jobs, read_run_csv, run_jobs
 from sb3_er.experiments.specs import EXPERIMENTS, Experiment
 from sb3_er.experiments.summary import load_curves, markdown_table, summary_table
-from sb3_er.experiments.thesis import ALGORITHM_LABELS
+from sb3_er.experiments.thesis import ALGORITHM_LABELS, STABLE_ROWS
 
 ALL_ALGORITHMS = tuple(ALGORITHM_LABELS)
 
@@ -83,17 +84,48 @@ def _code_versions_line(out_dir: Path, rows: dict[str, list[int]]) -> str:
     return records.code_versions_line([records.read_record(path) for path in paths if path.is_file()])
 
 
-def _finished_rows(out_dir: Path, algos: Sequence[str], seeds: Sequence[int]) -> dict[str, list[int]]:
-    """{row: seeds} of the summary, in the tables' order: this command's rows and seeds, and every other row and seed
-    of the folder's finished runs (``runs/<row>/seed_<n>.csv``; one folder holds one reading and run length, pinned by
-    its ``settings.json``), so that rows run by several commands (LEO's stable rows with fewer seeds) share one
-    table."""
+class LeftOutRunWarning(UserWarning):
+    """Runs of rows a command did not run whose files do not match their records (or have none): left out of the
+    summary, and named; the command with ``--algos <row>`` checks them again and redoes them."""
+
+
+def _finished_rows(
+    experiment: Experiment,
+    out_dir: Path,
+    algos: Sequence[str],
+    seeds: Sequence[int],
+    budget: float,
+    env_kwargs: dict,
+    algo_kwargs: dict,
+) -> dict[str, list[int]]:
+    """{row: seeds} of the summary, in the tables' order: this command's rows and seeds, and every other finished run
+    of the folder (``runs/<row>/seed_<n>.csv``; one folder holds one reading and run length, pinned by its
+    ``settings.json``), so that rows run by several commands (LEO's stable rows with fewer seeds) share one table. A
+    run of another row or seed is summarized only when its files match its record (:func:`runner.check_run`); the
+    others are named in a LeftOutRunWarning."""
+    from sb3_er.experiments.runner import check_run, row_jobs
+
     rows: dict[str, set[int]] = {algo: set(seeds) for algo in algos}
-    runs = Path(out_dir) / "runs"
+    runs, left_out = Path(out_dir) / "runs", []
     for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
-        if folder.is_dir() and folder.name in ALGORITHM_LABELS:
-            found = (re.fullmatch(r"seed_(\d+)\.csv", path.name) for path in folder.iterdir())
-            rows.setdefault(folder.name, set()).update(int(match.group(1)) for match in found if match)
+        if not (folder.is_dir() and folder.name in ALGORITHM_LABELS):
+            continue
+        found = (re.fullmatch(r"seed_(0|[1-9]\d*)\.csv", path.name) for path in folder.iterdir() if path.is_file())
+        done_here = rows.get(folder.name, set())
+        others = sorted(seed for match in found if match and (seed := int(match.group(1))) not in done_here)
+        for job in row_jobs(experiment, folder.name, others, budget, out_dir, env_kwargs, algo_kwargs):
+            done, problem = check_run(job)
+            if done:
+                rows.setdefault(folder.name, set()).add(job.seed)
+            else:
+                left_out.append(problem or f"{job.csv_path}: not finished")
+    if left_out:
+        warnings.warn(
+            "left out of the summary, their files do not match their records: " + "; ".join(left_out) + " (run the "
+            "command with --algos naming their rows to check and redo them)",
+            LeftOutRunWarning,
+            stacklevel=3,
+        )
     return {row: sorted(rows[row]) for row in ALGORITHM_LABELS if row in rows}
 
 
@@ -179,6 +211,11 @@ def reproduce(
     env_kwargs, algo_kwargs = dict(env_kwargs or {}), dict(algo_kwargs or {})
     check_env_kwargs(experiment.env_id, env_kwargs)  # once, before any run: not one failure per run
     _check_algo_kwargs(algos, algo_kwargs)
+    if "preset" in algo_kwargs:
+        raise ValueError(
+            "a table's rows choose their preset: the thesis's algorithms run preset='thesis', the stable learner's "
+            f"rows preset='stable' (--algos {' '.join(STABLE_ROWS)}); --algo-kwargs cannot set it"
+        )
     out_dir = Path(out_dir if out_dir is not None else Path("results") / experiment.name)
     files.lock_folder(out_dir)  # one writer per folder, until this function returns
     settings = _settings(experiment, budget, env_kwargs, algo_kwargs)
@@ -201,7 +238,8 @@ def reproduce(
         on_written=lambda job: records.pin_settings(out_dir, settings),
     )
 
-    rows = _finished_rows(out_dir, algos, seeds)  # this command's rows and seeds, and those of earlier commands
+    # this command's rows and seeds, and the finished runs of earlier commands
+    rows = _finished_rows(experiment, out_dir, algos, seeds, budget, env_kwargs, algo_kwargs)
     curves = {row: load_curves(experiment, out_dir, row, row_seeds, budget) for row, row_seeds in rows.items()}
     curves = {row: curve for row, curve in curves.items() if curve is not None}
     table = summary_table(experiment, curves, budget)
@@ -241,10 +279,15 @@ def reproduce(
         markdown_table(experiment, table),
         "",
         experiment.thesis_caption,
-        "Averages count every run: a run whose values left the possible returns with its own curve, a diverged run "
-        "as one that learned nothing (the random policy's score throughout, its falls going on at its last rate to "
-        "the end of the run); their counts have rows of their own, and rows marked (inside only) average the runs "
-        "that stayed inside. Rise time is measured on the mean curve.",
+        "Averages count every run: a run whose values left the possible returns with its own curve, "
+        + (
+            "a diverged run as one that learned nothing (the random policy's score throughout, its falls going on at "
+            "its last rate to the end of the run)"
+            if experiment.random_performance is not None
+            else "a diverged run not at all (this experiment has no random policy's score to count it by)"
+        )
+        + "; their counts have rows of their own, and rows marked (inside only) average the runs that stayed inside. "
+        "Rise time is measured on the mean curve.",
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),

@@ -437,11 +437,46 @@ def split_finished(jobs: list[RunJob]) -> tuple[list[RunJob], list[RunJob]]:
     return to_run, finished
 
 
+def row_jobs(
+    experiment: Experiment, row: str, seeds, budget: float, out_dir: Path, env_kwargs=None, algo_kwargs=None
+) -> list[RunJob]:
+    """The jobs of one row of a table over `seeds` (the first seed's run makes the per-run figures' data): a stable
+    row runs its algorithm with ``preset="stable"`` (:func:`sb3_er.experiments.thesis.row_algorithm`).
+
+    :param experiment: the experiment the runs belong to.
+    :param row: the row, an algorithm's rl-zoo name or a stable learner's row such as "er_sigma_stable".
+    :param seeds: the seeds.
+    :param budget: run length in the experiment's unit (episodes or seconds of learning time).
+    :param out_dir: the results folder.
+    :param env_kwargs: ``gymnasium.make`` keyword arguments of the runs' envs (default None: none).
+    :param algo_kwargs: constructor overrides by parameter name (default None: none).
+    """
+    from sb3_er.experiments.thesis import row_algorithm
+
+    seeds = list(seeds)
+    algo, own = row_algorithm(row)
+    algo_items = tuple(sorted({**(algo_kwargs or {}), **own}.items()))
+    return [
+        RunJob(
+            experiment,
+            algo,
+            seed,
+            budget,
+            run_csv_path(out_dir, row, seed),
+            tuple(sorted((env_kwargs or {}).items())),
+            algo_items,
+            figure_run=seed == seeds[0],
+            label="" if row == algo else row,
+        )
+        for seed in seeds
+    ]
+
+
 def plan_jobs(
     experiment: Experiment, algos, seeds, budget: float, out_dir: Path, env_kwargs=None, algo_kwargs=None
 ) -> tuple[list[RunJob], list[RunJob]]:
-    """All jobs of the reproduction, split into (to run, already finished) by :func:`split_finished` (which moves
-    damaged runs aside). The first seed's runs make the per-run figures' data.
+    """All jobs of the reproduction (:func:`row_jobs` of each row), split into (to run, already finished) by
+    :func:`split_finished` (which moves damaged runs aside).
 
     :param experiment: the experiment the runs belong to.
     :param algos: the table's rows: the algorithms' rl-zoo names, or a stable learner's row such as
@@ -450,30 +485,9 @@ def plan_jobs(
     :param budget: run length in the experiment's unit (episodes or seconds of learning time).
     :param out_dir: the results folder.
     :param env_kwargs: ``gymnasium.make`` keyword arguments of the runs' envs (default None: none).
-    :param algo_kwargs: constructor overrides by parameter name (default None: none); a stable row's preset wins.
+    :param algo_kwargs: constructor overrides by parameter name (default None: none).
     """
-    from sb3_er.experiments.thesis import row_algorithm
-
-    env_items = tuple(sorted((env_kwargs or {}).items()))
-    seeds = list(seeds)
-    jobs = []
-    for row in algos:
-        algo, own = row_algorithm(row)  # a stable row: its algorithm with preset="stable", over any algo_kwargs
-        algo_items = tuple(sorted({**(algo_kwargs or {}), **own}.items()))
-        jobs += [
-            RunJob(
-                experiment,
-                algo,
-                seed,
-                budget,
-                run_csv_path(out_dir, row, seed),
-                env_items,
-                algo_items,
-                figure_run=seed == seeds[0],
-                label="" if row == algo else row,
-            )
-            for seed in seeds
-        ]
+    jobs = [job for row in algos for job in row_jobs(experiment, row, seeds, budget, out_dir, env_kwargs, algo_kwargs)]
     return split_finished(jobs)
 
 

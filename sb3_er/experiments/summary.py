@@ -122,17 +122,29 @@ def left_the_bounds(frame: pd.DataFrame) -> bool | None:
     return None if last < 0 else last > 0
 
 
+def budget_abscissa(experiment: Experiment, budget: float) -> np.ndarray:
+    """The abscissa of a finished run of `budget`: episodes 1 .. budget, or the evaluations' learning times 0, one
+    interval, ..., and the budget itself when it is not a multiple of the interval (the walking protocol's last
+    evaluation, :func:`sb3_er.experiments.runner.expected_rows`).
+
+    :param experiment: the experiment (its protocol and evaluation interval).
+    :param budget: the run length in episodes or seconds of learning time.
+    """
+    if experiment.protocol == "episodes":
+        return np.arange(1.0, math.floor(float(budget)) + 1.0)
+    interval = float(experiment.eval_interval)
+    x = interval * np.arange(math.floor(float(budget) / interval + 1e-9) + 1)
+    return x if math.isclose(x[-1], float(budget)) else np.append(x, float(budget))
+
+
 def _abscissa(experiment: Experiment, frames: dict, complete_seeds: list, length: int, budget) -> np.ndarray:
-    """The common abscissa: the complete runs' (cut to the shortest); without one, the longest diverged run's x steps
-    continued to `budget` (or to its own end when no budget is given)."""
+    """The common abscissa: the complete runs' (cut to the shortest); without one, a finished run's of `budget`, or
+    the longest diverged run's own when no budget is given."""
     if complete_seeds:
         return frames[complete_seeds[0]][experiment.x_column].iloc[:length].to_numpy(dtype=float)
-    longest = max(frames.values(), key=len)
-    x = longest[experiment.x_column].to_numpy(dtype=float)
-    if budget is None or x.size < 2:
-        return x
-    step = x[1] - x[0]  # one evaluation interval (walking) or one episode
-    return x[0] + step * np.arange(int(math.floor((float(budget) - x[0]) / step + 1e-9)) + 1)
+    if budget is not None:
+        return budget_abscissa(experiment, budget)
+    return max(frames.values(), key=len)[experiment.x_column].to_numpy(dtype=float)
 
 
 def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds, budget: float | None = None) -> Curves | None:
@@ -143,7 +155,7 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds, budget:
     :param algo: the algorithm's rl-zoo name.
     :param seeds: the seeds to read.
     :param budget: the runs' length, the end of a diverged run's counted curve when no run is complete (default None:
-        the longest diverged run's end).
+        the longest diverged run's end; a table always gives it).
     """
     frames = {seed: read_run_csv(path) for seed in seeds if (path := run_csv_path(out_dir, algo, seed)).is_file()}
     if not frames:
@@ -180,7 +192,9 @@ def load_curves(experiment: Experiment, out_dir: Path, algo: str, seeds, budget:
         diverged_seeds=diverged,
         wall_time_s=float(sum(frame["wall_time_s"].iloc[-1] for frame in frames.values() if not frame.empty)),
         out_of_bounds_seeds=out_of_bounds,
-        unwatched_seeds=tuple(seed for seed in sorted(frames) if left_the_bounds(frames[seed]) is None),
+        unwatched_seeds=tuple(
+            seed for seed in sorted(frames) if seed not in diverged and left_the_bounds(frames[seed]) is None
+        ),
         all_performance=every_run(experiment.performance_column, 0),
         all_cumulative_falls=every_run("cumulative_falls", 1),
         all_seeds=tuple(every),
@@ -193,7 +207,7 @@ def summarize(experiment: Experiment, curves: Curves) -> CurveSummary | None:
     :param experiment: the experiment (its units and thesis table).
     :param curves: one algorithm's curves.
     """
-    if not curves.seeds:
+    if not curves.seeds or curves.x.size == 0:
         return None
     return summarize_curves(
         curves.x / experiment.rise_time_scale,
@@ -304,11 +318,12 @@ COUNT_ROWS = ("diverged", "left_bounds")
 
 def _out_of_bounds_row(curve: Curves) -> tuple:
     """("left_bounds", name, count, None, text): how many runs' values left the possible returns, or "not measured"
-    for the runs made before the value watch."""
+    for the runs made before the value watch (a diverged run is counted in its own row)."""
     name = "Runs whose values left the possible returns"
     count = len(curve.out_of_bounds_seeds)
-    unwatched = curve.n_runs if curve.unwatched_seeds is None else len(curve.unwatched_seeds)
-    if unwatched == curve.n_runs:
+    complete = curve.n_runs - len(curve.diverged_seeds)
+    unwatched = complete if curve.unwatched_seeds is None else len(curve.unwatched_seeds)
+    if complete and unwatched == complete:
         return "left_bounds", name, float("nan"), None, "not measured"
     text = f"{count} of {curve.n_runs}"
     if unwatched:
@@ -348,7 +363,8 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
         label = ALGORITHM_LABELS.get(algo, algo)
 
         def rise_text(of: CurveSummary) -> str | None:
-            return f">{format_figure(run_end)}" if math.isnan(of.rise_time) and of.n_seeds else None
+            whole = float(run_end).is_integer()  # episodes, or seconds
+            return f">{format_figure(run_end, whole=whole)}" if math.isnan(of.rise_time) and of.n_seeds else None
 
         metrics = [
             ("rise_time", f"Rise time [{experiment.rise_time_unit}]", summary.rise_time, None, rise_text(summary)),
@@ -397,7 +413,7 @@ def summary_table(experiment: Experiment, curves: dict[str, Curves], budget: flo
                     else _format_difference(value, reference_value, algo),
                     "thesis_average": thesis_value,
                     "thesis_difference": thesis_difference,
-                    "seeds": summary.n_seeds,
+                    "seeds": (inside[algo] or no_run).n_seeds if of_inside else summary.n_seeds,
                 }
             )
     return pd.DataFrame(rows)
