@@ -49,8 +49,8 @@ lint: $(STAMP)
 
 # The main job in about a minute on 2 idle cores, 2-3 on busy ones (after make test built the venv): Sarsa(lambda)
 # and ER-sigma on the simplest walker, 5 seeds (the fewest with which a side of a finding can get a verdict,
-# sb3_er.experiments.findings; runs whose values leave the possible returns are not averaged, so a demo finding may
-# stay inconclusive), 2500 s of learning each (half the thesis's 5000 s; whole-episode replay makes an ER-sigma run
+# sb3_er.experiments.findings; every run is judged, those whose values leave the possible returns too, so a demo
+# finding with 5 seeds may still be inconclusive), 2500 s of learning each (half the thesis's 5000 s; whole-episode replay makes an ER-sigma run
 # take 8-11 s against Sarsa(lambda)'s 1-2 s).
 demo: $(STAMP)
 	$(BIN)/sb3-er reproduce walker --seeds 5 --algos sarsa_lambda er_sigma --budget 2500 --out results/demo

@@ -261,7 +261,8 @@ def _analysis_options(parser: argparse.ArgumentParser, args: argparse.Namespace)
         given["algos"] = args.algos
     foreign = sorted(f"--{dest.replace('_', '-')}" for dest in given if dest not in own)
     if foreign:
-        parser.error(f"{', '.join(foreign)} does not apply to {args.experiment}")
+        hint = " (it chooses its learners with --learners)" if args.experiment == "sigma-regime" else ""
+        parser.error(f"{', '.join(foreign)} does not apply to {args.experiment}{hint}")
     if args.experiment not in ANALYSIS_NAMES:
         return {}
     return {

@@ -114,7 +114,15 @@ def test_a_table_gets_the_stable_learners_rows(tmp_path):
     assert "| Sarsa(λ) | Rise time" in markdown and "| ER-σ | Rise time" in markdown
     kwargs = {algo: read_record(run_csv_path(tmp_path, algo, 0))["config"]["algorithm_kwargs"] for algo in algos[1:]}
     assert kwargs["er_sigma"]["preset"] == "thesis" and kwargs["er_sigma_stable"]["preset"] == "stable"
-    assert read_record(run_csv_path(tmp_path, "er_sigma_stable", 0))["config"]["algorithm"] == "er_sigma"
+    stable = read_record(run_csv_path(tmp_path, "er_sigma_stable", 0))
+    assert stable["config"]["algorithm"] == "er_sigma"
+    # the record holds what the preset resolved, not only the arguments as given (None: "the preset's")
+    assert stable["resolved"]["algorithm"]["project_weights"] is None
+    assert stable["resolved"]["stabilizers"]["project_weights"] is True
+    literal = read_record(run_csv_path(tmp_path, "er_sigma", 0))["resolved"]["stabilizers"]
+    assert (
+        literal["project_weights"] is False and literal["n_replays"] == stable["resolved"]["stabilizers"]["n_replays"]
+    )
     assert "| ER-σ (stable) | Rise time" in markdown
     claims = [f["claim"] for f in json.loads((tmp_path / "findings.json").read_text())["findings"]]
     assert (

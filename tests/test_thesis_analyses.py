@@ -245,6 +245,11 @@ def test_analysis_options_are_checked(tmp_path, capsys):
         (["reproduce", "replay-order", "--algos", "er"], "--algos does not apply to replay-order"),
         (["reproduce", "walker", "--sigmas", "best"], "--sigmas does not apply to walker"),
         (["reproduce", "pessimistic", "--algo-kwargs", "gamma:0.9"], "--algo-kwargs does not apply to pessimistic"),
+        (
+            ["reproduce", "sigma-regime", "--algos", "er_sigma_stable"],
+            "--algos does not apply to sigma-regime (it chooses its learners with --learners)",
+        ),
+        (["reproduce", "pendulum", "--learners", "er_sigma"], "--learners does not apply to pendulum"),
     ):
         with pytest.raises(SystemExit) as exit_info:
             main([*argv, "--out", str(tmp_path)])

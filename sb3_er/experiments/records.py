@@ -248,8 +248,10 @@ def resolved_settings(model, env) -> dict[str, Any]:
     """What `model` (a tile-coded sb3_er algorithm) and `env` (a Gymnasium env) hold after construction.
 
     ``algorithm``: each constructor parameter of the model's classes defined in sb3_er, read back from the model's
-    attribute of that name when it has one. ``env``: the unwrapped env's constructor arguments, the ones given to
-    ``gymnasium.make`` with the defaults of the rest.
+    attribute of that name when it has one (as given: None for a stabilizer its preset fills). ``stabilizers``: an ER
+    class's stabilizers and replay volume as its preset resolved them (``model.stabilizers``; absent for the other
+    classes). ``env``: the unwrapped env's constructor arguments, the ones given to ``gymnasium.make`` with the
+    defaults of the rest.
 
     :param model: the constructed sb3-er algorithm.
     :param env: its Gymnasium env (wrapped or not).
@@ -272,7 +274,10 @@ def resolved_settings(model, env) -> dict[str, Any]:
         env_arguments = dict(bound.arguments)
     except (TypeError, ValueError):
         env_arguments = given
-    return normalized({"algorithm": algorithm, "env": env_arguments})
+    resolved = {"algorithm": algorithm, "env": env_arguments}
+    if getattr(model, "stabilizers", None):
+        resolved["stabilizers"] = dict(model.stabilizers)
+    return normalized(resolved)
 
 
 def dependency_versions(names: Iterable[str] = DEPENDENCIES) -> dict[str, str | None]:

@@ -281,13 +281,14 @@ def reproduce(
         experiment.thesis_caption,
         "Averages count every run: a run whose values left the possible returns with its own curve, "
         + (
-            "a diverged run as one that learned nothing (the random policy's score throughout, its falls going on at "
-            "its last rate to the end of the run)"
+            "a diverged run as one that learned nothing (the random policy's score throughout"
+            + (", its falls going on at its last rate to the end of the run)" if experiment.has_falls else ")")
             if experiment.random_performance is not None
             else "a diverged run not at all (this experiment has no random policy's score to count it by)"
         )
         + "; their counts have rows of their own, and rows marked (inside only) average the runs that stayed inside. "
-        "Rise time is measured on the mean curve.",
+        "Rise time is measured on the mean curve, to 90 % of its way from its first value to its best; settling time "
+        "is its first point within 10 % of its final plateau, so it can come before the rise time.",
         "",
         "Learning wall time per algorithm (sum over its runs): "
         + ", ".join(f"{ALGORITHM_LABELS[algo]} {curve.wall_time_s:.0f} s" for algo, curve in curves.items()),
