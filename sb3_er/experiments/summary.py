@@ -268,9 +268,9 @@ def _thesis_number(value) -> tuple[float, str]:
 
 
 def thesis_difference(experiment: Experiment, algo: str, metric: str) -> str:
-    """The thesis's difference with Sarsa(lambda), computed from its own averages (percent of Sarsa(lambda)'s value),
-    with the printed figure beside it where the two differ by more than rounding (e.g. walker falls of vanilla ER:
-    150 against 74 is +103 %, printed +51 %).
+    """The thesis's difference with Sarsa(lambda): the printed figure where the one computed from its own averages
+    (percent of Sarsa(lambda)'s value) agrees with it up to rounding (the findings quote the same), else the computed
+    one with the printed figure beside it (e.g. walker falls of vanilla ER: 150 against 74 is +103 %, printed +51 %).
 
     :param experiment: the experiment (its units and thesis table).
     :param algo: the algorithm's rl-zoo name.
@@ -294,7 +294,7 @@ def thesis_difference(experiment: Experiment, algo: str, metric: str) -> str:
         agrees = abs(float(printed_number) - difference) <= 1.5
     except ValueError:
         agrees = False
-    return computed if agrees else f"{computed} (printed {printed})"
+    return printed if agrees else f"{computed} (printed {printed})"
 
 
 def _thesis_cells(experiment: Experiment, algo: str, metric: str) -> tuple[str, str]:
