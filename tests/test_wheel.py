@@ -145,7 +145,9 @@ def test_reproduce_runs_from_the_wheel(venv, tmp_path):
         ["sb3-er", "reproduce", "gridworld", "--seeds", "1", "--budget", "3", "--no-progress", "--jobs", "1"],
         tmp_path,
     )
-    assert re.search(r"^5 runs done", result.stdout, flags=re.MULTILINE)  # the five algorithms, one seed each
+    # the default rows, one seed each: the thesis's five algorithms and the stable learner's four
+    assert re.search(r"^9 runs done", result.stdout, flags=re.MULTILINE)
+    assert "(stable)" in result.stdout
     out = tmp_path / "results" / "gridworld"
     assert (out / "summary.md").is_file()
     record = json.loads(next((out / "runs").glob("*/seed_0.json")).read_text())
