@@ -28,7 +28,7 @@ SIGMA_REGIME_READINGS = (
     "walker-optimistic",
     "leo",
 )
-SIGMA_REGIME_LEARNERS = ("er_sigma", "er_sigma_stable")  # kept in step with sigma_regime.LEARNERS (a test checks)
+SIGMA_REGIME_LEARNERS = ("er_sigma", "er_sigma_stable")  # sigma_regime.LEARNERS (a test checks)
 
 
 def _name_value(text: str) -> tuple[str, object]:

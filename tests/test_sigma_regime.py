@@ -9,12 +9,12 @@ from sb3_er.experiments.runner import run_csv_path
 from sb3_er.experiments.sigma_regime import READINGS, reproduce_sigma_regime, summarize_regime
 
 
-def _tiny_study(out_dir):
-    """The thesis's ER-σ on two readings, 4 episodes, one seed."""
+def _tiny_study(out_dir, n_seeds=1, budget=4, readings=("gridworld", "pendulum-3.3")):
+    """The thesis's ER-σ on `readings`, `budget` episodes, `n_seeds` seeds."""
     return reproduce_sigma_regime(
-        n_seeds=1,
-        budget=4,
-        readings=["gridworld", "pendulum-3.3"],
+        n_seeds=n_seeds,
+        budget=budget,
+        readings=list(readings),
         learners=["er_sigma"],
         n_workers=1,
         out_dir=out_dir,
@@ -106,24 +106,8 @@ def test_each_reading_is_its_tables_reading():
 def test_running_one_reading_keeps_the_rows_of_the_others(tmp_path):
     """The summary covers the folder: a later command for one reading keeps the earlier readings' rows, lengths and
     runs, and says how many runs each row has when they differ."""
-    reproduce_sigma_regime(
-        n_seeds=2,
-        budget=3,
-        readings=["gridworld"],
-        learners=["er_sigma"],
-        n_workers=1,
-        out_dir=tmp_path,
-        show_progress=False,
-    )
-    result = reproduce_sigma_regime(
-        n_seeds=1,
-        budget=2,
-        readings=["pendulum-3.3"],
-        learners=["er_sigma"],
-        n_workers=1,
-        out_dir=tmp_path,
-        show_progress=False,
-    )
+    _tiny_study(tmp_path, n_seeds=2, budget=3, readings=["gridworld"])
+    result = _tiny_study(tmp_path, budget=2, readings=["pendulum-3.3"])
     text = result.table_markdown.read_text()
     gridworld = next(line for line in text.splitlines() if line.startswith("| windy cliff grid world"))
     assert "| 3 episodes | 6 |" in gridworld and gridworld.endswith("of 2 |")  # 2 runs of 3 episodes
@@ -142,12 +126,12 @@ def test_the_stable_learner_has_its_own_rows_and_holds_its_values_inside(tmp_pat
     from sb3_er.cli import SIGMA_REGIME_LEARNERS
     from sb3_er.experiments.sigma_regime import LEARNERS
 
-    assert SIGMA_REGIME_LEARNERS == tuple(LEARNERS)
+    assert SIGMA_REGIME_LEARNERS == LEARNERS
     result = reproduce_sigma_regime(
         n_seeds=1, first_seed=1, budget=10, readings=["gridworld"], n_workers=2, out_dir=tmp_path, show_progress=False
     )
     folder = tmp_path / "gridworld"
-    for learner, preset in LEARNERS.items():
+    for learner, preset in zip(LEARNERS, ("thesis", "stable"), strict=True):
         record = json.loads(run_csv_path(folder, learner, 1).with_suffix(".json").read_text())
         assert record["config"]["algorithm_kwargs"]["preset"] == preset
     summary = pd.read_csv(result.table_csv).set_index("learner")

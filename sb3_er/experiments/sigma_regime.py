@@ -36,6 +36,7 @@ from sb3_er.experiments.analyses import check_request, check_settings, code_line
 from sb3_er.experiments.records import counted
 from sb3_er.experiments.runner import RunJob, TaskOutput, job_model_kwargs, read_run_csv, run_csv_path
 from sb3_er.experiments.specs import Analysis
+from sb3_er.experiments.thesis import ALGORITHM_LABELS, row_algorithm
 
 COLUMNS = (
     "phase",
@@ -74,9 +75,9 @@ class Reading:
     results: str = ""
 
 
-#: The learners of each reading: the row name (its runs folder) and the ER-σ preset it runs.
-LEARNERS = {"er_sigma": "thesis", "er_sigma_stable": "stable"}
-LEARNER_TITLES = {"er_sigma": "ER-σ", "er_sigma_stable": "ER-σ (stable)"}
+#: The learners of each reading: the tables' ER-σ rows (their runs folders; the preset each runs and its label come
+#: from :func:`sb3_er.experiments.thesis.row_algorithm` and ``ALGORITHM_LABELS``).
+LEARNERS = ("er_sigma", "er_sigma_stable")
 
 WALKER_EARLIER_DEFAULT = (("fall", "angles"), ("observation", "grl"), ("start", "grl"))
 READINGS = {
@@ -210,7 +211,7 @@ def regime_jobs(
     :param readings: the readings' names.
     :param seeds: the seeds.
     :param budget: run length (None: each reading's own).
-    :param learners: the learners, keys of :data:`LEARNERS` (default the thesis's ER-σ only).
+    :param learners: the learners, names in :data:`LEARNERS` (default the thesis's ER-σ only).
     """
     jobs = []
     for name in readings:
@@ -226,7 +227,7 @@ def regime_jobs(
                     length,
                     run_csv_path(Path(out_dir) / name, learner, seed),
                     reading.env_kwargs,
-                    tuple(sorted((*initial, ("preset", LEARNERS[learner])))),
+                    tuple(sorted({**dict(initial), "preset": "thesis", **row_algorithm(learner)[1]}.items())),
                     label=f"{name}/{learner}",
                 )
                 for seed in seeds
@@ -293,7 +294,7 @@ def reproduce_sigma_regime(
     :param env_kwargs: ``gymnasium.make`` keyword arguments, a reading of the env other than its defaults (default
         None).
     :param readings: the readings' names (default None: all of :data:`READINGS`).
-    :param learners: the learners, keys of :data:`LEARNERS` (default None: both, the thesis's ER-σ and the stable
+    :param learners: the learners, names in :data:`LEARNERS` (default None: both, the thesis's ER-σ and the stable
         learner's).
     """
     from sb3_er.experiments.reproduce import Reproduction
@@ -387,7 +388,7 @@ def reproduce_sigma_regime(
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
-        reading, learner = READINGS[row["reading"]], LEARNER_TITLES[row["learner"]]
+        reading, learner = READINGS[row["reading"]], ALGORITHM_LABELS[row["learner"]]
         length = f"{lengths[row['reading']]:g} {reading.unit}"
         folder = f"results/measured/{reading.results}" if reading.results else "—"
         if not row.get("phases"):

@@ -37,7 +37,8 @@ class Curves:
     :param all_performance: the performance curves of every run, shape (len(all_seeds), n); default None: the runs
         that stayed inside are all.
     :param all_cumulative_falls: their cumulative falls, shape (len(all_seeds), n); default None.
-    :param all_seeds: the rows of ``all_performance``; default None: ``seeds`` and ``out_of_bounds_seeds``.
+    :param all_seeds: the rows of ``all_performance``; default None (with ``all_performance`` None: the runs that
+        stayed inside are all).
     """
 
     x: np.ndarray
@@ -64,9 +65,9 @@ class Curves:
     def all_runs(self) -> Curves:
         """These curves with every run as its rows: the runs whose values left the possible returns with their own
         curves, and the diverged ones as runs that learned nothing (:func:`diverged_run_curves`)."""
-        if self.all_performance is None:
+        if self.all_performance is None or self.all_seeds is None:
             return self
-        seeds = self.all_seeds if self.all_seeds is not None else tuple(sorted(self.seeds + self.out_of_bounds_seeds))
+        seeds = self.all_seeds
         return Curves(
             self.x,
             self.all_performance,
