@@ -209,11 +209,30 @@ def test_stability_check():
     diverged[1]["diverged"], diverged[1]["final_mean"] = True, None
     check = se.check_stability(se.summarize(diverged), "er_sigma")
     assert check["holds"] is False and check["tasks"][ALL_TASKS[0]]["diverged"] == 1
-    larger = suite({}, largest_excursion=0.1)  # Sarsa(lambda)'s is 0.0
+    flagged = {"values_out_of_range": 4, "first_value_excursion": {"margin": 0.05}}
+    larger = suite({}, largest_excursion=0.15, **flagged)  # Sarsa(lambda)'s is 0.0
     check = se.check_stability(se.summarize(larger), "er_sigma")
-    assert check["holds"] is False and check["tasks"][CARTPOLE]["largest_excursion"] == 0.1
+    assert check["holds"] is False and check["tasks"][CARTPOLE]["largest_excursion"] == 0.15
+    assert check["tasks"][CARTPOLE]["excursion_beyond_margin"] == pytest.approx(0.10)
+    # rounding: a sum of 16 projected weights 4.5e-13 above V_max, which the watch did not count (inside the margin)
+    rounding = suite({}, largest_excursion=4.547e-13)
+    check = se.check_stability(se.summarize(rounding), "er_sigma")
+    assert check["holds"] is True and check["tasks"][CARTPOLE]["largest_excursion"] == 4.547e-13
     unrecorded = suite({}, largest_excursion=None)
     assert se.check_stability(se.summarize(unrecorded), "er_sigma")["holds"] is None
+
+
+def test_excursion_beyond_the_margin_from_a_runs_record():
+    assert se.excursion_beyond_margin(run(largest_excursion=None)) is None  # not recorded
+    assert se.excursion_beyond_margin(run(largest_excursion=0.04)) == 0.0  # the watch counted nothing beyond it
+    flagged = run(largest_excursion=2.0, values_out_of_range=7, first_value_excursion={"margin": 0.05})
+    assert se.excursion_beyond_margin(flagged) == pytest.approx(1.95)
+    # no bounds (the watch's count is -1): the excursion as recorded
+    assert se.excursion_beyond_margin(run(largest_excursion=3.0, values_out_of_range=-1)) == 3.0
+    # Sarsa(lambda) 12.5 beyond the bounds with a margin of 0.05 against ours inside it: ours holds
+    sarsa = run(largest_excursion=12.5, values_out_of_range=30, first_value_excursion={"margin": 0.05})
+    figures = se.summarize_runs(se.TASKS[CARTPOLE], [sarsa])
+    assert figures["excursion_beyond_margin_max"] == pytest.approx(12.45) and figures["largest_excursion_max"] == 12.5
 
 
 def test_final_return_check_at_the_lower_end_of_sarsas_interval():
@@ -287,7 +306,8 @@ def test_every_methods_goal_checks_side_by_side(tmp_path):
         if r["method"] == "er_sigma":
             r = {**r, "method": "er_sigma_truncate"}
             if r["task"] == CARTPOLE:
-                r["largest_excursion"] = 3.0
+                r["largest_excursion"], r["values_out_of_range"] = 3.0, 12
+                r["first_value_excursion"] = {"margin": 0.05}
             runs.append(r)
     overview = se.goal_overview(se.summarize(runs))
     assert list(overview) == ["er_sigma", "er_sigma_truncate"]
