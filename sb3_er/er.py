@@ -6,7 +6,7 @@ import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_er.common import kernels
-from sb3_er.common.base_class import TileQAlgorithm
+from sb3_er.common.base_class import GIVEN_AT_LOAD, TileQAlgorithm
 from sb3_er.common.buffers import TrajectoryBufferIO, TrajectoryReplayBuffer
 from sb3_er.common.checks import check_bool, check_choice, check_integer, check_number
 from sb3_er.common.docstrings import inherit_parameters
@@ -38,6 +38,7 @@ SIGMAS = {
 #: (results/measured/stable_replay_screen; its rule in docs/stable_replay.md), the same on every task.
 _THESIS_PRESET: dict[str, Any] = dict(
     n_replays=100,
+    replays_per_stored_trajectory=None,
     replay_ratio=None,
     truncate_targets=False,
     target_copy=False,
@@ -49,9 +50,10 @@ PRESETS: dict[str, dict[str, Any]] = {
     "thesis": _THESIS_PRESET,
     "stable": {**_THESIS_PRESET, "project_weights": True},
 }
-#: What a preset resolves.
+#: What a preset resolves: the replay volume (one of its three forms) and the stabilizers.
 STABILIZERS = (
     "n_replays",
+    "replays_per_stored_trajectory",
     "replay_ratio",
     "truncate_targets",
     "target_copy",
@@ -64,18 +66,38 @@ REPLAY_VOLUME = ("n_replays", "replays_per_stored_trajectory", "replay_ratio")
 
 def resolve_preset(preset: str, given: dict[str, Any]) -> dict[str, Any]:
     """The stabilizers and replay volume of ``preset`` (:data:`PRESETS`), with every argument given explicitly (not
-    None) winning. A replay volume given explicitly (``n_replays``, ``replays_per_stored_trajectory`` or
-    ``replay_ratio``) replaces the preset's volume as a whole.
+    None) winning. The replay volume has three forms (:data:`REPLAY_VOLUME`): one given explicitly replaces the
+    preset's as a whole, the other two None, so that the resolved values name the volume the replay uses; two given
+    at once are a ValueError.
 
     :param preset: "thesis" or "stable".
-    :param given: the arguments as given, None where not given (the names of :data:`STABILIZERS` and
-        ``replays_per_stored_trajectory``).
+    :param given: the arguments as given, None where not given (the names of :data:`STABILIZERS`).
     """
     check_choice("preset", preset, PRESETS)
+    volume = [name for name in REPLAY_VOLUME if given.get(name) is not None]
+    if len(volume) > 1:
+        raise ValueError(
+            f"give one replay volume, not {' and '.join(f'{name}={given[name]}' for name in volume)}: "
+            "n_replays (trajectories per phase), replays_per_stored_trajectory (per trajectory stored) and "
+            "replay_ratio (updates per new sample) each set the whole of it"
+        )
     resolved = dict(PRESETS[preset])
-    if any(given.get(name) is not None for name in REPLAY_VOLUME):
-        resolved.update(n_replays=PRESETS["thesis"]["n_replays"], replay_ratio=None)
+    if volume:
+        resolved.update(dict.fromkeys(REPLAY_VOLUME))
     resolved.update({name: given[name] for name in STABILIZERS if given.get(name) is not None})
+    return resolved
+
+
+def saved_stabilizers(saved: dict[str, Any]) -> dict[str, Any]:
+    """The stabilizers a saved model replayed with, from its file's ``stabilizers``: a stabilizer added after the
+    file was written was off (the thesis's value), and a file written before the resolved values named their replay
+    volume (an ``n_replays`` beside ``replays_per_stored_trajectory`` or ``replay_ratio``) names it now.
+
+    :param saved: the ``stabilizers`` dict read from the file.
+    """
+    resolved = {**PRESETS["thesis"], **saved}
+    if resolved["replays_per_stored_trajectory"] is not None or resolved["replay_ratio"] is not None:
+        resolved["n_replays"] = None
     return resolved
 
 
@@ -175,7 +197,8 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     :param replay_ratio: replayed updates per new stored transition (D'Oro et al., ICLR 2023): each phase replays
         whole trajectories until it has made this many updates per transition stored since the last phase, instead of
         ``n_replays`` trajectories; None (default): the preset's. The thesis's protocols make about 10^4 updates per
-        new transition.
+        new transition. Above 0 (``n_replays=0`` replays nothing); ``n_replays``, ``replays_per_stored_trajectory``
+        and ``replay_ratio`` each set the whole replay volume, so at most one of them is given.
     """
 
     _trace_lambda_parameter = "online_lambda"
@@ -288,9 +311,9 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         check_integer("replay_every", self.replay_every, minimum=1, unit=" episode")
         check_integer("n_replays", self.n_replays, minimum=0, optional=True)
         check_number("replays_per_stored_trajectory", self.replays_per_stored_trajectory, 0.0, optional=True)
-        check_number("replay_ratio (replayed updates per new sample)", self.replay_ratio, 0.0, optional=True)
-        if self.replay_ratio is not None and self.replays_per_stored_trajectory is not None:
-            raise ValueError("give either replay_ratio or replays_per_stored_trajectory: both set the replay volume")
+        check_number(
+            "replay_ratio (replayed updates per new sample)", self.replay_ratio, 0.0, optional=True, low_open=True
+        )
         for name in ("truncate_targets", "target_copy", "step_size_bound", "averager", "project_weights"):
             check_bool(name, getattr(self, name), optional=True)
         check_choice("preset", self.preset, PRESETS)
@@ -305,8 +328,8 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
 
     def _setup_model(self) -> None:
         self._check_hyperparameters()
-        given = {name: getattr(self, name) for name in (*STABILIZERS, "replays_per_stored_trajectory")}
-        self.stabilizers = resolve_preset(self.preset, given)
+        given = {name: getattr(self, name) for name in STABILIZERS}
+        self.stabilizers = self._resolve_stabilizers(given)
         if self.residual_zeta and self.stabilizers["averager"]:
             if self.averager:
                 raise ValueError(
@@ -330,6 +353,32 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         self._new_samples = 0  # transitions stored since the last replay phase (the replay ratio's denominator)
         self._ratio_carry = 0.0
 
+    def _resolve_stabilizers(self, given: dict[str, Any]) -> dict[str, Any]:
+        """The preset's stabilizers with the arguments given explicitly winning (:func:`resolve_preset`); for a loaded
+        model, the ones it was saved with (:func:`saved_stabilizers`: a later change to a preset does not change what
+        a saved model does), with what ``load``'s keyword arguments give winning (a new ``preset`` resolves anew)."""
+        saved = self.stabilizers  # {} when built; the file's when loaded
+        at_load = self.__dict__.get(GIVEN_AT_LOAD, ())
+        if not saved or "preset" in at_load:
+            return resolve_preset(self.preset, given)
+        resolved = saved_stabilizers(saved)
+        overrides = {name: given[name] for name in STABILIZERS if name in at_load and given[name] is not None}
+        if any(name in REPLAY_VOLUME for name in overrides):
+            resolved.update(dict.fromkeys(REPLAY_VOLUME))
+        resolved.update(overrides)
+        resolve_preset(self.preset, {name: resolved[name] for name in REPLAY_VOLUME})  # one volume, or a ValueError
+        return resolved
+
+    def _value_watch_remedy(self) -> str:
+        on = [name for name in ("truncate_targets", "project_weights", "averager") if self.stabilizers.get(name)]
+        if not on:
+            return super()._value_watch_remedy()
+        return (
+            f"the stabilizers; this model already replays with {', '.join(on)}, which bound what replay does but not "
+            "the online Sarsa(lambda) steps between phases (online_lambda), the weights no replayed update has "
+            "moved, or values learned before the rewards that set observed bounds were seen"
+        )
+
     def _setup_target_copy(self) -> None:
         """The target copy of theta that bootstrapping reads (``target_copy``), taken now; None without."""
         self._target_copy = kernels.TargetCopy(self.policy.theta_array) if self.stabilizers["target_copy"] else None
@@ -347,10 +396,16 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     def _check_averager_step(self) -> None:
         """ValueError if the averager would step with a learning rate above 1 (each weight carried past its share of
         the target, and the bound on the values lost)."""
-        if self.stabilizers["averager"] and self.current_learning_rate > 1.0:
+        if not self.stabilizers["averager"]:
+            return
+        # a schedule is checked over its whole course when the model is built, and the rate in use at every phase
+        course = [(float(self.lr_schedule(remaining)), remaining) for remaining in np.linspace(1.0, 0.0, 101)]
+        rate, remaining = max([(self.current_learning_rate, None), *course], key=lambda pair: pair[0])
+        if rate > 1.0:
+            where = "now" if remaining is None else f"at progress_remaining {remaining:.2f} of its schedule"
             raise ValueError(
-                f"averager=True needs a learning rate of at most 1 (now {self.current_learning_rate}): a larger step "
-                "carries each weight past its share of the target, and the averager's bound on the values is lost"
+                f"averager=True needs a learning rate of at most 1 ({rate:.6g} {where}): a larger step carries each "
+                "weight past its share of the target, and the averager's bound on the values is lost"
             )
 
     def _stabilizer_options(self) -> dict[str, Any]:
@@ -406,8 +461,9 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
             self._replay_at_trigger()
 
     def _replays_per_phase(self) -> int:
-        if self.replays_per_stored_trajectory is not None:
-            return int(round(self.replays_per_stored_trajectory * self.replay_buffer.n_stored_trajectories))
+        per_stored = self.stabilizers["replays_per_stored_trajectory"]
+        if per_stored is not None:
+            return int(round(per_stored * self.replay_buffer.n_stored_trajectories))
         return self.stabilizers["n_replays"]
 
     def _replay_at_trigger(self) -> None:

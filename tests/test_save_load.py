@@ -50,6 +50,18 @@ def test_save_load_predict_and_continue(algo, tmp_path):
     assert not np.array_equal(loaded.policy.theta_array, model.policy.theta_array)
 
 
+@pytest.mark.parametrize("algo", [SarsaLambda, ER, ERSigma, ResidualER, ResidualERSigma, Dyna, FQI, LSPI])
+def test_load_refuses_a_keyword_that_is_not_a_parameter(algo, tmp_path):
+    """SB3's load sets its keyword arguments as attributes: one the class does not take would be read by nothing
+    (SarsaLambda.load(path, preset="stable") loading the thesis's Sarsa(lambda) without a word)."""
+    model(algo, LineWalkEnv(), seed=0).save(tmp_path / "m")
+    with pytest.raises(TypeError, match=rf"{algo.__name__}.load\(\) got 'presett': not a parameter"):
+        algo.load(tmp_path / "m", presett="stable")
+    taken = "preset" if algo in (ER, ERSigma, ResidualER, ResidualERSigma) else "exploration_rate"
+    value = "stable" if taken == "preset" else 0.2
+    assert getattr(algo.load(tmp_path / "m", **{taken: value}), taken) == value
+
+
 def test_load_without_env_predicts(tmp_path):
     model = SarsaLambda("TileQ", LineWalkEnv(), seed=0, **KWARGS).learn(300)
     model.save(tmp_path / "m")

@@ -233,8 +233,9 @@ def test_the_averager_refuses_what_it_cannot_bound():
         ER("TileQ", "CartPole-v1", averager=True, residual_zeta=0.5)
     with pytest.raises(ValueError, match="averager=True needs a learning rate of at most 1"):
         ERSigma("TileQ", "CartPole-v1", averager=True, learning_rate=1.5)
-    with pytest.raises(ValueError, match="averager=True needs a learning rate of at most 1"):
-        ERSigma("TileQ", "CartPole-v1", averager=True, learning_rate=lambda progress: 2.0 - progress).learn(600)
+    # a schedule that passes 1 later in the run is refused when the model is built, not in the middle of learn
+    with pytest.raises(ValueError, match="1.5 at progress_remaining 0.00 of its schedule"):
+        ERSigma("TileQ", "CartPole-v1", averager=True, learning_rate=lambda remaining: 0.5 + (1.0 - remaining))
     assert ER("TileQ", "CartPole-v1", averager=True, residual_zeta=0.0).stabilizers["averager"] is True
 
 
@@ -330,10 +331,57 @@ def test_presets_resolve_with_explicit_arguments_winning():
     assert resolve_preset("stable", {**none, "truncate_targets": False})["truncate_targets"] is False
     volume = resolve_preset("stable", {**none, "n_replays": 7})  # an explicit volume replaces the preset's
     assert volume["n_replays"] == 7 and volume["replay_ratio"] is None
+    # the resolved values name the volume the replay uses, and only that one
+    per_stored = resolve_preset("thesis", {**none, "replays_per_stored_trajectory": 10.0})
+    assert (per_stored["n_replays"], per_stored["replays_per_stored_trajectory"]) == (None, 10.0)
+    ratio = ERSigma("TileQ", "CartPole-v1", replay_ratio=16).stabilizers
+    assert (ratio["n_replays"], ratio["replays_per_stored_trajectory"], ratio["replay_ratio"]) == (None, None, 16)
     with pytest.raises(ValueError, match="preset"):
         resolve_preset("fast", none)
     model = ERSigma("TileQ", "CartPole-v1", preset="stable", target_copy=False)
     assert model.stabilizers == {**PRESETS["stable"], "target_copy": False}
+
+
+@pytest.mark.parametrize(
+    "volumes",
+    [
+        dict(n_replays=1, replay_ratio=2),
+        dict(n_replays=3, replays_per_stored_trajectory=2.0),
+        dict(replays_per_stored_trajectory=2.0, replay_ratio=4),
+    ],
+)
+@pytest.mark.parametrize("algo", [ER, ERSigma, ResidualER, ResidualERSigma])
+def test_two_replay_volumes_at_once_are_refused(algo, volumes):
+    """Each of the three forms sets the whole replay volume: two at once would leave one unread."""
+    first, second = volumes
+    with pytest.raises(ValueError, match=f"give one replay volume, not {first}=.* and {second}="):
+        algo("TileQ", "CartPole-v1", **volumes)
+    with pytest.raises(ValueError, match="replay_ratio .* must be a finite number > 0.0"):
+        algo("TileQ", "CartPole-v1", replay_ratio=0)  # no replay at all: n_replays=0 says that
+
+
+@pytest.mark.parametrize("algo", [ER, ERSigma, ResidualER, ResidualERSigma])
+def test_a_loaded_model_replays_with_the_stabilizers_it_was_saved_with(algo, tmp_path, monkeypatch):
+    """A later change to a preset does not change what a saved model does: "stable" once meant truncation with the
+    target copy. load's keyword arguments still win, one stabilizer at a time, and a preset given to load resolves
+    anew."""
+    earlier = {**PRESETS["stable"], "truncate_targets": True, "target_copy": True, "project_weights": False}
+    monkeypatch.setitem(PRESETS, "stable", earlier)
+    algo("TileQ", "CartPole-v1", preset="stable", seed=0).save(tmp_path / "m")
+    monkeypatch.undo()
+    assert PRESETS["stable"]["project_weights"] is True
+    loaded = algo.load(tmp_path / "m")
+    assert loaded.stabilizers == earlier and loaded._target_copy is not None
+    assert algo.load(tmp_path / "m", target_copy=False).stabilizers == {**earlier, "target_copy": False}
+    assert algo.load(tmp_path / "m", preset="stable").stabilizers == PRESETS["stable"]
+    assert algo.load(tmp_path / "m", preset="thesis").stabilizers == PRESETS["thesis"]
+    ratio = algo.load(tmp_path / "m", replay_ratio=8).stabilizers
+    assert ratio == {**earlier, "n_replays": None, "replay_ratio": 8}
+    # a file whose stabilizers predate a later one (no project_weights) replays without it, as it was saved
+    old = algo("TileQ", "CartPole-v1", preset="stable", seed=0)
+    old.stabilizers = {name: value for name, value in earlier.items() if name != "project_weights"}
+    old.save(tmp_path / "old")
+    assert algo.load(tmp_path / "old").stabilizers == earlier
 
 
 def test_a_model_saved_before_presets_loads_with_the_thesis_algorithm(tmp_path):

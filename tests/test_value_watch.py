@@ -422,6 +422,60 @@ def test_observed_bounds_for_undeclared_envs_and_reward_wrappers():
     assert reward_changing_wrapper(gym.make("sb3_er/WindyCliff-v0")) is None
 
 
+class _EarlyPenalty(gym.Wrapper):
+    """MountainCar's -1 a step, but -5 for the first 300 steps the wrapper sees: the rewards that set observed bounds
+    of [-500, 0] at gamma 0.99 come only early in a run."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.steps = 0
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.steps += 1
+        return obs, (-5.0 if self.steps <= 300 else reward), terminated, truncated, info
+
+
+def _early_penalty_env():
+    return _EarlyPenalty(gym.wrappers.TimeLimit(gym.make("MountainCar-v0").unwrapped, 100))
+
+
+@pytest.mark.parametrize("algo", [SarsaLambda, ERSigma])
+def test_observed_bounds_survive_save_load_and_a_new_run(algo, tmp_path):
+    """The rewards a model observed bound its values after ``save``/``load`` (without the replay buffer) and across
+    ``learn`` calls: otherwise a loaded stable model would project its learned values onto the narrower bounds of the
+    rewards seen since, and the watch would flag them."""
+    model = algo("TileQ", _early_penalty_env(), seed=0, value_bound_action="ignore").learn(400)
+    assert model.value_bounds == pytest.approx((-500.0, 0.0))
+    model.learn(200)  # a new run: a new watch, the same rewards known
+    assert model.value_bounds == pytest.approx((-500.0, 0.0))
+    model.save(tmp_path / "m")
+    loaded = algo.load(tmp_path / "m", env=_early_penalty_env(), value_bound_action="raise")
+    assert loaded.observed_rewards == {"step": [-5.0, -1.0], "terminal": None}
+    assert loaded.value_bounds == pytest.approx((-500.0, 0.0))
+    loaded.learn(200)  # no ValueBoundError: the learned values still lie inside
+    assert loaded.value_bounds == pytest.approx((-500.0, 0.0))
+    assert algo.load(tmp_path / "m", allow_pickle=False).observed_rewards == loaded.observed_rewards
+
+
+@pytest.mark.parametrize(
+    "bad", [{"step": [float("nan"), 1.0], "terminal": None}, {"step": [2.0, 1.0], "terminal": None}, {"step": [0, 1]}]
+)
+def test_observed_rewards_are_checked_when_read_back(bad, tmp_path):
+    model = SarsaLambda("TileQ", "CartPole-v1", seed=0)
+    model.observed_rewards = bad
+    model._remember_observed_rewards = lambda: None  # write the bad value as it stands
+    model.save(tmp_path / "m")
+    with pytest.raises(ValueError, match=r"m.zip: observed_rewards"):
+        SarsaLambda.load(tmp_path / "m")
+
+
+def test_a_stable_models_warning_names_what_its_stabilizers_do_not_cover():
+    model = ERSigma("TileQ", "CartPole-v1", seed=0, preset="stable")
+    assert "already replays with project_weights" in model._value_watch_remedy()
+    assert "preset='stable'" in ERSigma("TileQ", "CartPole-v1", seed=0)._value_watch_remedy()
+
+
 def test_bad_watch_settings_are_refused():
     with pytest.raises(ValueError, match="value_bound_action"):
         SarsaLambda("TileQ", "sb3_er/WindyCliff-v0", value_bound_action="shout")

@@ -1,5 +1,6 @@
 """Shared SB3 machinery of the tile-coded algorithms: spaces, the learn loop, online Sarsa(lambda), logging."""
 
+import inspect
 import io
 import math
 import pathlib
@@ -134,6 +135,11 @@ def _observation_space_advice(observation_space: spaces.Space) -> str:
     )
 
 
+#: The attribute through which ``_setup_model`` of a loaded model sees which parameters ``load``'s keyword arguments
+#: gave (ER: a stabilizer given there replaces the saved one); removed once the model is loaded.
+GIVEN_AT_LOAD = "_given_at_load"
+
+
 class TileQAlgorithm(BaseAlgorithm):
     """Base of the tile-coded algorithms: epsilon-greedy acting on TileQ and, optionally, online Sarsa(lambda).
 
@@ -233,6 +239,9 @@ class TileQAlgorithm(BaseAlgorithm):
         self.value_watch = value_watch
         self.value_bound_action = value_bound_action
         self.value_excursion: dict[str, Any] | None = None
+        #: The extremes of the rewards the model has observed where the env declares no reward bounds (the value
+        #: watch's, and the stabilizers', bounds): kept across ``learn`` calls and saved with the model.
+        self.observed_rewards: dict[str, list[float] | None] | None = None
         self._watch: ValueWatch | None = None
         self._seed_generators(seed)
         self.falls = 0
@@ -409,13 +418,30 @@ class TileQAlgorithm(BaseAlgorithm):
         """The bounds of the possible returns for the current env, and the kernels' watch array (empty when the
         watch is off: the bounds are kept all the same). The counts and the first excursion carry over from the
         run's earlier watch (a new env in the same run)."""
+        self._remember_observed_rewards()
         initial = _initial_range(self.policy.initial_value)
         if self.env is None:  # bounds from the rewards a loaded buffer holds, until an env is set
             self._watch = ValueWatch("observed", None, self.gamma, initial, "no env yet", self.value_watch)
         else:
             self._watch = ValueWatch.for_env(self.env, self.gamma, initial, self.value_watch, earlier=self._watch)
         self._watch_array = self._watch.array
+        self._watch.observe_rewards(self.observed_rewards)
         self._watch.read_buffer(getattr(self, "replay_buffer", None))
+
+    def _remember_observed_rewards(self) -> None:
+        """Fold the current watch's observed reward extremes into ``observed_rewards`` (before a new watch replaces
+        it, and before saving)."""
+        observed = None if self._watch is None else self._watch.observed_rewards()
+        if not observed:
+            return
+        known = dict(self.observed_rewards or {})
+        for key, extremes in observed.items():
+            if extremes is not None:
+                earlier = known.get(key)
+                known[key] = (
+                    extremes if earlier is None else [min(earlier[0], extremes[0]), max(earlier[1], extremes[1])]
+                )
+        self.observed_rewards = {"step": known.get("step"), "terminal": known.get("terminal")}
 
     def _observe_stored_rewards(self) -> None:
         """With observed bounds, widen them with every reward of the buffer not read yet
@@ -455,7 +481,7 @@ class TileQAlgorithm(BaseAlgorithm):
         }
         if self.value_bound_action == "ignore":
             return
-        message = watch.excursion_message(type(self).__name__, self.num_timesteps, where)
+        message = watch.excursion_message(type(self).__name__, self.num_timesteps, where, self._value_watch_remedy())
         if self.value_bound_action == "raise":
             raise ValueBoundError(message)
         warnings.warn(message, ValueBoundWarning, stacklevel=3)
@@ -639,7 +665,8 @@ class TileQAlgorithm(BaseAlgorithm):
         if reset_num_timesteps:
             self.falls = 0
             self.value_excursion = None
-            self._watch = None  # a new run: a new watch
+            self._remember_observed_rewards()  # the rewards seen stay known
+            self._watch = None  # a new run: a new watch, its counts from zero
         self._setup_value_watch()
         callback.on_training_start(locals(), globals())
         callback.on_rollout_start()
@@ -743,6 +770,7 @@ class TileQAlgorithm(BaseAlgorithm):
             path = sb3_write_path(path, "zip")
         else:
             check_file_object(path, "w")
+        self._remember_observed_rewards()
         self.__dict__[PLAIN_STATE_KEY] = plain_state(self, exclude, include)
         try:
             if isinstance(path, pathlib.Path):
@@ -788,7 +816,11 @@ class TileQAlgorithm(BaseAlgorithm):
         :param custom_objects: values replacing saved entries by name, as in SB3 (default None).
         :param print_system_info: print the system info saved in the file and this one's (default False).
         :param force_reset: reset the env at the next ``learn()`` (default True).
+        :param kwargs: parameters of the class replacing the saved values, as in SB3 (ER classes: a stabilizer given
+            here replaces the saved one, a ``preset`` resolves them anew); a name the class does not take is a
+            TypeError, as the constructor's.
         """
+        cls._check_load_kwargs(kwargs)
         if isinstance(path, (str, pathlib.Path)):
             path = resolve_zip_path(path)  # so that errors name the file read
         else:
@@ -803,9 +835,16 @@ class TileQAlgorithm(BaseAlgorithm):
             # need not be the parameter's default now (SB3's load sets kwargs before _setup_model reads them)
             older = {name: value for name, value in cls.older_file_values.items() if name not in data}
             model = super().load(
-                source, env, device, custom_objects, print_system_info, force_reset, **{**older, **kwargs}
+                source,
+                env,
+                device,
+                custom_objects,
+                print_system_info,
+                force_reset,
+                **{**older, **kwargs, GIVEN_AT_LOAD: tuple(kwargs)},
             )
             model.__dict__.pop(PLAIN_STATE_KEY, None)
+            model.__dict__.pop(GIVEN_AT_LOAD, None)
             model._check_loaded_state()
         except FileNotFoundError:
             raise
@@ -814,6 +853,26 @@ class TileQAlgorithm(BaseAlgorithm):
             problem = str(error) if isinstance(error, ValueError) else f"{type(error).__name__}: {error}"
             raise ValueError(f"{path}: {problem}{cause}") from error
         return model
+
+    @classmethod
+    def _check_load_kwargs(cls, kwargs: dict[str, Any]) -> None:
+        """TypeError for a keyword argument of ``load`` that is not a parameter of the class, as the constructor
+        refuses it: SB3 would set it as an attribute that nothing reads (``SarsaLambda.load(path, preset="stable")``
+        would load the thesis's Sarsa(lambda) without a word)."""
+        parameters = inspect.signature(cls.__init__).parameters
+        if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in parameters.values()):
+            return
+        unknown = [name for name in kwargs if name not in parameters and not name.startswith("_")]
+        if unknown:
+            raise TypeError(
+                f"{cls.__name__}.load() got {', '.join(map(repr, unknown))}: not a parameter of {cls.__name__}, so "
+                "nothing would read it (load's keyword arguments replace the saved parameters; see its page)"
+            )
+
+    def _value_watch_remedy(self) -> str:
+        """What the value watch's message offers against values leaving the possible returns (ER classes: their
+        stabilizers)."""
+        return "the stabilizers of the ER classes that keep values inside them (preset='stable')"
 
     def _check_loaded_state(self) -> None:
         """Check what a loaded file restored that a kernel or the learn loop reads: generator states, counters, the

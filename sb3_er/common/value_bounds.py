@@ -30,6 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 from sb3_er.common import kernels
+from sb3_er.common.checks import is_real
 
 #: A value counts as outside the possible returns only beyond this share of the largest reward's size (one reward's
 #: worth of rounding and generalisation, whatever the width of the returns).
@@ -346,6 +347,40 @@ class ValueWatch:
                 watch.array[entry] = earlier.array[entry]
         return watch
 
+    def observed_rewards(self) -> dict[str, list[float] | None] | None:
+        """The extremes of the rewards observed so far, as plain lists ({"step": [low, high] or None, "terminal":
+        likewise}), so that a saved model keeps them; None for declared bounds."""
+        if not self.observing:
+            return None
+        return {
+            "step": list(self._step) if self._step[0] <= self._step[1] else None,
+            "terminal": list(self._terminal) if self._terminal[0] <= self._terminal[1] else None,
+        }
+
+    def observe_rewards(self, observed: dict[str, list[float] | None] | None) -> None:
+        """Widen observed bounds with the extremes of :meth:`observed_rewards` (a saved model's, or an earlier
+        watch's); nothing for declared bounds or None.
+
+        :param observed: {"step": [low, high] or None, "terminal": likewise}, or None.
+        """
+        if observed is None:
+            return
+        if not isinstance(observed, dict) or set(observed) != {"step", "terminal"}:
+            raise ValueError(f"observed_rewards: expected a dict of 'step' and 'terminal', got {observed!r}")
+        for key, extremes in observed.items():
+            if extremes is not None and not (
+                isinstance(extremes, (list, tuple))
+                and len(extremes) == 2
+                and all(is_real(end) and math.isfinite(end) for end in extremes)
+                and extremes[0] <= extremes[1]
+            ):
+                raise ValueError(f"observed_rewards[{key!r}]: expected None or [low, high] finite, got {extremes!r}")
+        if not self.observing:
+            return
+        for key, terminated in (("step", False), ("terminal", True)):
+            for reward in observed[key] or ():
+                self.observe(float(reward), terminated)
+
     @property
     def observing(self) -> bool:
         """Whether the bounds come from the rewards observed (they widen with each new reward)."""
@@ -498,7 +533,7 @@ class ValueWatch:
             f"values in [{self.initial[0]:.6g}, {self.initial[1]:.6g}])"
         )
 
-    def excursion_message(self, learner: str, step: int, where: str) -> str:
+    def excursion_message(self, learner: str, step: int, where: str, remedy: str = "") -> str:
         """What the first value outside the bounds means, for the ValueBoundWarning (or ValueBoundError): the value,
         how far beyond the bounds and the margin, whether the policy can still be good and how to check it, and where
         the documentation explains it.
@@ -506,7 +541,9 @@ class ValueWatch:
         :param learner: the algorithm's name.
         :param step: the environment step.
         :param where: which update it was (e.g. "replayed update 3 of replay phase 20").
+        :param remedy: what the learner's own options can do about it (default: the stable preset's word).
         """
+        remedy = remedy or "the stabilizers that keep values inside them (preset='stable')"
         value = self.first_value
         low, high = self.bounds
         side = f"{value - high:.6g} above" if value > high else f"{low - value:.6g} below"
@@ -518,8 +555,8 @@ class ValueWatch:
             "divergence). The greedy policy may still be good, since only the order of the actions' values "
             "chooses it: check it with stable_baselines3.common.evaluation.evaluate_policy(model, env, "
             "deterministic=True), and compare runs by that rather than by the values. The documentation's page "
-            "'The value watch' (docs/value_watch.md) explains the bounds and the stabilizers that keep values "
-            "inside them (preset='stable'). value_bound_action='ignore' only counts such values "
+            f"'The value watch' (docs/value_watch.md) explains the bounds and {remedy}. "
+            "value_bound_action='ignore' only counts such values "
             "(model.values_out_of_range); 'raise' stops at the first."
         )
 
