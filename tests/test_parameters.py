@@ -82,6 +82,20 @@ def test_a_job_passes_every_accepted_parameter_the_runner_does_not_set(algo):
     cls("TileQ", ENV, _init_setup_model=False, **kwargs)
 
 
+@pytest.mark.parametrize("volume", [("n_replays", 5), ("replay_ratio", 4.0)])
+def test_a_replay_volume_given_to_a_job_replaces_the_configs(volume):
+    """The grid world's entry replays 10 trajectories per one stored; --algo-kwargs n_replays:5 (or a replay ratio)
+    replaces that volume, where passing both would be refused."""
+    assert (
+        job_model_kwargs(RunJob(EXPERIMENTS["gridworld"], "er", 0, 5, csv_path=None))["replays_per_stored_trajectory"]
+        == 10.0
+    )
+    kwargs = job_model_kwargs(RunJob(EXPERIMENTS["gridworld"], "er", 0, 5, csv_path=None, algo_kwargs=(volume,)))
+    assert "replays_per_stored_trajectory" not in kwargs and kwargs[volume[0]] == volume[1]
+    name, value = volume
+    assert ALGORITHMS["er"]("TileQ", ENV, **kwargs).stabilizers[name] == value
+
+
 @pytest.mark.parametrize("zoo_configs", [True, False])
 @pytest.mark.parametrize("experiment", ["gridworld", "pendulum", "walker", "leo"])
 def test_a_reproduction_runs_the_thesis_preset_unless_told_otherwise(experiment, zoo_configs):

@@ -90,17 +90,23 @@ def job_model_kwargs(job: RunJob) -> dict[str, Any]:
     """The constructor keyword arguments of `job`'s model: its zoo config entry, overridden by ``job.algo_kwargs``
     where the algorithm has such a parameter (``replay_unit`` reaches the ER family, not Sarsa(lambda)). An ER class
     gets ``preset="thesis"`` unless the config or ``job.algo_kwargs`` give another: the reproductions run the thesis's
-    algorithms whatever the class default is.
+    algorithms whatever the class default is. A replay volume given in ``job.algo_kwargs`` (``n_replays``,
+    ``replays_per_stored_trajectory`` or ``replay_ratio``) replaces the config's as a whole, as it replaces a preset's.
 
     :param job: the run.
     """
+    from sb3_er.er import REPLAY_VOLUME
     from sb3_er.zoo import algorithm_classes, model_kwargs
 
     kwargs = model_kwargs(job.algo, job.experiment.env_id) if job.experiment.zoo_configs else {}
     accepted = set(accepted_parameters(algorithm_classes()[job.algo]))
     if "preset" in accepted:
         kwargs.setdefault("preset", "thesis")
-    kwargs.update({name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS})
+    given = {name: value for name, value in job.algo_kwargs if name in accepted and name not in RUNNER_ARGUMENTS}
+    if any(name in REPLAY_VOLUME for name in given):
+        for name in REPLAY_VOLUME:
+            kwargs.pop(name, None)
+    kwargs.update(given)
     return kwargs
 
 
