@@ -872,14 +872,19 @@ def excursion_beyond_margin(run: dict) -> float | None:
     its largest excursion (rounding: a sum of N projected weights can exceed V_max by a few ulps). Otherwise the
     largest excursion less the margin at the watch's first flag (``first_value_excursion``): the margin grows only as
     observed rewards widen the bounds, so this is never smaller than the excursion beyond the run's final margin.
+    Where the record has no count or no first flag, the largest excursion as recorded (no margin known to take off);
+    a NaN excursion is infinite.
     """
     largest = run.get("largest_excursion")
     if largest is None:
         return None
+    if math.isnan(largest):  # the watch saw a NaN: as far out as it gets
+        return math.inf
     if run.get("values_out_of_range") == 0:
         return 0.0
-    first = run.get("first_value_excursion") or {}
-    return max(0.0, float(largest) - float(first.get("margin", 0.0)))
+    # no count (-1: no bounds) or no first flag recorded: the margin is unknown, so none is taken off
+    margin = (run.get("first_value_excursion") or {}).get("margin") or 0.0
+    return max(0.0, float(largest) - float(margin))
 
 
 def summarize_runs(task: Task, runs: list[dict]) -> dict[str, Any]:

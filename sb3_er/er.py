@@ -88,16 +88,44 @@ def resolve_preset(preset: str, given: dict[str, Any]) -> dict[str, Any]:
     return resolved
 
 
-def saved_stabilizers(saved: dict[str, Any]) -> dict[str, Any]:
-    """The stabilizers a saved model replayed with, from its file's ``stabilizers``: a stabilizer added after the
-    file was written was off (the thesis's value), and a file written before the resolved values named their replay
-    volume (an ``n_replays`` beside ``replays_per_stored_trajectory`` or ``replay_ratio``) names it now.
+def check_stabilizers(resolved: dict[str, Any], where: str = "stabilizers") -> None:
+    """ValueError naming the entry unless ``resolved`` holds exactly :data:`STABILIZERS` with valid values and at most
+    one replay volume: what a saved model's file is checked against before it replays.
+
+    :param resolved: the stabilizers and replay volume.
+    :param where: the name to give in messages.
+    """
+    if not isinstance(resolved, dict) or set(resolved) != set(STABILIZERS):
+        raise ValueError(f"{where}: expected the entries {list(STABILIZERS)}, got {resolved!r}")
+    check_integer(f"{where}['n_replays']", resolved["n_replays"], minimum=0, optional=True)
+    check_number(
+        f"{where}['replays_per_stored_trajectory']", resolved["replays_per_stored_trajectory"], 0.0, optional=True
+    )
+    check_number(f"{where}['replay_ratio']", resolved["replay_ratio"], 0.0, optional=True, low_open=True)
+    for name in STABILIZERS[len(REPLAY_VOLUME) :]:
+        check_bool(f"{where}[{name!r}]", resolved[name])
+    volumes = [name for name in REPLAY_VOLUME if resolved[name] is not None]
+    if len(volumes) != 1:
+        raise ValueError(f"{where}: expected one replay volume of {list(REPLAY_VOLUME)}, got {volumes or 'none'}")
+
+
+def saved_stabilizers(saved: dict[str, Any], replays_per_stored_trajectory: float | None = None) -> dict[str, Any]:
+    """The stabilizers a saved model replayed with, from its file's ``stabilizers``, checked
+    (:func:`check_stabilizers`): a stabilizer added after the file was written was off (the thesis's value), and a
+    file written before the resolved values named their replay volume, which then replayed by its
+    ``replays_per_stored_trajectory`` attribute where that was given, names it now.
 
     :param saved: the ``stabilizers`` dict read from the file.
+    :param replays_per_stored_trajectory: the file's attribute of that name, read where ``saved`` lacks the entry.
     """
+    if not isinstance(saved, dict):
+        raise ValueError(f"stabilizers: expected a dict, got {saved!r}")
     resolved = {**PRESETS["thesis"], **saved}
+    if "replays_per_stored_trajectory" not in saved:
+        resolved["replays_per_stored_trajectory"] = replays_per_stored_trajectory
     if resolved["replays_per_stored_trajectory"] is not None or resolved["replay_ratio"] is not None:
         resolved["n_replays"] = None
+    check_stabilizers(resolved)
     return resolved
 
 
@@ -356,12 +384,19 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
     def _resolve_stabilizers(self, given: dict[str, Any]) -> dict[str, Any]:
         """The preset's stabilizers with the arguments given explicitly winning (:func:`resolve_preset`); for a loaded
         model, the ones it was saved with (:func:`saved_stabilizers`: a later change to a preset does not change what
-        a saved model does), with what ``load``'s keyword arguments give winning (a new ``preset`` resolves anew)."""
+        a saved model does), with what ``load``'s keyword arguments give winning (a new ``preset`` resolves anew). A
+        replay volume given to ``load`` replaces the saved one as a whole, and the model's other volume arguments are
+        cleared, so that the file it saves next names one volume."""
         saved = self.stabilizers  # {} when built; the file's when loaded
         at_load = self.__dict__.get(GIVEN_AT_LOAD, ())
+        if any(name in REPLAY_VOLUME and given[name] is not None for name in at_load):
+            for name in REPLAY_VOLUME:
+                if name not in at_load:
+                    given[name] = None
+                    setattr(self, name, None)
         if not saved or "preset" in at_load:
             return resolve_preset(self.preset, given)
-        resolved = saved_stabilizers(saved)
+        resolved = saved_stabilizers(saved, self.replays_per_stored_trajectory)
         overrides = {name: given[name] for name in STABILIZERS if name in at_load and given[name] is not None}
         if any(name in REPLAY_VOLUME for name in overrides):
             resolved.update(dict.fromkeys(REPLAY_VOLUME))

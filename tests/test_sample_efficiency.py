@@ -227,8 +227,12 @@ def test_excursion_beyond_the_margin_from_a_runs_record():
     assert se.excursion_beyond_margin(run(largest_excursion=0.04)) == 0.0  # the watch counted nothing beyond it
     flagged = run(largest_excursion=2.0, values_out_of_range=7, first_value_excursion={"margin": 0.05})
     assert se.excursion_beyond_margin(flagged) == pytest.approx(1.95)
-    # no bounds (the watch's count is -1): the excursion as recorded
+    # no bounds (the watch's count is -1), or no first flag recorded: the excursion as recorded, no margin known
     assert se.excursion_beyond_margin(run(largest_excursion=3.0, values_out_of_range=-1)) == 3.0
+    assert se.excursion_beyond_margin(run(largest_excursion=3.0, values_out_of_range=2)) == 3.0
+    margin_unknown = run(largest_excursion=3.0, values_out_of_range=2, first_value_excursion={"margin": None})
+    assert se.excursion_beyond_margin(margin_unknown) == 3.0
+    assert se.excursion_beyond_margin(run(largest_excursion=math.nan, values_out_of_range=5)) == math.inf
     # Sarsa(lambda) 12.5 beyond the bounds with a margin of 0.05 against ours inside it: ours holds
     sarsa = run(largest_excursion=12.5, values_out_of_range=30, first_value_excursion={"margin": 0.05})
     figures = se.summarize_runs(se.TASKS[CARTPOLE], [sarsa])

@@ -384,6 +384,53 @@ def test_a_loaded_model_replays_with_the_stabilizers_it_was_saved_with(algo, tmp
     assert algo.load(tmp_path / "old").stabilizers == earlier
 
 
+def test_a_file_saved_before_the_stabilizers_named_their_volume_replays_by_its_attribute(tmp_path):
+    """Files written before the resolved values named the replay volume held n_replays=100 beside an attribute
+    replays_per_stored_trajectory that the replay read: they keep replaying per stored trajectory."""
+    model = ERSigma("TileQ", "CartPole-v1", replays_per_stored_trajectory=0.5, seed=0).learn(300)
+    model.stabilizers = {
+        name: value for name, value in PRESETS["thesis"].items() if name != "replays_per_stored_trajectory"
+    }
+    model.save(tmp_path / "old")
+    loaded = ERSigma.load(tmp_path / "old", env="CartPole-v1")
+    assert loaded.stabilizers == {**PRESETS["thesis"], "n_replays": None, "replays_per_stored_trajectory": 0.5}
+    loaded.replay_buffer = model.replay_buffer  # SB3 saves the buffer apart
+    stored = loaded.replay_buffer.n_stored_trajectories
+    assert stored > 2 and loaded._replays_per_phase() == round(0.5 * stored)
+
+
+def test_a_volume_given_to_load_replaces_the_saved_one_with_or_without_a_preset(tmp_path):
+    ERSigma("TileQ", "CartPole-v1", preset="stable", n_replays=3).save(tmp_path / "a")
+    loaded = ERSigma.load(tmp_path / "a", preset="thesis", replay_ratio=2.0)
+    assert loaded.stabilizers == {**PRESETS["thesis"], "n_replays": None, "replay_ratio": 2.0}
+    assert loaded.n_replays is None  # the file it saves next names one volume
+    loaded.save(tmp_path / "b")
+    assert ERSigma.load(tmp_path / "b", preset="stable").stabilizers == {
+        **PRESETS["stable"],
+        "n_replays": None,
+        "replay_ratio": 2.0,
+    }
+
+
+@pytest.mark.parametrize(
+    "crafted, field",
+    [
+        ({"n_replays": -5}, "n_replays"),
+        ({"n_replays": None, "replay_ratio": 0.0}, "replay_ratio"),
+        ({"n_replays": 2.5}, "n_replays"),
+        ({"target_copy": "no"}, "target_copy"),
+        ({"bogus": 1}, "expected the entries"),
+        ({"n_replays": None}, "expected one replay volume"),
+    ],
+)
+def test_a_files_stabilizers_are_checked_when_read_back(crafted, field, tmp_path):
+    model = ERSigma("TileQ", "CartPole-v1", seed=0)
+    model.stabilizers = {**model.stabilizers, **crafted}
+    model.save(tmp_path / "m")
+    with pytest.raises(ValueError, match=rf"m.zip: .*stabilizers.*{field}"):
+        ERSigma.load(tmp_path / "m")
+
+
 def test_a_model_saved_before_presets_loads_with_the_thesis_algorithm(tmp_path):
     """A file without the preset's attributes (saved before they existed) loads as the thesis's algorithm."""
     model = ERSigma("TileQ", "CartPole-v1", preset="stable", seed=0)

@@ -447,6 +447,7 @@ def test_observed_bounds_survive_save_load_and_a_new_run(algo, tmp_path):
     rewards seen since, and the watch would flag them."""
     model = algo("TileQ", _early_penalty_env(), seed=0, value_bound_action="ignore").learn(400)
     assert model.value_bounds == pytest.approx((-500.0, 0.0))
+    assert model.observed_rewards == {"step": [-5.0, -1.0], "terminal": None}  # current, not only once saved
     model.learn(200)  # a new run: a new watch, the same rewards known
     assert model.value_bounds == pytest.approx((-500.0, 0.0))
     model.save(tmp_path / "m")
@@ -463,7 +464,7 @@ def test_observed_bounds_survive_save_load_and_a_new_run(algo, tmp_path):
 )
 def test_observed_rewards_are_checked_when_read_back(bad, tmp_path):
     model = SarsaLambda("TileQ", "CartPole-v1", seed=0)
-    model.observed_rewards = bad
+    model._observed_rewards = bad
     model._remember_observed_rewards = lambda: None  # write the bad value as it stands
     model.save(tmp_path / "m")
     with pytest.raises(ValueError, match=r"m.zip: observed_rewards"):

@@ -239,9 +239,7 @@ class TileQAlgorithm(BaseAlgorithm):
         self.value_watch = value_watch
         self.value_bound_action = value_bound_action
         self.value_excursion: dict[str, Any] | None = None
-        #: The extremes of the rewards the model has observed where the env declares no reward bounds (the value
-        #: watch's, and the stabilizers', bounds): kept across ``learn`` calls and saved with the model.
-        self.observed_rewards: dict[str, list[float] | None] | None = None
+        self._observed_rewards: dict[str, list[float] | None] | None = None  # see observed_rewards
         self._watch: ValueWatch | None = None
         self._seed_generators(seed)
         self.falls = 0
@@ -425,23 +423,34 @@ class TileQAlgorithm(BaseAlgorithm):
         else:
             self._watch = ValueWatch.for_env(self.env, self.gamma, initial, self.value_watch, earlier=self._watch)
         self._watch_array = self._watch.array
-        self._watch.observe_rewards(self.observed_rewards)
+        self._watch.observe_rewards(self._observed_rewards)
         self._watch.read_buffer(getattr(self, "replay_buffer", None))
 
-    def _remember_observed_rewards(self) -> None:
-        """Fold the current watch's observed reward extremes into ``observed_rewards`` (before a new watch replaces
-        it, and before saving)."""
+    @property
+    def observed_rewards(self) -> dict[str, list[float] | None] | None:
+        """The extremes of the rewards the model has observed where the env declares no reward bounds, which bound
+        its values (the value watch's and the stabilizers' bounds): {"step": [low, high] or None, "terminal":
+        likewise}, or None before any. Kept across ``learn`` calls and ``set_env`` (bounds only widen) and saved
+        with the model."""
+        return self._merged_observed_rewards()
+
+    def _merged_observed_rewards(self) -> dict[str, list[float] | None] | None:
         observed = None if self._watch is None else self._watch.observed_rewards()
         if not observed:
-            return
-        known = dict(self.observed_rewards or {})
+            return self._observed_rewards
+        known = dict(self._observed_rewards or {})
         for key, extremes in observed.items():
             if extremes is not None:
                 earlier = known.get(key)
                 known[key] = (
                     extremes if earlier is None else [min(earlier[0], extremes[0]), max(earlier[1], extremes[1])]
                 )
-        self.observed_rewards = {"step": known.get("step"), "terminal": known.get("terminal")}
+        return {"step": known.get("step"), "terminal": known.get("terminal")}
+
+    def _remember_observed_rewards(self) -> None:
+        """Fold the current watch's observed reward extremes into the saved ones (before a new watch replaces it, and
+        before saving)."""
+        self._observed_rewards = self._merged_observed_rewards()
 
     def _observe_stored_rewards(self) -> None:
         """With observed bounds, widen them with every reward of the buffer not read yet
