@@ -14,6 +14,7 @@ and the code version.
 """
 
 import argparse
+import shlex
 import statistics
 import sys
 import time
@@ -118,9 +119,7 @@ def main(argv=None) -> int:
                 f"| {_share(_mean(run['weights_at_a_bound'] for run in chosen))} "
                 f"| {statistics.median(run['cpu_s'] for run in chosen):.1f} |"
             )
-    command = "python benchmarks/projection_binding.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:])
-    )
+    command = shlex.join(["python", "benchmarks/projection_binding.py", *(sys.argv[1:] if argv is None else argv)])
     data = {"command": command, "code_version": records.code_version(), "runs": runs}
     args.out.mkdir(parents=True, exist_ok=True)
     path = files.write_json(args.out / "binding.json", data)

@@ -62,6 +62,8 @@ STABILIZERS = (
     "project_weights",
 )
 REPLAY_VOLUME = ("n_replays", "replays_per_stored_trajectory", "replay_ratio")
+#: The stabilizers proper: each on or off.
+SWITCHES = tuple(name for name in STABILIZERS if name not in REPLAY_VOLUME)
 
 
 def resolve_preset(preset: str, given: dict[str, Any]) -> dict[str, Any]:
@@ -102,7 +104,7 @@ def check_stabilizers(resolved: dict[str, Any], where: str = "stabilizers") -> N
         f"{where}['replays_per_stored_trajectory']", resolved["replays_per_stored_trajectory"], 0.0, optional=True
     )
     check_number(f"{where}['replay_ratio']", resolved["replay_ratio"], 0.0, optional=True, low_open=True)
-    for name in STABILIZERS[len(REPLAY_VOLUME) :]:
+    for name in SWITCHES:
         check_bool(f"{where}[{name!r}]", resolved[name])
     volumes = [name for name in REPLAY_VOLUME if resolved[name] is not None]
     if len(volumes) != 1:
@@ -342,7 +344,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         check_number(
             "replay_ratio (replayed updates per new sample)", self.replay_ratio, 0.0, optional=True, low_open=True
         )
-        for name in ("truncate_targets", "target_copy", "step_size_bound", "averager", "project_weights"):
+        for name in SWITCHES:
             check_bool(name, getattr(self, name), optional=True)
         check_choice("preset", self.preset, PRESETS)
         check_number("residual_zeta (Eq. 5.9)", self.residual_zeta, 0.0, 1.0, optional=True)
@@ -372,7 +374,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
                 "both set a prioritized phase's updates: give one"
             )
         super()._setup_model()
-        self._check_averager_step()
+        self._check_averager_step(whole_schedule=True)
         self.replay_buffer = TrajectoryReplayBuffer(
             self.buffer_size, self.policy.tile_coder, **(self.replay_buffer_kwargs or {}), n_envs=self.n_envs or 1
         )
@@ -401,7 +403,7 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         if any(name in REPLAY_VOLUME for name in overrides):
             resolved.update(dict.fromkeys(REPLAY_VOLUME))
         resolved.update(overrides)
-        resolve_preset(self.preset, {name: resolved[name] for name in REPLAY_VOLUME})  # one volume, or a ValueError
+        check_stabilizers(resolved)
         return resolved
 
     def _value_watch_remedy(self) -> str:
@@ -428,14 +430,19 @@ class ER(TrajectoryBufferIO, TileQAlgorithm):
         super().set_parameters(load_path_or_dict, exact_match, device)
         self._setup_target_copy()
 
-    def _check_averager_step(self) -> None:
+    def _check_averager_step(self, whole_schedule: bool = False) -> None:
         """ValueError if the averager would step with a learning rate above 1 (each weight carried past its share of
-        the target, and the bound on the values lost)."""
+        the target, and the bound on the values lost): the rate in use at every phase, and with ``whole_schedule``
+        (once, when the model is built) the schedule at 101 points of its course.
+
+        :param whole_schedule: check the schedule's course too (default False: the current rate only).
+        """
         if not self.stabilizers["averager"]:
             return
-        # a schedule is checked over its whole course when the model is built, and the rate in use at every phase
-        course = [(float(self.lr_schedule(remaining)), remaining) for remaining in np.linspace(1.0, 0.0, 101)]
-        rate, remaining = max([(self.current_learning_rate, None), *course], key=lambda pair: pair[0])
+        rates = [(self.current_learning_rate, None)]
+        if whole_schedule:
+            rates += [(float(self.lr_schedule(remaining)), remaining) for remaining in np.linspace(1.0, 0.0, 101)]
+        rate, remaining = max(rates, key=lambda pair: pair[0])
         if rate > 1.0:
             where = "now" if remaining is None else f"at progress_remaining {remaining:.2f} of its schedule"
             raise ValueError(

@@ -432,25 +432,12 @@ class TileQAlgorithm(BaseAlgorithm):
         its values (the value watch's and the stabilizers' bounds): {"step": [low, high] or None, "terminal":
         likewise}, or None before any. Kept across ``learn`` calls and ``set_env`` (bounds only widen) and saved
         with the model."""
-        return self._merged_observed_rewards()
-
-    def _merged_observed_rewards(self) -> dict[str, list[float] | None] | None:
         observed = None if self._watch is None else self._watch.observed_rewards()
-        if not observed:
-            return self._observed_rewards
-        known = dict(self._observed_rewards or {})
-        for key, extremes in observed.items():
-            if extremes is not None:
-                earlier = known.get(key)
-                known[key] = (
-                    extremes if earlier is None else [min(earlier[0], extremes[0]), max(earlier[1], extremes[1])]
-                )
-        return {"step": known.get("step"), "terminal": known.get("terminal")}
+        return observed or self._observed_rewards  # a watch that observes holds the saved ones too (set up with them)
 
     def _remember_observed_rewards(self) -> None:
-        """Fold the current watch's observed reward extremes into the saved ones (before a new watch replaces it, and
-        before saving)."""
-        self._observed_rewards = self._merged_observed_rewards()
+        """Keep the current watch's observed reward extremes (before a new watch replaces it, and before saving)."""
+        self._observed_rewards = self.observed_rewards
 
     def _observe_stored_rewards(self) -> None:
         """With observed bounds, widen them with every reward of the buffer not read yet

@@ -533,7 +533,7 @@ class ValueWatch:
             f"values in [{self.initial[0]:.6g}, {self.initial[1]:.6g}])"
         )
 
-    def excursion_message(self, learner: str, step: int, where: str, remedy: str = "") -> str:
+    def excursion_message(self, learner: str, step: int, where: str, remedy: str) -> str:
         """What the first value outside the bounds means, for the ValueBoundWarning (or ValueBoundError): the value,
         how far beyond the bounds and the margin, whether the policy can still be good and how to check it, and where
         the documentation explains it.
@@ -541,9 +541,8 @@ class ValueWatch:
         :param learner: the algorithm's name.
         :param step: the environment step.
         :param where: which update it was (e.g. "replayed update 3 of replay phase 20").
-        :param remedy: what the learner's own options can do about it (default: the stable preset's word).
+        :param remedy: what the learner's options can do about it (the learner's ``_value_watch_remedy``).
         """
-        remedy = remedy or "the stabilizers that keep values inside them (preset='stable')"
         value = self.first_value
         low, high = self.bounds
         side = f"{value - high:.6g} above" if value > high else f"{low - value:.6g} below"
