@@ -1354,6 +1354,7 @@ def benchmarks_entries(summary: dict) -> list[dict]:
             entries.append(
                 {
                     "task": task.description,
+                    "env_id": env_id,
                     "metric": f"final {task.final_metric}",
                     "higher_is_better": True,
                     "speed_label": f"median {task.unit} to {_format(task.target)}",

@@ -834,6 +834,7 @@ def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committe
         "benchmarks": [
             {
                 "task": "balancing",
+                "env_id": "sb3_er/SimplestWalker-v0",  # the env of table_6_2: the thesis's table gives way
                 "metric": "steps to a return of 475",
                 "higher_is_better": False,
                 "files": ["summary.md", "cartpole.png"],
@@ -854,9 +855,45 @@ def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committe
     text = generator.which_algorithm(lambda folder, file: f"{folder}/{file}", tmp_path)
     assert "| ER-σ or vanilla-ER |" in text and "residual ER (diverged)" in text
     assert "[cartpole](sample_efficiency/cartpole.png)" in text
+    assert 'marked "(stable)"' not in text  # no stable learner measured, nothing to explain
+    # a summary of other envs: the thesis's table of an env it does not run comes back beside it
+    summary["benchmarks"][0]["env_id"] = "CartPole-v1"
+    summary["benchmarks"][0]["scores"].append({"algorithm": "er_sigma_stable", "mean": 26000, "runs": 20})
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
+    benchmarks, source = generator.which_algorithm_benchmarks(tmp_path)
+    assert [b.folder for b in benchmarks] == ["sample_efficiency", "table_6_2"]
+    assert [b.env_id for b in benchmarks] == ["CartPole-v1", "sb3_er/SimplestWalker-v0"]
+    assert "the thesis's tables for `sb3_er/SimplestWalker-v0`, which it does not run" in source
+    text = generator.which_algorithm(lambda folder, file: f"{folder}/{file}", tmp_path, docs="../")
+    assert '`preset="stable"`' in text and "[Stable replay](../stable_replay.md)" in text
     (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps({"benchmarks": [{"task": "x"}]}))
     with pytest.raises(generator.FindingsError, match="sample_efficiency/summary.json: benchmarks\\[0\\]"):
         generator.which_algorithm_benchmarks(tmp_path)
+
+
+def test_which_algorithm_names_every_learner_tied_at_the_top(tmp_path):
+    """Two learners each picked on as many tasks: the short summary names both, in neither's favour."""
+    (tmp_path / "sample_efficiency").mkdir()
+    scores = [
+        {"algorithm": "sarsa_lambda", "mean": 10.0, "ci95": 0.1, "runs": 10},
+        {"algorithm": "er_sigma", "mean": 5.0, "ci95": 0.1, "runs": 10},
+    ]
+    summary = {
+        "benchmarks": [
+            {"task": "a", "env_id": "A-v0", "metric": "return", "scores": scores},
+            {"task": "b", "env_id": "B-v0", "metric": "return", "scores": [{**scores[1], "mean": 20.0}]},
+            {"task": "c", "env_id": "C-v0", "metric": "return", "scores": [scores[0], {**scores[1], "mean": 20.0}]},
+            {"task": "d", "env_id": "D-v0", "metric": "return", "scores": [{**scores[0], "mean": 30.0}, scores[1]]},
+        ]
+    }
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
+    text = generator.which_algorithm(lambda folder, file: None, tmp_path)
+    assert "In short: Sarsa(λ) and ER-σ are each the pick, or one of the picks, on 2 of these 4 tasks." in text
+    assert "try Sarsa(λ) or ER-σ first" in text
+    summary["benchmarks"].pop()
+    (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
+    text = generator.which_algorithm(lambda folder, file: None, tmp_path)
+    assert "In short: ER-σ is the pick, or one of the picks, on 2 of these 3 tasks, Sarsa(λ) on 1." in text
 
 
 def test_the_sample_efficiency_page_says_how_far_a_benchmark_in_progress_has_come(tmp_path):

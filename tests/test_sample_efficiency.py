@@ -295,6 +295,7 @@ def test_goal_and_the_machine_readable_summary(tmp_path):
     assert written["goal"]["stability"]["holds"] is True and written["goal"]["walker"]["holds"] is None
     entry = next(e for e in written["benchmarks"] if "CartPole-v1" in e["task"])
     assert {score["algorithm"] for score in entry["scores"]} == {"sarsa_lambda", "er_sigma"}
+    assert [e["env_id"] for e in written["benchmarks"]] == list(se.TASKS)  # the docs match the thesis's tables by it
     text = (tmp_path / "summary.md").read_text()
     assert "python benchmarks/sample_efficiency.py --jobs 2" in text and "| samples | yes |" in text
     assert (tmp_path / se.FIGURE).read_bytes()[:4] == b"\x89PNG"

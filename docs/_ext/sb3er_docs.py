@@ -33,6 +33,7 @@ comparisons (``peers/peers.json``, ``peers_continuous/peers.json``). The sample-
     {
       "benchmarks": [
         {"task": "balancing a cart-pole (CartPole-v1)",   # the kind of task, in plain words
+         "env_id": "CartPole-v1",                          # optional: the env it was measured on
          "metric": "final return",                         # what each score's mean measures
          "higher_is_better": true,                         # optional, default true
          "speed_label": "steps to a return of 475",        # optional: what speed measures (lower is sooner)
@@ -1077,12 +1078,14 @@ class Benchmark:
     higher_is_better: bool = True
     speed_label: str = "rise time"
     files: tuple[str, ...] = ("summary.md",)  # the files of the folder it rests on: the first is the main one
+    env_id: str = ""  # the env it was measured on, where known
 
 
 def _label(algorithm: str) -> str:
     from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
-    return {**ALGORITHM_LABELS, "dyna": "Dyna", "fqi": "FQI", "lspi": "LSPI"}.get(algorithm, algorithm)
+    others = {"dyna": "Dyna", "fqi": "FQI", "lspi": "LSPI", "dqn": "DQN (rl-zoo)", "sac": "SAC (rl-zoo)"}
+    return {**ALGORITHM_LABELS, **others}.get(algorithm, algorithm)
 
 
 def _ranked(benchmark: Benchmark) -> list[Score]:
@@ -1168,17 +1171,22 @@ def _read_sample_efficiency(path: Path) -> list[Benchmark]:
                 bool(entry.get("higher_is_better", True)),
                 str(entry.get("speed_label", "steps to the target")),
                 files,
+                str(entry.get("env_id", "")),
             )
         )
     return benchmarks
 
 
-#: The thesis's tables as benchmarks: the kind of task each stands for.
+#: The thesis's tables as benchmarks: the ``sb3-er reproduce`` experiment of each folder and the kind of task it
+#: stands for.
 THESIS_TASKS = {
-    "table_6_2": "a walking robot in a simple simulation, where a fall ends the episode (the simplest walker)",
-    "table_6_3": "a simulated biped robot with many actions (LEO)",
-    "table_6_1": "swinging up a pendulum whose motor is too weak to lift it at once",
-    "gridworld": "a small grid world with a cliff (the windy cliff)",
+    "table_6_2": (
+        "walker",
+        "a walking robot in a simple simulation, where a fall ends the episode (the simplest walker)",
+    ),
+    "table_6_3": ("leo", "a simulated biped robot with many actions (LEO)"),
+    "table_6_1": ("pendulum", "swinging up a pendulum whose motor is too weak to lift it at once"),
+    "gridworld": ("gridworld", "a small grid world with a cliff (the windy cliff)"),
 }
 #: The classic-control and continuous-action peers: the kind of task of each env.
 PEER_TASKS = {
@@ -1194,11 +1202,12 @@ PEER_TASKS = {
 }
 
 
-def _thesis_benchmark(folder: str, task: str, measured: Path) -> Benchmark | None:
+def _thesis_benchmark(folder: str, experiment: str, task: str, measured: Path) -> Benchmark | None:
     """A thesis table's benchmark from its ``summary.csv`` (the end performance, rise time, falls and the runs not
     averaged of each algorithm)."""
     import csv
 
+    from sb3_er.experiments.specs import EXPERIMENTS
     from sb3_er.experiments.thesis import ALGORITHM_LABELS
 
     path = measured / folder / "summary.csv"
@@ -1260,6 +1269,7 @@ def _thesis_benchmark(folder: str, task: str, measured: Path) -> Benchmark | Non
         tuple(scores),
         speed_label="rise time",
         files=("summary.md", "learning_curves.png"),
+        env_id=EXPERIMENTS[experiment].env_id,
     )
 
 
@@ -1316,21 +1326,41 @@ def _peer_benchmarks(folder: str, measured: Path) -> list[Benchmark]:
 
 def which_algorithm_benchmarks(measured: Path = MEASURED) -> tuple[list[Benchmark], str]:
     """(the benchmarks, a phrase naming their source): the sample-efficiency benchmark's summary when it is committed,
-    else the thesis's tables and the peers' classic-control and continuous-action runs."""
+    with the thesis's tables of the envs it does not run (LEO, the windy cliff); else the thesis's tables and the
+    peers' classic-control and continuous-action runs."""
+    thesis = [
+        benchmark
+        for folder, (experiment, task) in THESIS_TASKS.items()
+        if (benchmark := _thesis_benchmark(folder, experiment, task, measured))
+    ]
     summary = measured / SAMPLE_EFFICIENCY / "summary.json"
     if summary.is_file():
-        return _read_sample_efficiency(
-            summary
-        ), f"the sample-efficiency benchmark (`results/measured/{SAMPLE_EFFICIENCY}/`)"
-    benchmarks = [b for folder, task in THESIS_TASKS.items() if (b := _thesis_benchmark(folder, task, measured))]
+        benchmarks = _read_sample_efficiency(summary)
+        covered = {benchmark.env_id for benchmark in benchmarks}
+        rest = [benchmark for benchmark in thesis if benchmark.env_id not in covered]
+        source = f"the sample-efficiency benchmark (`results/measured/{SAMPLE_EFFICIENCY}/`)"
+        if rest:
+            envs = " and ".join(f"`{benchmark.env_id}`" for benchmark in rest)
+            source += f", and the thesis's tables for {envs}, which it does not run"
+        return benchmarks + rest, source
+    benchmarks = thesis
     for folder in PEER_TASKS:
         benchmarks += _peer_benchmarks(folder, measured)
     return benchmarks, "the thesis's tables and the classic-control and continuous-action comparisons with peers"
 
 
-def which_algorithm(link, measured: Path = MEASURED) -> str:
+def which_algorithm_sources(measured: Path = MEASURED) -> list[Path]:
+    """Every file "Which algorithm?" may read, whether or not it is committed yet."""
+    return [
+        measured / SAMPLE_EFFICIENCY / "summary.json",
+        *(measured / folder / "summary.csv" for folder in THESIS_TASKS),
+        *(measured / folder / "peers.json" for folder in PEER_TASKS),
+    ]
+
+
+def which_algorithm(link, measured: Path = MEASURED, docs: str = "docs/") -> str:
     """The "Which algorithm?" section in Markdown; ``link(folder, file)`` gives the target of a results file's link
-    (None: no link)."""
+    (None: no link), and ``docs`` the path from where the section is shown to the docs folder."""
     benchmarks, source = which_algorithm_benchmarks(measured)
     lines = [
         f"Which learner to pick, by kind of task, as the committed benchmarks measured it ({source}). The pick is "
@@ -1378,13 +1408,23 @@ def which_algorithm(link, measured: Path = MEASURED) -> str:
         lines.append(f"| {_cell(benchmark.task)} ({sources}) | {pick} | {_cell('; '.join(facts))} |")
     if tally:
         counts = sorted(tally.items(), key=lambda item: -item[1])
-        first = _label(counts[0][0])
-        others = ", ".join(f"{_label(algo)} on {n}" for algo, n in counts[1:])
+        most = counts[0][1]
+        first = [_label(algo) for algo, n in counts if n == most]  # a tie names every learner at the top
+        others = ", ".join(f"{_label(algo)} on {n}" for algo, n in counts[len(first) :])
+        subject = " and ".join(first) + (" is" if len(first) == 1 else " are each")
         lines += [
             "",
-            f"In short: {first} is the pick, or one of the picks, on {counts[0][1]} of these {len(benchmarks)} tasks"
+            f"In short: {subject} the pick, or one of the picks, on {most} of these {len(benchmarks)} tasks"
             + (f", {others}" if others else "")
-            + f". On a new task, try {first} first, and the learner the table names for the task most like yours.",
+            + f". On a new task, try {' or '.join(first)} first, and the learner the table names for the task most "
+            "like yours.",
+        ]
+    if any(score.algorithm.endswith("_stable") for benchmark in benchmarks for score in benchmark.scores):
+        lines += [
+            "",
+            'A learner marked "(stable)" is its class with `preset="stable"`, e.g. `ER("TileQ", env, preset="stable")` '
+            f'([Stable replay]({docs}stable_replay.md)); the others are the thesis\'s algorithms (`preset="thesis"`, '
+            "the default).",
         ]
     return "\n".join(lines) + "\n"
 
@@ -1421,8 +1461,11 @@ def _which_algorithm_directive():
         has_content = False
 
         def run(self):
+            environment = self.state.document.settings.env
+            for path in which_algorithm_sources():  # rebuild the page when a benchmark it rests on changes
+                environment.note_dependency(str(path))
             container = nodes.container(classes=["which-algorithm"])
-            text = which_algorithm(_docs_link)
+            text = which_algorithm(_docs_link, docs="../")
             self.state.nested_parse(StringList(text.splitlines()), self.content_offset, container)
             return [container]
 
