@@ -809,7 +809,10 @@ def test_which_algorithm_ranks_only_learners_with_enough_averaged_runs(tmp_path)
     assert "ER-σ (values left the possible returns in 13 of 20 runs)" in row
     # ER-σ's 900 s is not ranked; residual ER's 100 s is its rise to its own low end, not a pick's
     assert "soonest (rise time, of the picks): Sarsa(λ), 1500 s" in row
-    assert "In short: Sarsa(λ) is the pick, or one of the picks, on 1 of these 1 tasks" in text
+    assert (
+        "In short, the tasks on which each learner is the pick or one of the picks, of those it ran: Sarsa(λ) 1 of 1"
+        in text
+    )
 
 
 def test_which_algorithm_reads_a_diverged_row_that_says_why_its_runs_are_left_out(tmp_path):
@@ -872,7 +875,8 @@ def test_which_algorithm_reads_the_sample_efficiency_summary_when_it_is_committe
 
 
 def test_which_algorithm_names_every_learner_tied_at_the_top(tmp_path):
-    """Two learners each picked on as many tasks: the short summary names both, in neither's favour."""
+    """Two learners each picked on as many tasks: the short summary names both, in neither's favour, each counted
+    against the tasks it ran."""
     (tmp_path / "sample_efficiency").mkdir()
     scores = [
         {"algorithm": "sarsa_lambda", "mean": 10.0, "ci95": 0.1, "runs": 10},
@@ -881,19 +885,18 @@ def test_which_algorithm_names_every_learner_tied_at_the_top(tmp_path):
     summary = {
         "benchmarks": [
             {"task": "a", "env_id": "A-v0", "metric": "return", "scores": scores},
-            {"task": "b", "env_id": "B-v0", "metric": "return", "scores": [{**scores[1], "mean": 20.0}]},
+            {"task": "b", "env_id": "B-v0", "metric": "return", "scores": [{**scores[1], "mean": 20.0}, scores[0]]},
             {"task": "c", "env_id": "C-v0", "metric": "return", "scores": [scores[0], {**scores[1], "mean": 20.0}]},
-            {"task": "d", "env_id": "D-v0", "metric": "return", "scores": [{**scores[0], "mean": 30.0}, scores[1]]},
+            {"task": "d", "env_id": "D-v0", "metric": "return", "scores": [{**scores[0], "mean": 30.0}]},  # no ER-σ
         ]
     }
     (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
     text = generator.which_algorithm(lambda folder, file: None, tmp_path)
-    assert "In short: Sarsa(λ) and ER-σ are each the pick, or one of the picks, on 2 of these 4 tasks." in text
-    assert "try Sarsa(λ) or ER-σ first" in text
+    assert "of those it ran: Sarsa(λ) 2 of 4, ER-σ 2 of 3. On a new task, try Sarsa(λ) or ER-σ first" in text
     summary["benchmarks"].pop()
     (tmp_path / "sample_efficiency" / "summary.json").write_text(json.dumps(summary))
     text = generator.which_algorithm(lambda folder, file: None, tmp_path)
-    assert "In short: ER-σ is the pick, or one of the picks, on 2 of these 3 tasks, Sarsa(λ) on 1." in text
+    assert "of those it ran: ER-σ 2 of 3, Sarsa(λ) 1 of 3. On a new task, try ER-σ first" in text
 
 
 def test_the_sample_efficiency_page_says_how_far_a_benchmark_in_progress_has_come(tmp_path):

@@ -1407,17 +1407,17 @@ def which_algorithm(link, measured: Path = MEASURED, docs: str = "docs/") -> str
         pick = " or ".join(_label(score.algorithm) for score in chosen) or "none"
         lines.append(f"| {_cell(benchmark.task)} ({sources}) | {pick} | {_cell('; '.join(facts))} |")
     if tally:
+        # a learner is counted against the tasks it ran (the stable learners and the peers did not run every table)
+        ran = {algo: sum(any(s.algorithm == algo for s in b.scores) for b in benchmarks) for algo in tally}
         counts = sorted(tally.items(), key=lambda item: -item[1])
         most = counts[0][1]
-        first = [_label(algo) for algo, n in counts if n == most]  # a tie names every learner at the top
-        others = ", ".join(f"{_label(algo)} on {n}" for algo, n in counts[len(first) :])
-        subject = " and ".join(first) + (" is" if len(first) == 1 else " are each")
+        first = [algo for algo, n in counts if n == most]  # a tie names every learner at the top
+        parts = ", ".join(f"{_label(algo)} {n} of {ran[algo]}" for algo, n in counts)
         lines += [
             "",
-            f"In short: {subject} the pick, or one of the picks, on {most} of these {len(benchmarks)} tasks"
-            + (f", {others}" if others else "")
-            + f". On a new task, try {' or '.join(first)} first, and the learner the table names for the task most "
-            "like yours.",
+            "In short, the tasks on which each learner is the pick or one of the picks, of those it ran: "
+            f"{parts}. On a new task, try {' or '.join(_label(algo) for algo in first)} first, and the learner the "
+            "table names for the task most like yours.",
         ]
     if any(score.algorithm.endswith("_stable") for benchmark in benchmarks for score in benchmark.scores):
         lines += [
