@@ -26,9 +26,10 @@ The same command writes the README's "Which algorithm?" block (between its ``<!-
 algorithms page shows it through the ``{which-algorithm}`` directive): for each benchmark, the kind of task, the learner
 to pick (the best end performance, and any learner whose 95 % interval overlaps it; a learner with fewer than 5, or
 fewer than half, of its runs averaged is not ranked) and the figures it rests on. It reads
-``results/measured/sample_efficiency/summary.json`` when that file is committed, and otherwise today's results: the
-thesis's tables (``summary.csv`` of table_6_1, table_6_2, table_6_3 and gridworld) and sb3-er's learners in the peers'
-comparisons (``peers/peers.json``, ``peers_continuous/peers.json``). The sample-efficiency summary is::
+``results/measured/sample_efficiency/summary.json`` when that file is committed, with the thesis's tables
+(``summary.csv`` of table_6_1, table_6_2, table_6_3 and gridworld) of the envs that summary does not name; otherwise the
+thesis's tables and sb3-er's learners in the peers' comparisons (``peers/peers.json``, ``peers_continuous/peers.json``).
+The sample-efficiency summary is::
 
     {
       "benchmarks": [
@@ -1423,8 +1424,8 @@ def which_algorithm(link, measured: Path = MEASURED, docs: str = "docs/") -> str
         lines += [
             "",
             'A learner marked "(stable)" is its class with `preset="stable"`, e.g. `ER("TileQ", env, preset="stable")` '
-            f'([Stable replay]({docs}stable_replay.md)); the others are the thesis\'s algorithms (`preset="thesis"`, '
-            "the default).",
+            f"([Stable replay]({docs}stable_replay.md)); the other ER classes' rows are the thesis's algorithms "
+            '(`preset="thesis"`, the default).',
         ]
     return "\n".join(lines) + "\n"
 
