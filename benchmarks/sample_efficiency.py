@@ -4,8 +4,9 @@ values stay inside the possible returns, on nine tasks, against Sarsa(lambda) an
     python benchmarks/sample_efficiency.py --jobs 2                       # everything, 10 seeds, resumable
     python benchmarks/sample_efficiency.py --summarize                    # summary.md, summary.json and the figure
     python benchmarks/sample_efficiency.py --list                         # the tasks and methods, and what runs
-    python benchmarks/sample_efficiency.py --tasks CartPole-v1 --methods sarsa_lambda --seeds 1 --budget 2000 \\
-        --eval-interval 1000 --json /tmp/smoke.json --out /tmp/smoke     # a smoke run
+    python benchmarks/sample_efficiency.py --tasks CartPole-v1 --methods sarsa_lambda --seeds 1 --scale 0.04 \\
+        --eval-interval 1000 --json /tmp/smoke/runs.json                  # a smoke run, in a file of its own
+    python benchmarks/sample_efficiency.py --summarize --json /tmp/smoke/runs.json   # its summary, beside it
 
 Tasks (TASKS): Gymnasium's CartPole-v1, MountainCar-v0, Acrobot-v1, Pendulum-v1 and MountainCarContinuous-v0 and
 dm_control's cartpole and pendulum swing-up: greedy evaluation every ``eval_interval`` steps (``evaluate_policy
@@ -690,6 +691,16 @@ def plan_runs(
     return configs
 
 
+#: The fields of a run record the summary reads, besides its key and protocol (PROTOCOL_KEYS).
+SUMMARY_KEYS = ("samples_to_target", "final_mean", "diverged", "learn_cpu_s", "curve")
+#: Those of them that are numbers, or None where the run has none (never reached, no final return).
+NUMBER_KEYS = ("samples_to_target", "final_mean", "learn_cpu_s")
+
+
+def _number_or_none(value) -> bool:
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+
+
 class RunsFileError(ValueError):
     """The runs file is damaged, of another format, or holds a run made with other settings than the one planned."""
 
@@ -704,10 +715,24 @@ def read_runs_file(path: Path) -> dict[str, Any]:
     data = read_json(path, "move it aside and run again (finished runs in it are lost)")
     if not isinstance(data, dict) or data.get("format") != FORMAT or not isinstance(data.get("runs"), list):
         raise RunsFileError(f"{path} is no runs file of this benchmark (expected format {FORMAT} with a list 'runs')")
+    seen: dict[tuple, int] = {}
     for index, run in enumerate(data["runs"]):
-        missing = [key for key in ("task", "method", "seed", "budget", *PROTOCOL_KEYS) if key not in run]
+        if not isinstance(run, dict):
+            raise RunsFileError(f"{path}: runs[{index}] is no run record (an object)")
+        missing = [key for key in ("task", "method", "seed", "budget", *PROTOCOL_KEYS, *SUMMARY_KEYS) if key not in run]
         if missing:
             raise RunsFileError(f"{path}: runs[{index}] lacks {missing}")
+        if run["task"] not in TASKS or run["method"] not in METHODS:
+            raise RunsFileError(
+                f"{path}: runs[{index}] is of an unknown task or method ({run['task']!r}, {run['method']!r})"
+            )
+        bad = [key for key in NUMBER_KEYS if not _number_or_none(run[key])]
+        if bad or not isinstance(run["diverged"], bool):
+            raise RunsFileError(f"{path}: runs[{index}] has bad values of {bad or ['diverged']}")
+        key = run_key(run)
+        if key in seen:
+            raise RunsFileError(f"{path}: runs[{index}] repeats runs[{seen[key]}] ({_describe(run)})")
+        seen[key] = index
     return {"format": FORMAT, "commands": list(data.get("commands", [])), "runs": data["runs"]}
 
 
@@ -1256,22 +1281,23 @@ def markdown_summary(summary: dict, goal_result: dict, code_versions: str, comma
                     f" ± {_format(figures['falls_ci'])}" if figures.get("falls_ci") is not None else ""
                 )
             lines.append(f"| {env_id} | {label(method)} | {_format(figures.get('rise_time'))} | {end} | {falls} |")
-    goals = goal_overview(summary)
+    goals = goal_overview(summary, goal_result.get("partial", []))
     overview = overview_markdown(goals) + [""] if len(goals) > 1 else []
     lines += ["", *overview, *goal_markdown(goal_result), "", code_versions, ""]
     lines += [f"Figure: `{FIGURE}`, each method's median samples to the target over Sarsa(λ)'s, task by task.", ""]
     return "\n".join(lines)
 
 
-def goal_overview(summary: dict) -> dict[str, dict[str, Any]]:
+def goal_overview(summary: dict, deviations: list[str] = ()) -> dict[str, dict[str, Any]]:
     """The goal's checks (:func:`goal`) for every method of the summary but Sarsa(lambda) and the peers, by method:
-    the screen's comparison of stabilizers on one footing."""
+    the screen's comparison of stabilizers on one footing (none holding when the runs fall short of the benchmark's
+    protocol: :func:`judged`)."""
     ran = [
         m
         for m in METHODS
         if m != REFERENCE and not is_peer(m) and any(f.get(m, {}).get("applies") for f in summary.values())
     ]
-    return {method: goal(summary, method) for method in ran}
+    return {method: judged(goal(summary, method), list(deviations)) for method in ran}
 
 
 def overview_markdown(overview: dict[str, dict[str, Any]]) -> list[str]:
@@ -1304,9 +1330,15 @@ def overview_markdown(overview: dict[str, dict[str, Any]]) -> list[str]:
 
 def goal_markdown(goal_result: dict) -> list[str]:
     method = goal_result["method"]
-    lines = [
-        f"Goal checks for {label(method)} against Sarsa(λ): {_yes_no(goal_result['holds'])}.",
-        "",
+    lines = [f"Goal checks for {label(method)} against Sarsa(λ): {_yes_no(goal_result['holds'])}.", ""]
+    if goal_result.get("partial"):
+        lines += [
+            "These runs are a part of the benchmark, not the whole ("
+            + "; ".join(goal_result["partial"])
+            + "): no check is judged to hold on them, and one that fails is a failure on these runs only.",
+            "",
+        ]
+    lines += [
         "| check | holds | rule | figures |",
         "|---|---|---|---|",
     ]
@@ -1431,6 +1463,45 @@ def code_versions_text(runs: list[dict]) -> str:
     return code_versions_line([run.get("code_version") for run in runs])
 
 
+def protocol_deviations(runs: list[dict]) -> list[str]:
+    """How `runs` fall short of the whole benchmark's protocol, in words ([] when they do not): fewer seeds per pair
+    than DEFAULT_SEEDS, or an sb3-er run with another budget, evaluation interval or episode counts than its task's
+    (--scale, --eval-*). Such runs are a part or a smoke test of the benchmark, and the goal is not judged on them."""
+    seeds: dict[tuple, set] = {}
+    changed: dict[str, set] = {}
+    for run in runs:
+        seeds.setdefault((run["task"], run["method"]), set()).add(run["seed"])
+        task = TASKS[run["task"]]
+        if is_peer(run["method"]):
+            continue  # a peer's budget may be rl-zoo's (--peer-budget)
+        own = {"budget": task.budget, "eval_interval": task.eval_interval}
+        own.update(eval_episodes=task.eval_episodes, final_episodes=task.final_episodes)
+        for key, value in own.items():
+            if run[key] != value:
+                changed.setdefault(key, set()).add(run["task"])
+    notes = []
+    fewest = min(len(seen) for seen in seeds.values())
+    if fewest < DEFAULT_SEEDS:
+        notes.append(f"as few as {fewest} seed{'s' if fewest > 1 else ''} per task and method, of {DEFAULT_SEEDS}")
+    for key, tasks in changed.items():
+        notes.append(f"another {key.replace('_', ' ')} than the task's on {', '.join(sorted(tasks))}")
+    return notes
+
+
+def judged(goal_result: dict, deviations: list[str]) -> dict:
+    """`goal_result` with no check holding (True becomes None, not judged) when the runs fall short of the benchmark's
+    protocol (:func:`protocol_deviations`), and the shortfall recorded as ``partial``; a check that fails still
+    fails."""
+    if not deviations:
+        return goal_result
+    result = {**goal_result, "partial": deviations}
+    for name in GOAL_CHECKS:
+        if result[name]["holds"] is True:
+            result[name] = {**result[name], "holds": None}
+    result["holds"] = _all([result[name]["holds"] for name in GOAL_CHECKS])
+    return result
+
+
 def write_summary(runs_file: dict, out: Path, goal_method: str | None = None) -> dict:
     """Write summary.md, summary.json and the figure of the runs of `runs_file` (:func:`read_runs_file`) into `out`
     (each atomically) and return summary.json's data."""
@@ -1439,13 +1510,13 @@ def write_summary(runs_file: dict, out: Path, goal_method: str | None = None) ->
     runs, commands = runs_file["runs"], runs_file["commands"]
     summary = summarize(runs)
     method = goal_method or default_goal_method(summary)
-    goal_result = goal(summary, method)
+    goal_result = judged(goal(summary, method), protocol_deviations(runs))
     data = {
         "format": FORMAT,
         "commands": commands,
         "tasks": summary,
         "goal": goal_result,
-        "goals": goal_overview(summary),
+        "goals": goal_overview(summary, goal_result.get("partial", [])),
         "task_settings": {env_id: task_settings(TASKS[env_id]) for env_id in summary},
         "methods": {name: {"class": cls, "kwargs": kwargs} for name, (cls, kwargs) in METHODS.items()},
         "benchmarks": benchmarks_entries(summary),
@@ -1469,7 +1540,8 @@ def print_summary(runs: list[dict], commands: list[str], goal_method: str | None
         return
     summary = summarize(runs)
     method = goal_method or default_goal_method(summary)
-    print(markdown_summary(summary, goal(summary, method), code_versions_text(runs), commands))
+    goal_result = judged(goal(summary, method), protocol_deviations(runs))
+    print(markdown_summary(summary, goal_result, code_versions_text(runs), commands))
 
 
 # --- the tables of tasks and methods (printed by --list, shown by the docs page) -------------------------------------
@@ -1532,19 +1604,43 @@ def methods_table() -> str:
 # --- the command line ------------------------------------------------------------------------------------------------
 
 
+def _positive(kind):
+    """An argparse type: a number of `kind` above 0."""
+
+    def parse(text: str):
+        value = kind(text)
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
+        return value
+
+    parse.__name__ = kind.__name__
+    return parse
+
+
+def _non_negative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
+    return value
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS), metavar="ENV_ID")
     parser.add_argument("--methods", nargs="+", default=None, choices=list(METHODS), help="default: DEFAULT_METHODS")
-    parser.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per pair (default {DEFAULT_SEEDS})")
-    parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--jobs", type=int, default=1, help="worker subprocesses at a time (default 1)")
+    parser.add_argument(
+        "--seeds", type=_positive(int), default=DEFAULT_SEEDS, help=f"seeds per pair (default {DEFAULT_SEEDS})"
+    )
+    parser.add_argument("--first-seed", type=_non_negative_int, default=0)
+    parser.add_argument("--jobs", type=_positive(int), default=1, help="worker subprocesses at a time (default 1)")
     parser.add_argument(
         "--json", type=Path, default=OUT / RUNS_FILE, help="the runs file: finished runs are kept and skipped"
     )
-    parser.add_argument("--out", type=Path, default=OUT, help="where --summarize writes (default: the results folder)")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="where --summarize writes (default: the folder of the --json file)"
+    )
     parser.add_argument("--summarize", action="store_true", help="summarize the runs file into --out; run nothing")
     parser.add_argument(
         "--goal-method",
@@ -1554,11 +1650,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--list", action="store_true", help="print the tasks and methods and exit")
     parser.add_argument(
-        "--scale", type=float, default=1.0, help="each task's budget times this (smoke runs: 0.01; default 1)"
+        "--scale",
+        type=_positive(float),
+        default=1.0,
+        help="each task's budget times this (smoke runs: 0.01; default 1)",
     )
-    parser.add_argument("--eval-interval", type=float, default=None, help="instead of each task's (smoke runs)")
-    parser.add_argument("--eval-episodes", type=int, default=None, help="instead of each task's (smoke runs)")
-    parser.add_argument("--final-episodes", type=int, default=None, help="instead of each task's (smoke runs)")
+    smoke = "instead of each task's (smoke runs, in a --json file of their own)"
+    parser.add_argument("--eval-interval", type=_positive(float), default=None, help=smoke)
+    parser.add_argument("--eval-episodes", type=_positive(int), default=None, help=smoke)
+    parser.add_argument("--final-episodes", type=_positive(int), default=None, help=smoke)
     parser.add_argument(
         "--peer-budget",
         choices=("task", "rl-zoo"),
@@ -1598,20 +1698,29 @@ def main(argv=None) -> int:
         print(tasks_table())
         print(methods_table())
         return 0
+    out = args.out or args.json.parent  # a summary goes beside its runs file unless told otherwise
     if args.summarize:
+        if not args.json.is_file():
+            raise SystemExit(f"error: no runs file {args.json} (the --json FILE a run writes)")
         runs_file = read_runs_file(args.json)
         if not runs_file["runs"]:
-            raise SystemExit(f"{args.json} holds no runs to summarize")
-        data = write_summary(runs_file, args.out, args.goal_method)
-        print((args.out / "summary.md").read_text(encoding="utf-8"))
-        print(f"wrote {args.out / 'summary.md'}, {args.out / 'summary.json'} and {args.out / FIGURE}", file=sys.stderr)
+            raise SystemExit(f"error: {args.json} holds no runs to summarize")
+        data = write_summary(runs_file, out, args.goal_method)
+        print((out / "summary.md").read_text(encoding="utf-8"))
+        print(f"wrote {out / 'summary.md'}, {out / 'summary.json'} and {out / FIGURE}", file=sys.stderr)
         return 0 if data else 1
-    methods, notes = _chosen_methods(args.methods)
+    own_protocol = args.scale == 1.0 and (args.eval_interval, args.eval_episodes, args.final_episodes) == (None,) * 3
+    if not own_protocol and args.json.resolve() == (OUT / RUNS_FILE).resolve():
+        raise SystemExit(
+            "error: runs with --scale or --eval-* are not the benchmark's own protocol and do not belong in its "
+            f"committed runs file ({OUT / RUNS_FILE}): give them a file of their own with --json FILE"
+        )
+    methods, notes = _chosen_methods(list(dict.fromkeys(args.methods)) if args.methods else None)
     for note in notes:
         print(note, file=sys.stderr)
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     configs = plan_runs(
-        args.tasks,
+        list(dict.fromkeys(args.tasks)),
         methods,
         seeds,
         args.scale,
@@ -1620,32 +1729,50 @@ def main(argv=None) -> int:
         args.final_episodes,
         args.peer_budget,
     )
-    finished = read_runs(args.json)
-    pending = pending_runs(configs, finished, args.json)
-    print(
-        f"{len(configs) - len(pending)} of {len(configs)} runs already in {args.json}; {len(pending)} to run "
-        f"on {args.jobs} worker(s)",
-        file=sys.stderr,
-        flush=True,
-    )
+    from sb3_er.experiments.files import FolderLock
+
     command = shlex.join(["python", "benchmarks/sample_efficiency.py", *(sys.argv[1:] if argv is None else argv)])
-    if pending and not args.no_warm_up:
-        warm_ups = warm_up_configs(pending)
-        print(f"warming up: {len(warm_ups)} short runs compile the kernels", file=sys.stderr, flush=True)
-        _, failed = run_all(warm_ups, None, args.jobs, command)
-        if failed:
-            raise SystemExit(f"{len(failed)} warm-up runs failed; the first: {failed[0][1]}")
-    start = time.perf_counter()
-    runs, failures = run_all(pending, args.json, args.jobs, command)
+    with FolderLock(args.json.parent):  # one writer of a runs file at a time: a second command is refused at once
+        pending = pending_runs(configs, read_runs(args.json), args.json)
+        print(
+            f"{len(configs) - len(pending)} of {len(configs)} runs already in {args.json}; {len(pending)} to run "
+            f"on {args.jobs} worker(s)",
+            file=sys.stderr,
+            flush=True,
+        )
+        if pending and not args.no_warm_up:
+            warm_ups = warm_up_configs(pending)
+            print(f"warming up: {len(warm_ups)} short runs compile the kernels", file=sys.stderr, flush=True)
+            _, failed = run_all(warm_ups, None, args.jobs, command)
+            if failed:
+                raise SystemExit(f"{len(failed)} warm-up runs failed; the first: {failed[0][1]}")
+        start = time.perf_counter()
+        runs, failures = run_all(pending, args.json, args.jobs, command)
     print(f"{len(pending) - len(failures)} runs in {time.perf_counter() - start:.0f} s", file=sys.stderr)
     planned = {run_key(config) for config in configs}
     print_summary(
         [run for run in runs if run_key(run) in planned], read_runs_file(args.json)["commands"], args.goal_method
     )
     for config, message in failures:
-        print(f"failed: {_describe(config)}: {message.splitlines()[0]}", file=sys.stderr)
+        lines = [line for line in message.splitlines() if line.strip()]
+        print(f"failed: {_describe(config)}: {lines[-1] if lines else message}", file=sys.stderr)
     return 1 if failures else 0
 
 
+def _cli() -> int:
+    """main, with the errors a user can cause (a damaged or foreign runs file, a folder another run holds, Ctrl-C)
+    as one line each instead of a traceback."""
+    from sb3_er.experiments.files import DamagedFileError, FolderLockedError
+
+    try:
+        return main()
+    except (RunsFileError, DamagedFileError, FolderLockedError, IsADirectoryError, NotADirectoryError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted: the finished runs are in the runs file; the same command resumes", file=sys.stderr)
+        return 130
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(_cli())

@@ -152,12 +152,13 @@ def test_runs_of_one_pair_with_other_settings_are_not_summarized_together():
 ALL_TASKS = list(se.TASKS)
 
 
-def suite(ours_samples, sarsa_samples=None, **ours_extra):
-    """Sarsa(lambda) and ER-sigma on every task, 3 seeds each, with the given samples to the target per task."""
+def suite(ours_samples, sarsa_samples=None, seeds=3, **ours_extra):
+    """Sarsa(lambda) and ER-sigma on every task, 3 seeds each (or `seeds`), with the given samples to the target per
+    task."""
     runs = []
     for env_id in ALL_TASKS:
         reference = (sarsa_samples or {}).get(env_id, 10_000)
-        for seed in range(3):
+        for seed in range(seeds):
             runs.append(run(env_id, "sarsa_lambda", seed, samples=reference, final=100.0 + seed))
             runs.append(
                 run(env_id, "er_sigma", seed, samples=ours_samples.get(env_id, reference), final=101.0, **ours_extra)
@@ -283,7 +284,7 @@ def test_walker_check_rise_in_a_third_of_sarsas_time_with_fewer_falls():
 
 
 def test_goal_and_the_machine_readable_summary(tmp_path):
-    runs = suite({env_id: 5_000 for env_id in ALL_TASKS[:6]})
+    runs = suite({env_id: 5_000 for env_id in ALL_TASKS[:6]}, seeds=se.DEFAULT_SEEDS)
     runs_file = {"format": se.FORMAT, "commands": ["python benchmarks/sample_efficiency.py --jobs 2"], "runs": runs}
     data = se.write_summary(runs_file, tmp_path, goal_method="er_sigma")
     written = json.loads((tmp_path / "summary.json").read_text())
@@ -334,7 +335,8 @@ def test_every_methods_goal_checks_side_by_side(tmp_path):
 def test_finished_runs_are_skipped_and_other_settings_refused(tmp_path):
     path = tmp_path / "runs.json"
     configs = se.plan_runs([CARTPOLE], ["sarsa_lambda"], [0, 1])
-    finished = [{**configs[0], "samples_to_target": None}]
+    figures = {"samples_to_target": None, "final_mean": 20.0, "diverged": False, "learn_cpu_s": 1.0, "curve": []}
+    finished = [{**configs[0], **figures}]
     se.write_runs(path, finished, ["python benchmarks/sample_efficiency.py"])
     assert se.read_runs(path) == finished
     assert se.pending_runs(configs, se.read_runs(path), path) == configs[1:]
@@ -355,6 +357,86 @@ def test_a_damaged_or_foreign_runs_file_is_an_error_naming_it(tmp_path):
     path.write_text("[]")
     with pytest.raises(se.RunsFileError, match="no runs file"):
         se.read_runs(path)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda runs: runs.append(dict(runs[0])), r"runs\[2\] repeats runs\[0\] \(sarsa_lambda on CartPole-v1"),
+        (lambda runs: runs[1].pop("final_mean"), r"runs\[1\] lacks \['final_mean'\]"),
+        (lambda runs: runs.__setitem__(1, None), r"runs\[1\] is no run record"),
+        (lambda runs: runs[0].update(samples_to_target="abc"), r"runs\[0\] has bad values of \['samples_to_target'\]"),
+        (lambda runs: runs[0].update(diverged="no"), r"runs\[0\] has bad values of \['diverged'\]"),
+        (lambda runs: runs[1].update(task="Foo-v0"), r"runs\[1\] is of an unknown task or method \('Foo-v0'"),
+        (lambda runs: runs[1].update(method="foo"), r"runs\[1\] is of an unknown task or method"),
+    ],
+)
+def test_a_run_record_the_summary_cannot_read_is_an_error_naming_it(tmp_path, change, message):
+    """A repeated run (it would count as a second seed), a missing or bad figure, an unknown task or method (it would
+    be left out of every table): each named by its place in the file, before any summary is written."""
+    path = tmp_path / "runs.json"
+    runs = [run(seed=0), run(seed=1)]
+    change(runs)
+    se.write_runs(path, runs, [])
+    with pytest.raises(se.RunsFileError, match=message):
+        se.read_runs(path)
+
+
+def test_a_part_of_the_benchmark_is_not_judged_as_the_whole(tmp_path):
+    """Fewer seeds than the benchmark's, or a budget scaled down: a check that would hold is not judged, one that fails
+    still fails, and the summary says what the runs lack; the full protocol is judged."""
+    half = {env_id: 5_000 for env_id in ALL_TASKS[:6]}
+    runs_file = {"format": se.FORMAT, "commands": [], "runs": suite(half, seeds=se.DEFAULT_SEEDS)}
+    assert se.write_summary(runs_file, tmp_path, "er_sigma")["goal"]["samples"]["holds"] is True
+    assert se.protocol_deviations(runs_file["runs"]) == []
+    for runs, lack in [
+        (suite(half, seeds=2), f"as few as 2 seeds per task and method, of {se.DEFAULT_SEEDS}"),
+        (
+            [{**r, "budget": r["budget"] * 0.03} for r in suite(half, seeds=se.DEFAULT_SEEDS)],
+            "another budget than the task's on " + ", ".join(sorted(ALL_TASKS)),
+        ),
+    ]:
+        data = se.write_summary({**runs_file, "runs": runs}, tmp_path, "er_sigma")
+        assert data["goal"]["samples"]["holds"] is None and data["goals"]["er_sigma"]["samples"]["holds"] is None
+        assert data["goal"]["partial"] == [lack]
+        assert "These runs are a part of the benchmark, not the whole (" + lack in (tmp_path / "summary.md").read_text()
+    five = {env_id: 5_000 for env_id in ALL_TASKS[:5]}  # a failure stays one
+    data = se.write_summary({**runs_file, "runs": suite(five, seeds=2)}, tmp_path, "er_sigma")
+    assert data["goal"]["samples"]["holds"] is False
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["--seeds", "0"],
+        ["--seeds", "-3"],
+        ["--first-seed", "-5"],
+        ["--jobs", "0"],
+        ["--scale", "0"],
+        ["--scale", "-1"],
+        ["--eval-interval", "0"],
+        ["--eval-interval", "-100"],
+        ["--eval-episodes", "0"],
+        ["--final-episodes", "0"],
+    ],
+)
+def test_a_count_or_scale_out_of_range_is_refused_when_the_command_line_is_read(arguments, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        se._parser().parse_args(arguments)
+    assert exit_info.value.code == 2 and "must be" in capsys.readouterr().err
+
+
+def test_smoke_runs_stay_out_of_the_committed_runs_file_and_a_summary_goes_beside_its_runs(tmp_path, capsys):
+    with pytest.raises(SystemExit, match="not the benchmark's own protocol"):
+        se.main(["--tasks", CARTPOLE, "--methods", "sarsa_lambda", "--seeds", "1", "--scale", "0.01"])
+    with pytest.raises(SystemExit, match="no runs file"):
+        se.main(["--summarize", "--json", str(tmp_path / "none.json")])
+    path = tmp_path / "smoke" / "runs.json"
+    path.parent.mkdir()
+    se.write_runs(path, [run(seed=0), run(method="er_sigma", seed=0)], [])
+    assert se.main(["--summarize", "--json", str(path)]) == 0
+    assert (path.parent / "summary.md").is_file() and (path.parent / se.FIGURE).is_file()
+    assert "a part of the benchmark" in capsys.readouterr().out
 
 
 # --- tasks and methods ---
