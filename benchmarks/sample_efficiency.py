@@ -1629,7 +1629,14 @@ def _parser() -> argparse.ArgumentParser:
         description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS), metavar="ENV_ID")
-    parser.add_argument("--methods", nargs="+", default=None, choices=list(METHODS), help="default: DEFAULT_METHODS")
+    parser.add_argument(
+        "--methods",
+        nargs="+",
+        default=None,
+        choices=list(METHODS),
+        metavar="METHOD",
+        help=f"of {', '.join(METHODS)} (default: {' '.join(DEFAULT_METHODS)})",
+    )
     parser.add_argument(
         "--seeds", type=_positive(int), default=DEFAULT_SEEDS, help=f"seeds per pair (default {DEFAULT_SEEDS})"
     )
@@ -1645,7 +1652,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--goal-method",
         default=None,
-        choices=list(METHODS),
+        choices=[method for method in METHODS if method != REFERENCE and not is_peer(method)],
+        metavar="METHOD",
         help="the method the goal's checks judge (default: er_sigma_stable where it ran, else er_sigma)",
     )
     parser.add_argument("--list", action="store_true", help="print the tasks and methods and exit")
@@ -1700,6 +1708,11 @@ def main(argv=None) -> int:
         return 0
     out = args.out or args.json.parent  # a summary goes beside its runs file unless told otherwise
     if args.summarize:
+        if args.methods or args.tasks != list(TASKS) or args.seeds != DEFAULT_SEEDS or args.first_seed:
+            raise SystemExit(
+                "error: --summarize summarizes every run of its --json file; --tasks, --methods and --seeds choose "
+                "the runs a command makes (a part of the benchmark goes to a runs file of its own)"
+            )
         if not args.json.is_file():
             raise SystemExit(f"error: no runs file {args.json} (the --json FILE a run writes)")
         runs_file = read_runs_file(args.json)

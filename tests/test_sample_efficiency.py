@@ -431,6 +431,8 @@ def test_smoke_runs_stay_out_of_the_committed_runs_file_and_a_summary_goes_besid
         se.main(["--tasks", CARTPOLE, "--methods", "sarsa_lambda", "--seeds", "1", "--scale", "0.01"])
     with pytest.raises(SystemExit, match="no runs file"):
         se.main(["--summarize", "--json", str(tmp_path / "none.json")])
+    with pytest.raises(SystemExit, match="summarizes every run of its --json file"):
+        se.main(["--summarize", "--methods", "sarsa_lambda"])
     path = tmp_path / "smoke" / "runs.json"
     path.parent.mkdir()
     se.write_runs(path, [run(seed=0), run(method="er_sigma", seed=0)], [])
