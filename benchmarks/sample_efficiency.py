@@ -1195,8 +1195,11 @@ def _format_excursion(value: float | None) -> str:
     return "NA" if value is None else f"{value:.3g}"
 
 
-def _yes_no(holds: bool | None) -> str:
-    return {True: "yes", False: "no", None: "not judged yet"}[holds]
+def _yes_no(holds: bool | None, partial: bool = False) -> str:
+    """yes, no, or why not judged: a check not measured yet, or runs that are a part of the benchmark (never)."""
+    return {True: "yes", False: "no", None: "not judged (a part of the benchmark)" if partial else "not judged yet"}[
+        holds
+    ]
 
 
 def samples_text(figures: dict) -> str:
@@ -1224,14 +1227,27 @@ def excursion_text(figures: dict) -> str:
     )
 
 
-def markdown_summary(summary: dict, goal_result: dict, code_versions: str, commands: list[str]) -> str:
-    """summary.md: the table per task and method, the thesis tasks' own metrics, the goal's checks and the code."""
+#: The command that writes the committed summary.
+SUMMARIZE = "python benchmarks/sample_efficiency.py --summarize"
+
+
+def markdown_summary(
+    summary: dict,
+    goal_result: dict,
+    code_versions: str,
+    commands: list[str],
+    summarized_by: str = SUMMARIZE,
+    runs_name: str = RUNS_FILE,
+) -> str:
+    """summary.md: the table per task and method, the thesis tasks' own metrics, the goal's checks and the code.
+
+    :param summarized_by: the command that writes this summary (of the runs file ``runs_name``)."""
     made_by = ", then ".join(f"`{command}`" for command in commands) or "no recorded command"
     lines = [
         "# Sample efficiency: samples to a target, final return and stability",
         "",
-        f"The runs (runs.json) were made by {made_by}; this summary by `python benchmarks/sample_efficiency.py "
-        "--summarize`. Samples to the target: the median over seeds, a seed that never reaches it counted as "
+        f"The runs ({runs_name}) were made by {made_by}; this summary by `{summarized_by}`. Samples to the target: "
+        "the median over seeds, a seed that never reaches it counted as "
         "infinite (seeds that reached it in brackets); in steps, episodes on the thesis's pendulum and seconds of "
         "learning time on the walker. Final return: mean ± 95 % CI over the runs that did not diverge (the walker: "
         "distance walked in 100 s, m). Largest excursion beyond the possible returns: the largest over seeds; the "
@@ -1312,6 +1328,7 @@ def overview_markdown(overview: dict[str, dict[str, Any]]) -> list[str]:
         "|---|---|---|---|---|---|",
     ]
     for method, result in overview.items():
+        part = bool(result.get("partial"))
         unstable = [env_id for env_id, task in result["stability"]["tasks"].items() if task["holds"] is False]
         samples = result["samples"]
         low = [env_id for env_id, task in result["final_return"]["tasks"].items() if task["holds"] is False]
@@ -1323,14 +1340,15 @@ def overview_markdown(overview: dict[str, dict[str, Any]]) -> list[str]:
             + (f" ({', '.join(over)})" if over else "")
             + f" | {len(low)} of {len(result['final_return']['tasks'])}"
             + (f" ({', '.join(low)})" if low else "")
-            + f" | {_yes_no(result['walker']['holds'])} | {_yes_no(result['holds'])} |"
+            + f" | {_yes_no(result['walker']['holds'], part)} | {_yes_no(result['holds'], part)} |"
         )
     return lines
 
 
 def goal_markdown(goal_result: dict) -> list[str]:
     method = goal_result["method"]
-    lines = [f"Goal checks for {label(method)} against Sarsa(λ): {_yes_no(goal_result['holds'])}.", ""]
+    part = bool(goal_result.get("partial"))
+    lines = [f"Goal checks for {label(method)} against Sarsa(λ): {_yes_no(goal_result['holds'], part)}.", ""]
     if goal_result.get("partial"):
         lines += [
             "These runs are a part of the benchmark, not the whole ("
@@ -1353,7 +1371,8 @@ def goal_markdown(goal_result: dict) -> list[str]:
                 figures = check["text"] + (f"; {figures}" if figures else "")
         else:
             figures = check["text"]
-        lines.append(f"| {name} | {_yes_no(check['holds'])} | {check['rule']} | {figures or 'not measured'} |")
+        verdict = _yes_no(check["holds"], part)
+        lines.append(f"| {name} | {verdict} | {check['rule']} | {figures or 'not measured'} |")
     return lines
 
 
@@ -1416,6 +1435,7 @@ def plot_ratios(summary: dict, path: Path) -> Path:
     tasks = [env_id for env_id, methods in summary.items() if methods.get(REFERENCE, {}).get("applies")]
     methods = [m for m in METHODS if m != REFERENCE and any(summary[t].get(m, {}).get("applies") for t in tasks)]
     figure, axes = plt.subplots(figsize=(9.0, 4.6))
+    points = 0
     for index, method in enumerate(methods):
         filled, hollow = [], []
         for position, env_id in enumerate(tasks):
@@ -1430,12 +1450,23 @@ def plot_ratios(summary: dict, path: Path) -> Path:
                 hollow.append((x, NEVER_RATIO))
             elif math.isfinite(mine):
                 hollow.append((x, SARSA_NEVER_RATIO))
+        points += len(filled) + len(hollow)
         marker = "osD^v<>ph*"[index % 10]
         axes.scatter(
             *zip(*filled or [(None, None)], strict=True), marker=marker, color=f"C{index}", label=label(method)
         )
         axes.scatter(
             *zip(*hollow or [(None, None)], strict=True), marker=marker, facecolors="none", edgecolors=f"C{index}"
+        )
+    if not points:
+        axes.text(
+            0.5,
+            0.5,
+            "nothing to compare: on every task measured, neither Sarsa(λ) nor the other methods reached the target",
+            transform=axes.transAxes,
+            ha="center",
+            va="center",
+            fontsize="small",
         )
     axes.axhline(1.0, color="grey", linewidth=1.0)
     axes.axhline(0.5, color="grey", linewidth=1.0, linestyle="--", label="half of Sarsa(λ)'s")
@@ -1502,9 +1533,15 @@ def judged(goal_result: dict, deviations: list[str]) -> dict:
     return result
 
 
-def write_summary(runs_file: dict, out: Path, goal_method: str | None = None) -> dict:
+def write_summary(
+    runs_file: dict,
+    out: Path,
+    goal_method: str | None = None,
+    summarized_by: str = SUMMARIZE,
+    runs_name: str = RUNS_FILE,
+) -> dict:
     """Write summary.md, summary.json and the figure of the runs of `runs_file` (:func:`read_runs_file`) into `out`
-    (each atomically) and return summary.json's data."""
+    (each atomically) and return summary.json's data; `summarized_by` is the command that does it, for the text."""
     from sb3_er.experiments.files import write_atomically, write_json
 
     runs, commands = runs_file["runs"], runs_file["commands"]
@@ -1522,7 +1559,8 @@ def write_summary(runs_file: dict, out: Path, goal_method: str | None = None) ->
         "benchmarks": benchmarks_entries(summary),
     }
     out.mkdir(parents=True, exist_ok=True)
-    write_atomically(out / "summary.md", markdown_summary(summary, goal_result, code_versions_text(runs), commands))
+    text = markdown_summary(summary, goal_result, code_versions_text(runs), commands, summarized_by, runs_name)
+    write_atomically(out / "summary.md", text)
     write_json(out / "summary.json", data)
     plot_ratios(summary, out / FIGURE)
     return data
@@ -1534,14 +1572,28 @@ def task_settings(task: Task) -> dict[str, Any]:
     return settings
 
 
-def print_summary(runs: list[dict], commands: list[str], goal_method: str | None = None) -> None:
+def print_summary(
+    runs: list[dict], commands: list[str], goal_method: str | None = None, runs_path: Path | None = None
+) -> None:
+    """Print the summary of `runs` (those a command planned) after it ran them; `runs_path` is their runs file."""
     if not runs:
         print("no finished runs")
         return
     summary = summarize(runs)
     method = goal_method or default_goal_method(summary)
     goal_result = judged(goal(summary, method), protocol_deviations(runs))
-    print(markdown_summary(summary, goal_result, code_versions_text(runs), commands))
+    summarized_by, runs_name = _summarize_command(runs_path), (runs_path or OUT / RUNS_FILE).name
+    print(markdown_summary(summary, goal_result, code_versions_text(runs), commands, summarized_by, runs_name))
+
+
+def _summarize_command(runs_path: Path | None, out: Path | None = None) -> str:
+    """The --summarize command line for the runs file `runs_path` (None: the committed one) and summary folder `out`."""
+    arguments = ["python", "benchmarks/sample_efficiency.py", "--summarize"]
+    if runs_path is not None and runs_path.resolve() != (OUT / RUNS_FILE).resolve():
+        arguments += ["--json", str(runs_path)]
+    if out is not None and (runs_path is None or out.resolve() != runs_path.parent.resolve()):
+        arguments += ["--out", str(out)]
+    return shlex.join(arguments)
 
 
 # --- the tables of tasks and methods (printed by --list, shown by the docs page) -------------------------------------
@@ -1718,7 +1770,7 @@ def main(argv=None) -> int:
         runs_file = read_runs_file(args.json)
         if not runs_file["runs"]:
             raise SystemExit(f"error: {args.json} holds no runs to summarize")
-        data = write_summary(runs_file, out, args.goal_method)
+        data = write_summary(runs_file, out, args.goal_method, _summarize_command(args.json, args.out), args.json.name)
         print((out / "summary.md").read_text(encoding="utf-8"))
         print(f"wrote {out / 'summary.md'}, {out / 'summary.json'} and {out / FIGURE}", file=sys.stderr)
         return 0 if data else 1
@@ -1764,7 +1816,10 @@ def main(argv=None) -> int:
     print(f"{len(pending) - len(failures)} runs in {time.perf_counter() - start:.0f} s", file=sys.stderr)
     planned = {run_key(config) for config in configs}
     print_summary(
-        [run for run in runs if run_key(run) in planned], read_runs_file(args.json)["commands"], args.goal_method
+        [run for run in runs if run_key(run) in planned],
+        read_runs_file(args.json)["commands"],
+        args.goal_method,
+        args.json,
     )
     for config, message in failures:
         lines = [line for line in message.splitlines() if line.strip()]

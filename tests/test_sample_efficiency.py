@@ -438,7 +438,14 @@ def test_smoke_runs_stay_out_of_the_committed_runs_file_and_a_summary_goes_besid
     se.write_runs(path, [run(seed=0), run(method="er_sigma", seed=0)], [])
     assert se.main(["--summarize", "--json", str(path)]) == 0
     assert (path.parent / "summary.md").is_file() and (path.parent / se.FIGURE).is_file()
+    text = (path.parent / "summary.md").read_text()
     assert "a part of the benchmark" in capsys.readouterr().out
+    # the summary names the command that makes it again, and says why its checks are not judged
+    assert f"this summary by `python benchmarks/sample_efficiency.py --summarize --json {path}`" in text
+    assert "against Sarsa(λ): not judged (a part of the benchmark)." in text
+    elsewhere = tmp_path / "elsewhere"
+    assert se.main(["--summarize", "--json", str(path), "--out", str(elsewhere)]) == 0
+    assert f"--summarize --json {path} --out {elsewhere}`" in (elsewhere / "summary.md").read_text()
 
 
 # --- tasks and methods ---
