@@ -486,6 +486,29 @@ WORKER_THREADS = {
 }
 
 
+#: The environment variable that tells a worker subprocess its parent's process id (see :func:`end_with_parent`).
+PARENT_VARIABLE = "SB3_ER_BENCHMARK_PARENT"
+
+
+def end_with_parent() -> None:
+    """Make this worker subprocess end when the benchmark that started it ends, however it ends (SIGTERM or SIGKILL
+    to that process alone, a scheduler's time limit), instead of running on orphaned with its result lost: sb3-er's
+    :func:`sb3_er.experiments.lifetime.die_with_parent`, loaded from its file, which needs the standard library only,
+    so that it works in the MushroomRL venv too, where sb3-er is not installed. Does nothing in a process that
+    :func:`run_in_subprocess` did not start (a worker run by hand).
+    """
+    parent = os.environ.get(PARENT_VARIABLE)
+    if parent is None:
+        return
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "sb3_er" / "experiments" / "lifetime.py"
+    spec = importlib.util.spec_from_file_location("_sb3_er_lifetime", path)
+    lifetime = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(lifetime)
+    lifetime.die_with_parent(int(parent))
+
+
 def run_in_subprocess(
     script: str | Path, config: dict, python: str, prefix: str, what: str, environment: dict | None = None
 ) -> dict:
@@ -499,9 +522,11 @@ def run_in_subprocess(
     :param prefix: the marker of the result line.
     :param what: the run, for the error message.
     :param environment: variables set in the child beside this process's (default None: none), e.g. WORKER_THREADS.
+
+    The child's ``--worker`` calls :func:`end_with_parent` first, so that it ends with this process.
     """
     command = [python, os.path.abspath(script), "--worker", json.dumps(config)]
-    environment = {**os.environ, **(environment or {})}
+    environment = {**os.environ, **(environment or {}), PARENT_VARIABLE: str(os.getpid())}
     process = subprocess.run(command, check=False, capture_output=True, text=True, env=environment)
     lines = [line for line in process.stdout.splitlines() if line.startswith(prefix)]
     if process.returncode != 0 or not lines:
@@ -610,6 +635,7 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv=None) -> None:
     args = _parser().parse_args(argv)
     if args.worker is not None:
+        end_with_parent()
         config = json.loads(args.worker)
         result = _run_mushroom(config) if config["method"] == "mushroom" else _run_sb3(config)
         print(RESULT_PREFIX + json.dumps(result), flush=True)

@@ -278,7 +278,7 @@ TASKS: dict[str, Task] = {
             "100 s, Table 6.2's protocol)",
             sarsa_samples=1150.0,
             sarsa_source="results/measured/table_6_2/runs/sarsa_lambda, 20 seeds: the greedy distance first reaches "
-            "9.0 m after a median of 1,150 s of learning time (19 of 20 seeds reach it)",
+            "9.0 m after a median of 1150 s of learning time (19 of 20 seeds reach it)",
             replay_protocol=(("replay_trigger", "segment"),),
             final_metric="distance [m]",
         ),
@@ -829,7 +829,7 @@ def run_all(
                 file=sys.stderr,
                 flush=True,
             )
-    finally:  # on Ctrl-C the running workers get the signal too; the queued runs are not started
+    finally:  # Ctrl-C reaches the running workers too, a kill of this process alone by peers.end_with_parent
         pool.shutdown(wait=True, cancel_futures=True)
     return finished, failures
 
@@ -1751,6 +1751,7 @@ def _chosen_methods(requested: list[str] | None) -> tuple[list[str], list[str]]:
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     if args.worker is not None:
+        peers.end_with_parent()
         record = run_task(json.loads(args.worker))
         print(RESULT_PREFIX + json.dumps(record), flush=True)
         return 0

@@ -601,3 +601,32 @@ def test_a_tiny_run_end_to_end_through_the_worker(tmp_path):
     assert summarized.returncode == 0, summarized.stderr[-3000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["tasks"][WALKER]["er_sigma"]["runs"] == 1 and (out / se.FIGURE).is_file()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
+@pytest.mark.parametrize("signal_name", ["SIGTERM", "SIGKILL"])
+def test_a_worker_ends_with_the_benchmark_killed_alone(tmp_path, signal_name):
+    """A signal to the benchmark's process alone (not its group, as Ctrl-C sends) ends its running worker too, so
+    that no orphan runs on to print a result nobody reads; the runs file stays what the finished runs made."""
+    import os
+    import signal
+
+    from processes import alive, tree, wait_for
+
+    runs_file = tmp_path / "runs.json"
+    command = [sys.executable, str(SCRIPT), "--tasks", CARTPOLE, "--methods", "sarsa_lambda", "--seeds", "1"]
+    command += ["--no-warm-up", "--json", str(runs_file)]
+    benchmark = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        workers = wait_for(
+            lambda: [pid for pid, line in tree(benchmark.pid).items() if "--worker" in line], "the worker to start"
+        )
+        os.kill(benchmark.pid, getattr(signal, signal_name))
+        benchmark.wait(timeout=30)
+        wait_for(lambda: not alive(workers), f"the worker to end after {signal_name} to the benchmark", timeout=10)
+    finally:
+        benchmark.kill()
+        benchmark.wait()
+        for pid in alive(locals().get("workers", [])):
+            os.kill(pid, signal.SIGKILL)
+    assert not runs_file.exists() or json.loads(runs_file.read_text())["runs"] == []
