@@ -249,6 +249,36 @@ def test_verdicts_say_not_judged_yet_without_findings_and_read_them_when_present
     assert "a \\| b" in table  # a bar in a claim cannot break the table
 
 
+def test_a_side_with_no_run_inside_is_not_judged_inside_only(tmp_path):
+    """Where every run of a side left the possible returns, the verdict on the runs that stayed inside is none at all:
+    the tables say so instead of "inconclusive", which a finding with too few or too spread runs inside gets; the
+    words are those the findings module writes (its own function, so that a change of its wording fails here)."""
+    import numpy as np
+
+    from sb3_er.experiments.findings import _nothing_averaged
+    from sb3_er.experiments.summary import Curves
+
+    nothing = Curves(np.arange(2.0), np.zeros((0, 2)), np.zeros((0, 2)), (), (), 0.0, out_of_bounds_seeds=(0, 1, 2))
+    measured = tmp_path / "measured"
+    (measured / "table_6_1").mkdir(parents=True)
+    (measured / "table_6_1" / "findings.json").write_text(
+        json.dumps(
+            {
+                "findings": [
+                    {
+                        "claim": "none inside",
+                        "holds": True,
+                        "inside_only": {"holds": None, "evidence": _nothing_averaged("er", nothing)},
+                    },
+                    {"claim": "too few inside", "holds": True, "inside_only": {"holds": None, "evidence": "3 runs"}},
+                ]
+            }
+        )
+    )
+    rows = generator.verdict_rows(measured)
+    assert [row[4] for row in rows[:2]] == ["not judged: a side has no run inside", "inconclusive"]
+
+
 def test_each_table_says_which_regime_er_sigma_was_in(tmp_path):
     """The sigma-regime summary names the table folder of each reading: its page and verdict rows say which way σ
     moved the targets there, from the committed figures."""

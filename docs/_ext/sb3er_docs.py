@@ -125,6 +125,11 @@ class FindingsError(ValueError):
     """A findings.json that does not follow the format of this module's docstring."""
 
 
+#: The words of sb3_er.experiments.findings's evidence for a side none of whose runs stayed inside the possible returns:
+#: its inside-only verdict is then no verdict at all, which the tables say instead of "inconclusive".
+NO_RUN_INSIDE = "has no run that stayed inside"
+
+
 @dataclass(frozen=True)
 class Finding:
     """One finding of a ``findings.json``: judged on all runs (`holds`), and on the runs that stayed inside the
@@ -174,6 +179,8 @@ def read_findings(name: str, measured: Path = MEASURED) -> list[Finding] | None:
         if inside is not None and (not isinstance(inside, dict) or not _is_verdict(inside.get("holds", ""))):
             raise FindingsError(f"{path}: findings[{index}]['inside_only'] needs 'holds': true, false or null")
         inside_word = "" if inside is None else verdict_word(inside["holds"])
+        if inside is not None and inside["holds"] is None and NO_RUN_INSIDE in str(inside.get("evidence", "")):
+            inside_word = "not judged: a side has no run inside"
         findings.append(Finding(entry["claim"].strip(), entry["holds"], evidence.strip(), inside_word))
     return findings
 
