@@ -529,3 +529,31 @@ def test_a_policy_file_is_read_where_the_stream_stands(kind):
     th.save({"state_dict": agent.policy.state_dict(), "data": data}, sb3_format)
     sb3_format.seek(len(b"header"))
     np.testing.assert_array_equal(TileQPolicy.load(sb3_format).theta_array, agent.policy.theta_array)
+
+
+@pytest.mark.parametrize("algo", [SarsaLambda, ER, FQI])
+def test_a_saved_model_is_deflated_and_sb3_reads_it(algo, tmp_path):
+    """SB3's save stores a zip's entries; sb3-er's deflates them. Weights never visited keep their initial value, so
+    a model of 2**20 weights (8 MiB of float64) whose few visited tiles are set is a small fraction of that on disk;
+    SB3's own reader and load still read the file, to the last weight."""
+    import zipfile
+
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    kwargs = {**KWARGS, "policy_kwargs": {**KWARGS["policy_kwargs"], "memory_size": 2**20}}
+    model = algo("TileQ", LineWalkEnv(), seed=0, **kwargs).learn(300)
+    model.save(tmp_path / "model.zip")
+    weights_bytes = model.policy.theta_array.nbytes
+    assert weights_bytes >= 8 * 2**20
+    with zipfile.ZipFile(tmp_path / "model.zip") as archive:
+        assert {info.compress_type for info in archive.infolist()} == {zipfile.ZIP_DEFLATED}
+    assert (tmp_path / "model.zip").stat().st_size < weights_bytes / 20
+    data, params, _ = load_from_zip_file(tmp_path / "model.zip")
+    np.testing.assert_array_equal(params["policy"]["theta"].numpy().ravel(), model.policy.theta_array.ravel())
+    loaded = algo.load(tmp_path / "model.zip", env=LineWalkEnv())
+    np.testing.assert_array_equal(loaded.policy.theta_array, model.policy.theta_array)
+    stream = io.BytesIO(b"before the model")
+    stream.seek(0, io.SEEK_END)
+    model.save(stream)  # written where the stream stands, deflated too
+    assert stream.getvalue().startswith(b"before the model")
+    assert len(stream.getvalue()) < weights_bytes / 20

@@ -45,6 +45,7 @@ from sb3_er.common.serialization import (
     atomic_path,
     check_file_object,
     check_rng_state,
+    deflated_zip,
     plain_state,
     read_zip_data,
     resolve_zip_path,
@@ -754,7 +755,8 @@ class TileQAlgorithm(BaseAlgorithm):
         include: Iterable[str] | None = None,
     ) -> None:
         """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
-        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling. Paths
+        pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling, and its
+        entries deflated (SB3 stores them; a tile-coded model's weights shrink about a hundredfold). Paths
         are taken as SB3 takes them: ``.zip`` added when there is no suffix, a missing folder created and a folder's
         name turned into ``<name>_2``, each with SB3's warning. A file object is written where it stands and left open.
 
@@ -769,13 +771,16 @@ class TileQAlgorithm(BaseAlgorithm):
         self._remember_observed_rewards()
         self.__dict__[PLAIN_STATE_KEY] = plain_state(self, exclude, include)
         try:
-            if isinstance(path, pathlib.Path):
-                with atomic_path(path, ".zip") as partial:
-                    super().save(partial, exclude, include)
-            else:
-                super().save(path, exclude, include)
+            stored = io.BytesIO()
+            super().save(stored, exclude, include)
         finally:
             del self.__dict__[PLAIN_STATE_KEY]
+        data = deflated_zip(stored.getvalue())  # SB3 stores the entries; the weights deflate 100-fold
+        if isinstance(path, pathlib.Path):
+            with atomic_path(path, ".zip") as partial:
+                partial.write_bytes(data)
+        else:
+            path.write(data)
 
     @classmethod
     def load(
@@ -825,8 +830,7 @@ class TileQAlgorithm(BaseAlgorithm):
             data, source, saved_python = read_zip_data(path)
             classes = {f"{c.__module__}:{c.__qualname__}": c for c in cls.policy_aliases.values()}
             custom_objects, left_out = restore_entries(data, classes, custom_objects, allow_pickle, saved_python)
-            if left_out:
-                source = zip_without_entries(source, left_out)
+            source = zip_without_entries(source, left_out)
             # a file saved before a parameter existed gets the value that reproduces what it was saved with, which
             # need not be the parameter's default now (SB3's load sets kwargs before _setup_model reads them)
             older = {name: value for name, value in cls.older_file_values.items() if name not in data}
@@ -906,8 +910,15 @@ class TileQAlgorithm(BaseAlgorithm):
         :param exact_match: require every object's parameters to be given (default True).
         :param device: torch device to load onto (default "auto").
         """
+        source = load_path_or_dict
         try:
-            super().set_parameters(load_path_or_dict, exact_match, device)
+            if not isinstance(load_path_or_dict, dict):
+                if isinstance(load_path_or_dict, (str, pathlib.Path)):
+                    load_path_or_dict = resolve_zip_path(load_path_or_dict)  # so that errors name the file read
+                else:
+                    check_file_object(load_path_or_dict, "r")  # SB3's TypeError or ValueError, as load
+                _, source, _ = read_zip_data(load_path_or_dict)  # every member read whole, a deflated one inflated once
+            super().set_parameters(source, exact_match, device)
         except (ValueError, RuntimeError) as error:
             if isinstance(load_path_or_dict, dict):
                 raise
