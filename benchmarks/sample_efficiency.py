@@ -1798,7 +1798,8 @@ def main(argv=None) -> int:
     from sb3_er.experiments.files import FolderLock
 
     command = shlex.join(["python", "benchmarks/sample_efficiency.py", *(sys.argv[1:] if argv is None else argv)])
-    with FolderLock(args.json.parent):  # one writer of a runs file at a time: a second command is refused at once
+    # one writer of a runs file at a time: a second command is refused at once
+    with FolderLock(args.json.parent, elsewhere="give this one a runs file in another folder (--json FILE)"):
         pending = pending_runs(configs, read_runs(args.json), args.json)
         print(
             f"{len(configs) - len(pending)} of {len(configs)} runs already in {args.json}; {len(pending)} to run "

@@ -630,3 +630,15 @@ def test_a_worker_ends_with_the_benchmark_killed_alone(tmp_path, signal_name):
         for pid in alive(locals().get("workers", [])):
             os.kill(pid, signal.SIGKILL)
     assert not runs_file.exists() or json.loads(runs_file.read_text())["runs"] == []
+
+
+def test_a_second_writer_of_a_runs_file_is_told_the_benchmarks_own_option(tmp_path):
+    """The folder lock's refusal names the benchmark's way to write elsewhere (--json), not sb3-er reproduce's
+    --out, which the benchmark does not take for its runs."""
+    from sb3_er.experiments.files import FolderLock, FolderLockedError
+
+    arguments = ["--tasks", CARTPOLE, "--methods", "sarsa_lambda", "--seeds", "1", "--no-warm-up"]
+    with FolderLock(tmp_path), pytest.raises(FolderLockedError) as refusal:
+        se.main([*arguments, "--json", str(tmp_path / "runs.json")])
+    assert "--json FILE" in str(refusal.value) and "--out" not in str(refusal.value)
+    assert not (tmp_path / "runs.json").exists()

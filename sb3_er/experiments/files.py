@@ -148,10 +148,13 @@ class FolderLock:
     Use it as a context manager, or call :meth:`acquire` and :meth:`release`.
 
     :param folder: the results folder to lock (``--out`` of ``sb3-er reproduce``).
+    :param elsewhere: how the user of the locking command writes elsewhere instead, for the message (default
+        "choose another --out": the option of ``sb3-er reproduce``).
     """
 
-    def __init__(self, folder: str | Path) -> None:
+    def __init__(self, folder: str | Path, elsewhere: str = "choose another --out") -> None:
         self.folder = Path(folder)
+        self.elsewhere = elsewhere
         self.path = self.folder / LOCK_NAME
         self._descriptor: int | None = None
 
@@ -169,7 +172,7 @@ class FolderLock:
             os.close(descriptor)
             raise FolderLockedError(
                 f"{self.folder} is being written by {holder}; wait until that command ends (or stop it) and run this "
-                "one again, or choose another --out. Nothing was changed."
+                f"one again, or {self.elsewhere}. Nothing was changed."
             ) from None
         started = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
         command = " ".join(sys.argv) or sys.executable
