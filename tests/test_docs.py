@@ -745,6 +745,9 @@ def test_every_results_page_has_titled_sections_and_captioned_figures_in_reading
         assert not [h for h in headings if re.search(r"\.(md|csv|txt)$", h)], f"{name}: a file name as a heading"
         code_lines = [line for line in page.splitlines() if line.startswith("Code:")]
         assert not [line for line in code_lines if "commit" in line], f"{name}: a summary's code line cites commits"
+        committed = next(line for line in page.splitlines() if line.startswith("Committed files:"))
+        has_runs = any(path.name == "runs" and path.is_dir() for path in (generator.MEASURED / name).rglob("runs"))
+        assert ("runs/" in committed) == has_runs, f"{name}: {committed!r} (a runs/ folder: {has_runs})"
         figures = FIGURE.findall(page)
         shown = [p for p in (generator.MEASURED / name).rglob("*") if p.suffix in generator.FIGURE_SUFFIXES]
         assert len(figures) == len([p for p in shown if "runs" not in p.relative_to(generator.MEASURED / name).parts])

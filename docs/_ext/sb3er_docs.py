@@ -668,6 +668,15 @@ def _figure_sections(folder: Path) -> list[str]:
     return lines
 
 
+def _runs_note(folder: Path) -> str:
+    """Where a results folder keeps its runs' CSVs and version records, for its page ("" when it has none)."""
+    if (folder / "runs").is_dir():
+        return " (per-run CSVs and version records under `runs/`)"
+    if any(path.is_dir() for path in folder.rglob("runs")):
+        return " (per-run CSVs and version records under the `runs/` folders of its sub-folders)"
+    return ""
+
+
 def results_page(name: str) -> str:
     """The Markdown page of ``results/measured/<name>``."""
     folder = MEASURED / name
@@ -675,7 +684,7 @@ def results_page(name: str) -> str:
     if name in THESIS_RESULTS:
         spec = THESIS_RESULTS[name]
         lines += [f"Thesis: {spec.thesis}. Reproduce with", "", "```bash", spec.command, "```", ""]
-    lines += [f"Committed files: `results/measured/{name}/` (per-run CSVs and version records under `runs/`).", ""]
+    lines += [f"Committed files: `results/measured/{name}/`{_runs_note(folder)}.", ""]
     findings = read_findings(name)
     if name in THESIS_RESULTS or findings is not None:
         lines += ["## Verdict", ""]
