@@ -11,6 +11,7 @@ the file's pickles are never read. The weights are read by SB3 with ``torch.load
 import base64
 import io
 import json
+import lzma
 import pathlib
 import pickletools
 import re
@@ -235,43 +236,80 @@ def check_file_object(stream: Any, mode: str) -> None:
     open_path(stream, mode)
 
 
-def read_members(archive: zipfile.ZipFile) -> tuple[dict[str, bytes], tuple[str, str] | None]:
-    """Every member of ``archive`` read whole (its CRC checked, a deflated one inflated), by name; and the first member
-    that cannot be read, with why, or None. ``ZipFile.testzip`` checks the CRCs but lets an inflate error escape without
-    the member's name.
+#: The errors reading a damaged member raises, by its compression: a CRC or header mismatch (BadZipFile), a deflate,
+#: LZMA or bzip2 stream that does not decode (zlib.error, LZMAError, OSError), a stream cut short (EOFError), a method
+#: this Python cannot read (NotImplementedError) and an encrypted member (RuntimeError).
+DAMAGED_MEMBER_ERRORS = (
+    zipfile.BadZipFile,
+    zlib.error,
+    lzma.LZMAError,
+    EOFError,
+    OSError,
+    NotImplementedError,
+    RuntimeError,
+)
+
+#: How much of a member is read at a time: a member is never held whole unless SB3 reads it.
+MEMBER_CHUNK = 1 << 20
+
+
+def read_by_sb3(name: str) -> bool:
+    """Whether SB3's ``load`` reads the zip member ``name``: the data entry, its version, the system information and
+    every ``*.pth`` file (``save_util.load_from_zip_file``).
+
+    :param name: the member's name.
+    """
+    return name in ("data", "_stable_baselines3_version", "system_info.txt") or name.endswith(".pth")
+
+
+def _stored_entry(info: zipfile.ZipInfo) -> zipfile.ZipInfo:
+    """A new member like ``info`` (name, time, attributes), stored, with no extra field (a stale ZIP64 one)."""
+    entry = zipfile.ZipInfo(info.filename, date_time=info.date_time)
+    entry.external_attr = info.external_attr
+    return entry
+
+
+def read_members(
+    archive: zipfile.ZipFile, copy: zipfile.ZipFile | None = None
+) -> tuple[dict[str, bytes], tuple | None]:
+    """Read every member of ``archive`` whole, in chunks of MEMBER_CHUNK (its CRC checked, a compressed one
+    decompressed), and copy those SB3 reads (:func:`read_by_sb3`) into ``copy`` when one is given. Returns the data
+    entry's and the system information's bytes by name, and the first member that cannot be read with why, or None.
+    ``ZipFile.testzip`` checks the CRCs but lets a decompression error escape without the member's name; members SB3
+    never reads are checked and dropped, so a crafted member that decompresses to gigabytes costs time, not memory.
 
     :param archive: an open zip file.
+    :param copy: a zip open for writing that receives SB3's members, stored (default None: check only).
     """
-    contents = {}
+    kept: dict[str, bytes] = {}
     for info in archive.infolist():
+        small = info.filename in ("data", "system_info.txt")
+        copied = copy is not None and read_by_sb3(info.filename)
+        parts = []
         try:
-            contents[info.filename] = archive.read(info)
-        except (zipfile.BadZipFile, zlib.error, EOFError) as error:
-            return contents, (info.filename, f"{type(error).__name__}: {error}")
-    return contents, None
-
-
-def stored_zip(infos: list[zipfile.ZipInfo], contents: dict[str, bytes]) -> io.BytesIO:
-    """A zip in memory of the members ``infos`` with the given contents, every one stored (uncompressed).
-
-    :param infos: the members, in their order.
-    :param contents: each member's content by name.
-    """
-    out = io.BytesIO()
-    with zipfile.ZipFile(out, "w", zipfile.ZIP_STORED) as copy:
-        for info in infos:
-            entry = zipfile.ZipInfo(info.filename, date_time=info.date_time)  # no stale ZIP64 extra field
-            entry.external_attr = info.external_attr
-            copy.writestr(entry, contents[info.filename])
-    out.seek(0)
-    return out
+            with archive.open(info) as member:
+                target = copy.open(_stored_entry(info), "w", force_zip64=True) if copied else None
+                try:
+                    while chunk := member.read(MEMBER_CHUNK):
+                        if target is not None:
+                            target.write(chunk)
+                        if small:
+                            parts.append(chunk)
+                finally:
+                    if target is not None:
+                        target.close()
+        except DAMAGED_MEMBER_ERRORS as error:
+            return kept, (info.filename, f"{type(error).__name__}: {error}")
+        if small:
+            kept[info.filename] = b"".join(parts)
+    return kept, None
 
 
 def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[str, Any], Any, tuple[int, int] | None]:
     """The JSON ``data`` entry of a model zip (parsed, never unpickled), after reading every member whole
-    (:func:`read_members`: its CRC, and its inflation where it is deflated); the path or file object to pass on to
-    SB3, or a copy in memory with every member stored when some are deflated (``torch.load`` seeks back and forth in
-    the policy's member, and each backward seek in a deflated member inflates it again from its start: a walker
+    (:func:`read_members`: its CRC, and its decompression where it is compressed); the path or file object to pass on
+    to SB3, or a copy in memory of SB3's members, stored, when some are compressed (``torch.load`` seeks back and forth
+    in the policy's member, and each backward seek in a deflated member inflates it again from its start: a walker
     model's load took 0.8 s instead of 0.3 s); and the (major, minor) version of the Python that saved it, from the
     system information SB3 writes into the zip (None if absent). A file object is read as SB3 reads it: the zip is
     found from the end of the file, wherever the stream stands (a BytesIO just written needs no seek), and the stream
@@ -280,27 +318,33 @@ def read_zip_data(path: str | pathlib.Path | io.BufferedIOBase) -> tuple[dict[st
     :param path: the model's file (a path or an open binary file).
     """
     source = resolve_zip_path(path) if isinstance(path, (str, pathlib.Path)) else path
+    stored = None
     try:
         with zipfile.ZipFile(source) as archive:
-            contents, corrupt = read_members(archive)  # every member, also those SB3 never reads
-            infos = archive.infolist()
+            if any(info.compress_type != zipfile.ZIP_STORED for info in archive.infolist()):
+                stored = io.BytesIO()
+                with zipfile.ZipFile(stored, "w", zipfile.ZIP_STORED) as copy:
+                    kept, corrupt = read_members(archive, copy)  # every member, also those SB3 never reads
+            else:
+                kept, corrupt = read_members(archive)
     except (zipfile.BadZipFile, ValueError, EOFError, OSError) as error:
         if isinstance(error, FileNotFoundError):
             raise
         raise ValueError(f"not a readable model zip ({type(error).__name__}: {error})") from None
     if corrupt is not None:
         raise ValueError(f"member {corrupt[0]!r} of the zip is corrupt ({corrupt[1]}): the file is damaged")
-    if "data" not in contents:
+    if "data" not in kept:
         raise ValueError("the zip has no data entry")
     try:
-        data = json.loads(contents["data"].decode())
+        data = json.loads(kept["data"].decode())
     except ValueError as error:
         raise ValueError(f"the data entry is not JSON ({error})") from None
     if not isinstance(data, dict):
         raise ValueError("the data entry is not a JSON object")
-    if any(info.compress_type != zipfile.ZIP_STORED for info in infos):
-        source = stored_zip(infos, contents)
-    found = re.search(rb"Python: (\d+)\.(\d+)", contents.get("system_info.txt", b""))
+    if stored is not None:
+        stored.seek(0)
+        source = stored
+    found = re.search(rb"Python: (\d+)\.(\d+)", kept.get("system_info.txt", b""))
     return data, source, (int(found.group(1)), int(found.group(2))) if found else None
 
 
@@ -418,21 +462,30 @@ def deflated_zip(archive: bytes) -> bytes:
 
 
 def zip_without_entries(source: Any, left_out: list[str]) -> Any:
-    """The model zip ``source`` with the keys ``left_out`` dropped from its ``data`` entry (a copy in memory, members
-    stored), so that SB3's load leaves those attributes at the class's defaults, as it does for an entry it cannot
-    unpickle; ``source`` itself when nothing is left out.
+    """The model zip ``source`` with the keys ``left_out`` dropped from its ``data`` entry (a copy in memory of SB3's
+    members, stored), so that SB3's load leaves those attributes at the class's defaults, as it does for an entry it
+    cannot unpickle; ``source`` itself when nothing is left out.
 
-    :param source: the model's zip (a path or an open binary file).
+    :param source: the model's zip (a path or an open binary file), read whole before (:func:`read_zip_data`).
     :param left_out: the data keys to drop.
     """
     if not left_out:
         return source
-    with zipfile.ZipFile(source) as archive:
-        infos = archive.infolist()
-        contents = {info.filename: archive.read(info) for info in infos}
-    data = json.loads(contents["data"].decode())
-    contents["data"] = json.dumps({k: v for k, v in data.items() if k not in left_out}, indent=4).encode()
-    return stored_zip(infos, contents)
+    out = io.BytesIO()
+    with zipfile.ZipFile(source) as archive, zipfile.ZipFile(out, "w", zipfile.ZIP_STORED) as copy:
+        for info in archive.infolist():
+            if not read_by_sb3(info.filename):
+                continue
+            if info.filename == "data":
+                data = json.loads(archive.read(info).decode())
+                kept = {key: value for key, value in data.items() if key not in left_out}
+                copy.writestr(_stored_entry(info), json.dumps(kept, indent=4))
+                continue
+            with archive.open(info) as member, copy.open(_stored_entry(info), "w", force_zip64=True) as target:
+                while chunk := member.read(MEMBER_CHUNK):
+                    target.write(chunk)
+    out.seek(0)
+    return out
 
 
 def sb3_write_path(path: str | pathlib.Path, suffix: str, verbose: int = 0) -> pathlib.Path:
