@@ -756,7 +756,7 @@ class TileQAlgorithm(BaseAlgorithm):
     ) -> None:
         """SB3's ``save``, written atomically (a partial file, then renamed), with a plain copy of every attribute SB3
         pickles that has one, so that ``load(..., allow_pickle=False)`` can read the file without unpickling, and its
-        entries deflated (SB3 stores them; a tile-coded model's weights shrink about a hundredfold). Paths
+        entries deflated (SB3 stores them; a tile-coded model's file shrinks tens to hundreds of times). Paths
         are taken as SB3 takes them: ``.zip`` added when there is no suffix, a missing folder created and a folder's
         name turned into ``<name>_2``, each with SB3's warning. A file object is written where it stands and left open.
 
@@ -775,7 +775,7 @@ class TileQAlgorithm(BaseAlgorithm):
             super().save(stored, exclude, include)
         finally:
             del self.__dict__[PLAIN_STATE_KEY]
-        data = deflated_zip(stored.getvalue())  # SB3 stores the entries; the weights deflate 100-fold
+        data = deflated_zip(stored.getvalue())  # SB3 stores the entries; mostly initial weights deflate well
         if isinstance(path, pathlib.Path):
             with atomic_path(path, ".zip") as partial:
                 partial.write_bytes(data)

@@ -262,8 +262,9 @@ def read_by_sb3(name: str) -> bool:
     return name in ("data", "_stable_baselines3_version", "system_info.txt") or name.endswith(".pth")
 
 
-def _stored_entry(info: zipfile.ZipInfo) -> zipfile.ZipInfo:
-    """A new member like ``info`` (name, time, attributes), stored, with no extra field (a stale ZIP64 one)."""
+def _fresh_entry(info: zipfile.ZipInfo) -> zipfile.ZipInfo:
+    """A new member like ``info`` (name, time, attributes) for another zip, with no extra field (a stale ZIP64 one)
+    and the compression that zip's write gives it."""
     entry = zipfile.ZipInfo(info.filename, date_time=info.date_time)
     entry.external_attr = info.external_attr
     return entry
@@ -288,7 +289,7 @@ def read_members(
         parts = []
         try:
             with archive.open(info) as member:
-                target = copy.open(_stored_entry(info), "w", force_zip64=True) if copied else None
+                target = copy.open(_fresh_entry(info), "w", force_zip64=True) if copied else None
                 try:
                     while chunk := member.read(MEMBER_CHUNK):
                         if target is not None:
@@ -443,8 +444,8 @@ MODEL_COMPRESSION_LEVEL = 6
 
 def deflated_zip(archive: bytes) -> bytes:
     """A copy of the zip ``archive`` with every entry deflated. SB3's ``save`` stores them uncompressed, and a
-    tile-coded model's weights are mostly their initial value: a fresh walker model's 4 million float64 weights make a
-    33.6 MB file stored and 0.2 MB deflated, in 0.16 s. SB3's ``load`` (and sb3-er's) read either kind.
+    tile-coded model's weights are mostly their initial value, so the file is tens to hundreds of times smaller
+    (``benchmarks/model_size.py``). SB3's ``load`` (and sb3-er's) read either kind.
 
     :param archive: the bytes of a zip file, as SB3's ``save`` writes it.
     """
@@ -455,9 +456,9 @@ def deflated_zip(archive: bytes) -> bytes:
         zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED, compresslevel=level) as copy,
     ):
         for info in source.infolist():
-            entry = zipfile.ZipInfo(info.filename, date_time=info.date_time)  # no stale ZIP64 extra field
-            entry.external_attr = info.external_attr
-            copy.writestr(entry, source.read(info), compress_type=zipfile.ZIP_DEFLATED, compresslevel=level)
+            copy.writestr(
+                _fresh_entry(info), source.read(info), compress_type=zipfile.ZIP_DEFLATED, compresslevel=level
+            )
     return out.getvalue()
 
 
@@ -479,9 +480,9 @@ def zip_without_entries(source: Any, left_out: list[str]) -> Any:
             if info.filename == "data":
                 data = json.loads(archive.read(info).decode())
                 kept = {key: value for key, value in data.items() if key not in left_out}
-                copy.writestr(_stored_entry(info), json.dumps(kept, indent=4))
+                copy.writestr(_fresh_entry(info), json.dumps(kept, indent=4))
                 continue
-            with archive.open(info) as member, copy.open(_stored_entry(info), "w", force_zip64=True) as target:
+            with archive.open(info) as member, copy.open(_fresh_entry(info), "w", force_zip64=True) as target:
                 while chunk := member.read(MEMBER_CHUNK):
                     target.write(chunk)
     out.seek(0)
