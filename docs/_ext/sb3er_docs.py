@@ -693,7 +693,7 @@ def results_page(name: str) -> str:
         else:
             lines += [
                 "Judged on every run; the runs that stayed inside the possible returns are judged beside "
-                "(— where every run stayed inside).",
+                "(— where every run stayed inside; not judged where a side has no run inside).",
                 "",
                 "| finding | verdict | on the runs that stayed inside | evidence |",
                 "|---|---|---|---|",
@@ -776,7 +776,8 @@ def results_index() -> str:
         "values left the possible returns counts with its own measured curve, and a diverged run as one that learned "
         "nothing (the random policy's committed score throughout, so that it never rises and ends at that score; its "
         "falls go on at its last recorded rate to the end of the budget). Where some runs did not stay inside the "
-        "possible returns, the same rule on the runs that did is shown beside, not instead.",
+        "possible returns, the same rule on the runs that did is shown beside, not instead (not judged where a side "
+        "has no run inside).",
         "",
         verdict_table(lambda name: f"{name}.md"),
         "",
