@@ -13,7 +13,6 @@ sb3-er deflates them. Written (atomically) to ``--out``/summary.md with the comm
 from __future__ import annotations
 
 import argparse
-import io
 import shlex
 import statistics
 import sys
@@ -21,8 +20,6 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
-
-from stable_baselines3.common.base_class import BaseAlgorithm
 
 import sb3_er_envs  # noqa: F401  (registers the thesis's env ids)
 from sb3_er import ERSigma, SarsaLambda
@@ -41,16 +38,8 @@ CASES = (
 
 
 def stored_bytes(model) -> bytes:
-    """The zip SB3's own ``save`` writes for `model` (its members stored), with sb3-er's plain copies in it."""
-    from sb3_er.common.serialization import PLAIN_STATE_KEY, plain_state
-
-    stream = io.BytesIO()
-    model.__dict__[PLAIN_STATE_KEY] = plain_state(model, None, None)
-    try:
-        BaseAlgorithm.save(model, stream)
-    finally:
-        del model.__dict__[PLAIN_STATE_KEY]
-    return stream.getvalue()
+    """The zip SB3's own ``save`` writes for `model` (its members stored): what sb3-er's ``save`` deflates."""
+    return model._sb3_zip()
 
 
 def median_seconds(action, repeats: int) -> float:

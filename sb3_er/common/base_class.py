@@ -768,6 +768,22 @@ class TileQAlgorithm(BaseAlgorithm):
             path = sb3_write_path(path, "zip")
         else:
             check_file_object(path, "w")
+        data = deflated_zip(
+            self._sb3_zip(exclude, include)
+        )  # SB3 stores the entries; mostly initial weights deflate well
+        if isinstance(path, pathlib.Path):
+            with atomic_path(path, ".zip") as partial:
+                partial.write_bytes(data)
+        else:
+            path.write(data)
+
+    def _sb3_zip(self, exclude: Iterable[str] | None = None, include: Iterable[str] | None = None) -> bytes:
+        """The zip SB3's ``save`` writes for this model (its members stored), with sb3-er's plain copies in its data
+        entry: what :meth:`save` deflates (``benchmarks/model_size.py`` compares the two).
+
+        :param exclude: attribute names not to save, besides SB3's defaults (default None).
+        :param include: attribute names to save that SB3 leaves out by default (default None).
+        """
         self._remember_observed_rewards()
         self.__dict__[PLAIN_STATE_KEY] = plain_state(self, exclude, include)
         try:
@@ -775,12 +791,7 @@ class TileQAlgorithm(BaseAlgorithm):
             super().save(stored, exclude, include)
         finally:
             del self.__dict__[PLAIN_STATE_KEY]
-        data = deflated_zip(stored.getvalue())  # SB3 stores the entries; mostly initial weights deflate well
-        if isinstance(path, pathlib.Path):
-            with atomic_path(path, ".zip") as partial:
-                partial.write_bytes(data)
-        else:
-            path.write(data)
+        return stored.getvalue()
 
     @classmethod
     def load(
